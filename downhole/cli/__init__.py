@@ -1,0 +1,61 @@
+"""The ``downhole`` command line: one typer app; each module of this package adds its commands.
+
+Modules register commands on :data:`app` at import (``@app.command()``) or add sub-apps
+(``app.add_typer(...)``). :func:`main` turns input errors into one-line messages and exit code 2.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+
+import typer
+
+__all__ = ["app", "main", "fail"]
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="downhole: drilling dynamics, optimization and control.")
+
+
+def fail(message: str, code: int = 2):
+    """Print ``error: message`` to stderr and exit with ``code`` (no traceback)."""
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(code)
+
+
+def _load_commands() -> None:
+    for mod in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if not mod.name.startswith("_"):
+            importlib.import_module(f"{__name__}.{mod.name}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console-script entry point."""
+    from downhole.errors import DownholeInputError
+
+    _load_commands()
+    try:
+        app(args=argv, standalone_mode=False)
+    except typer.Exit as exc:
+        return exc.exit_code
+    except SystemExit as exc:  # click usage errors
+        return int(exc.code or 0)
+    except DownholeInputError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        return 2
+    except KeyError as exc:  # unknown preset / experiment ids carry their message
+        typer.echo(f"error: {exc.args[0] if exc.args else exc}", err=True)
+        return 2
+    except Exception as exc:  # click's own usage errors
+        import click
+
+        if isinstance(exc, click.ClickException):
+            exc.show()
+            return exc.exit_code
+        raise
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,40 @@
+"""Exceptions with precise messages; the CLI turns :class:`DownholeInputError` into exit code 2."""
+
+from __future__ import annotations
+
+__all__ = ["DownholeError", "DownholeInputError", "ScenarioError", "SimulationDiverged"]
+
+
+class DownholeError(Exception):
+    """Base class of downhole's own errors."""
+
+
+class DownholeInputError(DownholeError, ValueError):
+    """Bad user input (file, field, value); reported as one line, exit code 2."""
+
+
+class ScenarioError(DownholeInputError):
+    """A scenario file or value is invalid.
+
+    Parameters
+    ----------
+    source : str
+        The file (or "<dict>") the scenario came from.
+    field : str
+        Dotted path of the offending field, e.g. ``model.bit.n_blades``.
+    message : str
+        What was wrong and what was expected.
+    """
+
+    def __init__(self, source: str, field: str, message: str):
+        self.source, self.field, self.message = source, field, message
+        where = f"{source}: {field}: " if field else f"{source}: "
+        super().__init__(where + message)
+
+
+class SimulationDiverged(DownholeError, FloatingPointError):
+    """A run produced a non-finite value; names the simulated time and the channel."""
+
+    def __init__(self, time: float, channel: str):
+        self.time, self.channel = time, channel
+        super().__init__(f"simulation went non-finite at t = {time:.6g} s in channel '{channel}'")

@@ -1,0 +1,99 @@
+"""Parameters of the PDC bit/rock interaction law (Detournay; seed Eqs. 2.2-2.8, 4.9-4.12, 4.16)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from downhole.params.quantity import Q
+
+__all__ = ["BitParams", "BIT_ARRAY_LAYOUT"]
+
+#: Order of the packed float array handed to the compiled bit kernels.
+BIT_ARRAY_LAYOUT = (
+    "epsilon", "sigma", "zeta", "radius", "n_blades", "wear_length", "d_star", "contact_stiffness",
+    "mu_c", "mu_s", "gamma", "gamma_b", "v_f", "mu_gamma", "a1", "b1", "a2", "b2",
+    "wear_flat_continuous", "friction_stribeck", "omega_reg", "omega_floor",
+)
+
+
+class BitParams(BaseModel):
+    """PDC bit and rock parameters, SI units.
+
+    Attributes
+    ----------
+    epsilon : float
+        Intrinsic specific energy of the rock, Pa (seed symbol epsilon).
+    sigma : float
+        Maximum contact pressure at the wear flats, Pa.
+    zeta : float
+        Cutter face inclination number, - (0.5-0.8).
+    radius : float
+        Bit radius a (R_b), m.
+    n_blades : int
+        Number of blades n.
+    wear_length : float
+        Total wear-flat length l, m.
+    d_star : float
+        Depth of cut (all blades) above which wear-flat contact saturates, m.
+    contact_stiffness : float
+        K_c of the printed Ch. 2 piecewise law (only used with ``wear_flat_law="printed"``), N/m.
+    mu_c, mu_s : float
+        Coulomb and static friction coefficients of the Stribeck law (Eq. 2.8).
+    gamma : float
+        Bit geometry parameter (gamma / delta of the seed), -.
+    gamma_b, v_f : float
+        Stribeck decay parameters of Eq. 2.8, applied to |omega| (SPEC correction).
+    mu_gamma : float
+        Constant product mu*gamma used with ``friction_law="constant"`` (Tables 2.1/5.1: 0.7).
+    a1, b1, a2, b2 : float
+        Regularisation constants of f(v) = 1/(1+exp(a1 v + b1)) and g(omega) = tanh(a2 omega + b2).
+    wear_flat_law : {"continuous", "printed"}
+        ``continuous`` (default): W_f = sigma l a min(d/d*, 1) H(d) f(v). ``printed``: the seed's
+        piecewise form with K_c below d* (jumps at d* with Table 2.1).
+    friction_law : {"stribeck", "constant"}
+        Wear-flat friction coefficient: Stribeck in |omega| (default) or the constant ``mu_gamma``.
+    omega_reg : float
+        Width of the ramp that switches the cutting torque off for omega <= 0, rad/s.
+    omega_floor : float
+        Floor omega* of the approximated depth of cut d = 2 pi v / max(omega, omega*) (Eq. 4.16), rad/s.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    epsilon: Q["pressure"] = Field(77e6, gt=0)
+    sigma: Q["pressure"] = Field(45e6, ge=0)
+    zeta: float = Field(0.64, gt=0, le=2.0)
+    radius: Q["length"] = Field(0.15, gt=0)
+    n_blades: int = Field(5, ge=1, le=20)
+    wear_length: Q["length"] = Field(3.6e-3, ge=0)
+    d_star: Q["length"] = Field(1.2e-3, gt=0)
+    contact_stiffness: Q["stiffness"] = Field(37.5e6, ge=0)
+    mu_c: float = Field(0.5, ge=0)
+    mu_s: float = Field(0.8, ge=0)
+    gamma: float = Field(1.0, gt=0)
+    gamma_b: float = Field(0.9, ge=0)
+    v_f: float = Field(1.0, gt=0)
+    mu_gamma: float = Field(0.7, ge=0)
+    a1: float = -20e4
+    b1: float = -1.5
+    a2: float = 70e3
+    b2: float = 2.0
+    wear_flat_law: Literal["continuous", "printed"] = "continuous"
+    friction_law: Literal["stribeck", "constant"] = "stribeck"
+    omega_reg: Q["angular_velocity"] = Field(0.01, gt=0)
+    omega_floor: Q["angular_velocity"] = Field(0.5, gt=0)
+
+    def to_array(self) -> np.ndarray:
+        """Pack into the float64 array layout :data:`BIT_ARRAY_LAYOUT` used by compiled kernels."""
+        vals = []
+        for name in BIT_ARRAY_LAYOUT:
+            if name == "wear_flat_continuous":
+                vals.append(1.0 if self.wear_flat_law == "continuous" else 0.0)
+            elif name == "friction_stribeck":
+                vals.append(1.0 if self.friction_law == "stribeck" else 0.0)
+            else:
+                vals.append(float(getattr(self, name)))
+        return np.array(vals, dtype=np.float64)

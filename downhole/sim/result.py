@@ -1,0 +1,178 @@
+"""The Result of a simulation: labeled time series with units, metadata, summary metrics, plots.
+
+A :class:`Result` wraps an :class:`xarray.Dataset` whose variables are named channels over the
+``time`` coordinate. It saves to NetCDF (h5netcdf) with units and the scenario (TOML text) in
+the attributes, loads back, summarizes itself with drilling metrics and plots itself.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+__all__ = ["Result", "CHANNEL_UNITS", "load_result"]
+
+#: Units and descriptions of the standard channels. Models may add their own channels.
+CHANNEL_UNITS: dict[str, tuple[str, str]] = {
+    "bit_axial_position": ("m", "bit axial displacement from the start, positive downward"),
+    "bit_axial_velocity": ("m/s", "bit axial velocity, positive into the rock"),
+    "bit_angle": ("rad", "bit rotation angle"),
+    "bit_angular_velocity": ("rad/s", "bit angular velocity"),
+    "depth_of_cut": ("m", "total depth of cut per revolution (all blades)"),
+    "wob": ("N", "weight on bit"),
+    "tob": ("N*m", "torque on bit"),
+    "hook_load": ("N", "hook load (string weight minus slack-off)"),
+    "surface_torque": ("N*m", "torque delivered by the top drive to the string"),
+    "top_drive_axial_velocity": ("m/s", "top drive axial velocity, positive downward"),
+    "top_drive_angular_velocity": ("rad/s", "top drive angular velocity"),
+    "reference_axial_velocity": ("m/s", "reference bit axial velocity (ROP)"),
+    "reference_angular_velocity": ("rad/s", "reference bit angular velocity"),
+}
+
+REQUIRED_CHANNELS = (
+    "bit_axial_position", "bit_axial_velocity", "bit_angle", "bit_angular_velocity",
+    "depth_of_cut", "wob", "tob", "hook_load", "surface_torque", "top_drive_axial_velocity",
+    "top_drive_angular_velocity",
+)
+
+
+class Result:
+    """Labeled time series of one run.
+
+    Parameters
+    ----------
+    time : array_like
+        Sample times, s.
+    channels : dict of str to array_like
+        Named signals, each of the same length as ``time``.
+    units : dict of str to str, optional
+        Units of non-standard channels.
+    attrs : dict, optional
+        Metadata (``scenario`` TOML text, ``model``, ``dt``, ``downhole_version``, ...).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = Result(np.arange(3.0), {"bit_angular_velocity": np.ones(3)})
+    >>> float(r["bit_angular_velocity"][-1])
+    1.0
+    """
+
+    def __init__(self, time, channels: dict, units: dict | None = None, attrs: dict | None = None):
+        time = np.asarray(time, dtype=float)
+        data_vars = {}
+        units = dict(units or {})
+        for name, values in channels.items():
+            values = np.asarray(values, dtype=float)
+            if values.shape[0] != time.shape[0]:
+                raise ValueError(f"channel {name!r} has {values.shape[0]} samples, "
+                                 f"time has {time.shape[0]}")
+            unit, desc = CHANNEL_UNITS.get(name, (units.get(name, ""), ""))
+            dims = ("time",) if values.ndim == 1 else ("time",) + tuple(
+                f"{name}_dim{i}" for i in range(1, values.ndim))
+            data_vars[name] = xr.Variable(dims, values,
+                                          attrs={"units": units.get(name, unit),
+                                                 "description": desc})
+        from downhole import __version__
+
+        meta = {"downhole_version": __version__}
+        meta.update({k: _attr(v) for k, v in (attrs or {}).items()})
+        self.dataset = xr.Dataset(data_vars, coords={"time": ("time", time, {"units": "s"})},
+                                  attrs=meta)
+
+    # --- access -------------------------------------------------------------------------------
+    @classmethod
+    def from_dataset(cls, ds: xr.Dataset) -> "Result":
+        obj = cls.__new__(cls)
+        obj.dataset = ds
+        return obj
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.dataset["time"].values
+
+    @property
+    def channels(self) -> list[str]:
+        return list(self.dataset.data_vars)
+
+    @property
+    def attrs(self) -> dict:
+        return dict(self.dataset.attrs)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name == "time":
+            return self.time
+        if name not in self.dataset:
+            raise KeyError(f"no channel {name!r}; channels: {', '.join(self.channels)}")
+        return self.dataset[name].values
+
+    def __contains__(self, name: str) -> bool:
+        return name == "time" or name in self.dataset
+
+    def units(self, name: str) -> str:
+        return self.dataset[name].attrs.get("units", "")
+
+    def window(self, t_start: float | None = None, t_end: float | None = None) -> "Result":
+        """A Result restricted to ``t_start <= t <= t_end``."""
+        t = self.time
+        lo = t[0] if t_start is None else t_start
+        hi = t[-1] if t_end is None else t_end
+        return Result.from_dataset(self.dataset.sel(time=slice(lo, hi)))
+
+    # --- io -----------------------------------------------------------------------------------
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write NetCDF (h5netcdf engine). Written to a temporary file and renamed, so a failed
+        write leaves nothing half-written."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".part")
+        try:
+            self.dataset.to_netcdf(tmp, engine="h5netcdf")
+            tmp.replace(path)
+        finally:
+            if tmp.exists():
+                tmp.unlink()
+        return path
+
+    def summary(self, window: tuple[float, float] | None = None) -> dict:
+        """Drilling metrics over ``window`` (default: second half of the run).
+
+        See :func:`downhole.analysis.metrics.summarize` for the definitions."""
+        from downhole.analysis.metrics import summarize
+
+        return summarize(self, window)
+
+    def plot(self, path: str | os.PathLike | None = None, title: str | None = None):
+        """Overview figure (bit velocities, WOB/TOB, surface signals); saved if ``path``."""
+        from downhole.analysis.plots import plot_overview
+
+        return plot_overview(self, path, title)
+
+    def to_csv(self, path: str | os.PathLike) -> Path:
+        """Write the 1-D channels as CSV with a ``time`` column."""
+        one_d = [n for n in self.channels if self.dataset[n].ndim == 1]
+        self.dataset[one_d].to_dataframe().to_csv(path)
+        return Path(path)
+
+    def __repr__(self) -> str:
+        t = self.time
+        span = f"{t[0]:.3g}..{t[-1]:.3g} s" if t.size else "empty"
+        return f"Result({len(t)} samples, {span}, channels={self.channels})"
+
+
+def _attr(v):
+    if isinstance(v, bool):
+        return int(v)
+    if isinstance(v, (dict, list, tuple)):
+        import json
+
+        return json.dumps(v)
+    return v
+
+
+def load_result(path: str | os.PathLike) -> Result:
+    """Load a Result saved by :meth:`Result.save`."""
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        return Result.from_dataset(ds.load())
