@@ -1,0 +1,1 @@
+"""Controllers and optimizers: PI top drive, dynamic programming, EID + LMI, DHP (SNAC)."""

@@ -1,0 +1,1 @@
+"""Drill-string mechanics core: elements (lumped chains, bar FEM, wave segments) and models."""
