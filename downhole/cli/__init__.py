@@ -30,6 +30,16 @@ def _load_commands() -> None:
             importlib.import_module(f"{__name__}.{mod.name}")
 
 
+def _click_exception_types() -> tuple:
+    types = []
+    for mod in ("click.exceptions", "typer._click.exceptions"):
+        try:
+            types.append(importlib.import_module(mod).ClickException)
+        except (ImportError, AttributeError):
+            pass
+    return tuple(types)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Console-script entry point."""
     from downhole.errors import DownholeInputError
@@ -47,10 +57,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyError as exc:  # unknown preset / experiment ids carry their message
         typer.echo(f"error: {exc.args[0] if exc.args else exc}", err=True)
         return 2
-    except Exception as exc:  # click's own usage errors
-        import click
-
-        if isinstance(exc, click.ClickException):
+    except Exception as exc:  # click's own usage errors (typer may vendor click)
+        click_exc = _click_exception_types()
+        if isinstance(exc, click_exc):
             exc.show()
             return exc.exit_code
         raise
