@@ -76,3 +76,18 @@ def test_scale_from_trajectory():
     np.testing.assert_allclose(scale_from_trajectory(z, floor=0.5), [2.0, 3.0, 0.5])
     with pytest.raises(DownholeInputError):
         scale_from_trajectory(z)
+
+
+def test_structured_force_form_equals_nonlinear_form():
+    A = np.array([[1.0, 0.1], [-0.2, 0.95]])
+    B = np.array([[0.0], [0.1]])
+    fmap = np.array([[0.001], [0.02]])  # physical increment per N
+    kw = dict(state_scale=[2.0, 0.5], input_scale=[10.0], dt=0.1, state_names=["x", "v"],
+              input_names=["slack_off_force"])
+    s = ControlAffineModel.from_physical(A, B, force_map=fmap,
+                                         forces=lambda zb: -3.0 * np.tanh(zb[:, 1:2]), **kw)
+    h = lambda z: -3.0 * np.tanh(z[:, 1:2] / 0.5) @ fmap.T  # noqa: E731
+    u = ControlAffineModel.from_physical(A, B, nonlinear_physical=h, **kw)
+    Z = np.random.default_rng(1).normal(size=(4, 2))
+    np.testing.assert_allclose(s.f(Z), u.f(Z), rtol=1e-12)
+    assert s.nonlinear_rows.tolist() == [0, 1]

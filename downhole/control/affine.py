@@ -54,10 +54,14 @@ Exporter checklist (FEM / hybrid / lumped):
 1. ``A_d``, ``B_d`` physical, discrete, deviation states from hanging equilibrium, time step ``dt``.
 2. ``h(z_batch)`` physical increments over one step from the nonlinear forces, vectorized over
    the batch (``(N, n) -> (N, n)``); bit law through :func:`downhole.bit.bit_forces` with
-   :func:`downhole.bit.approx_depth_of_cut` (floor ``BitParams.omega_floor``).
+   :func:`downhole.bit.approx_depth_of_cut` (floor ``BitParams.omega_floor``). Preferably in the
+   structured form ``h = forces(z) @ force_map.T`` (``force_map`` (n, n_f): the ZOH map of each
+   nonlinear force, ``forces``: the n_f forces for a batch): the DHP fast path then fits n_f force
+   columns instead of n state rows.
 3. ``state_scale`` (Eq. 4.17: a typical maximum of |z_i|, positive), ``input_scale``.
 4. ``state_names``, ``state_kinds``, ``state_nodes``, ``input_names``.
-5. Optional: ``bit`` (the :class:`~downhole.params.BitParams`, so that closed-loop runs on the
+5. Optional: ``outputs(z, u) -> dict`` of physical channels (``wob``, ``tob``, ``hook_load``, ...)
+   for Results of closed-loop runs on the design model; ``bit`` (the :class:`~downhole.params.BitParams`, so that closed-loop runs on the
    design model can report WOB/TOB/depth of cut), ``hanging_hook_load`` (N, to report the hook
    load), ``input_limits`` (physical, (m, 2)), ``nonlinear_rows`` (the rows where ``hbar`` can be
    non-zero: the DHP fast path fits only those), ``node_depths`` (measured depth of each node, m).
@@ -153,6 +157,16 @@ class ControlAffineModel:
         ``d hbar / d zbar`` for a batch: ``(N, n) -> (N, n, n)``.
     nonlinear_rows : array_like of int, optional
         Rows of ``hbar`` that can be non-zero (default: all rows if ``nonlinear`` is given).
+    force_map, forces : optional
+        Structured form of ``hbar`` (alternative to ``nonlinear``): ``force_map`` (n, n_f) and
+        ``forces(zbar_batch) -> (N, n_f)`` with ``hbar(zbar) = forces(zbar) @ force_map.T``
+        (e.g. the ZOH input map of the bit force, bit torque and contact forces, non-dimensional).
+        The DHP fast path then fits only the n_f force columns.
+    outputs : callable, optional
+        ``outputs(z, u) -> dict`` of extra physical channels (e.g. ``wob``, ``tob``,
+        ``depth_of_cut``, ``hook_load``, ``surface_torque``) from a physical state trajectory
+        ``z`` (T, n) and input trajectory ``u`` (T, m); used when closed-loop runs on the design
+        model are turned into a :class:`~downhole.sim.result.Result`.
     input_limits : array_like, shape (m, 2), optional
         Physical lower/upper input bounds.
     bit : BitParams, optional
@@ -181,7 +195,8 @@ class ControlAffineModel:
                  nonlinear_jacobian: Callable | None = None, nonlinear_rows=None,
                  input_limits=None, bit=None, hanging_hook_load: float = 0.0,
                  node_depths=None, name: str = "", metadata: dict | None = None,
-                 strict_inputs: bool = True):
+                 strict_inputs: bool = True, force_map=None, forces: Callable | None = None,
+                 outputs: Callable | None = None):
         A = np.array(linear, dtype=float)
         if A.ndim != 2 or A.shape[0] != A.shape[1] or A.shape[0] == 0:
             raise DownholeInputError(f"linear must be a square (n, n) matrix, got shape {A.shape}")
@@ -199,6 +214,29 @@ class ControlAffineModel:
             raise DownholeInputError(f"dt must be a positive number of seconds, got {dt!r}")
         if nonlinear is not None and not callable(nonlinear):
             raise DownholeInputError(f"nonlinear must be callable or None, got {type(nonlinear)}")
+        if (force_map is None) != (forces is None):
+            raise DownholeInputError("force_map and forces must be given together")
+        if force_map is not None:
+            if nonlinear is not None:
+                raise DownholeInputError("give either nonlinear or (force_map, forces), not both")
+            fm = np.array(force_map, dtype=float)
+            if fm.ndim != 2 or fm.shape[0] != n:
+                raise DownholeInputError(f"force_map must have shape ({n}, n_f), got {fm.shape}")
+            if not callable(forces):
+                raise DownholeInputError("forces must be callable")
+            fm.setflags(write=False)
+            self.force_map = fm
+            self.forces = forces
+
+            def nonlinear(zb, _f=forces, _m=fm):
+                return np.asarray(_f(zb), dtype=float) @ _m.T
+
+            if nonlinear_rows is None:
+                nonlinear_rows = np.nonzero(np.any(fm != 0.0, axis=1))[0]
+        else:
+            self.force_map = None
+            self.forces = None
+        self.outputs = outputs
         self._A = A
         self._g = G
         self._h = nonlinear
@@ -277,6 +315,9 @@ class ControlAffineModel:
             Time step, s.
         nonlinear_physical : callable, optional
             ``h(z_batch) -> (N, n)`` in physical units; wrapped as ``P^-1 h(P zbar)``.
+            Alternatively pass ``force_map`` (physical, (n, n_f): increment per unit force) and
+            ``forces`` (a callable of the *non-dimensional* batch returning physical forces);
+            the map is scaled by ``P^-1`` here.
         **kwargs
             Passed to the constructor (names, kinds, nodes, limits, ...).
         """
@@ -294,6 +335,9 @@ class ControlAffineModel:
         Abar = A_d * P[None, :] / P[:, None]
         gbar = B_d * U[None, :] / P[:, None]
         hbar = None
+        if "force_map" in kwargs and kwargs["force_map"] is not None:
+            fm = np.asarray(kwargs["force_map"], dtype=float)
+            kwargs["force_map"] = fm / P[:, None]
         if nonlinear_physical is not None:
             Pc = P.copy()
 
