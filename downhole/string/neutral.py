@@ -1,0 +1,480 @@
+"""The neutral-type distributed drill string of seed Ch. 3 as a configuration of the mechanics core:
+one wave segment (surface to bit) per field, the bit mass and inertia at the bottom, and a damper
+(alpha_A, alpha_T) to the commanded velocity at the massless top (seed Eqs. 3.1-3.6).
+
+Eliminating the waves gives the neutral delay-differential equations of Eq. 3.9 with the delays
+tau = L sqrt(rho/E), L sqrt(rho/G) (Eq. 3.10 prints them inverted); :meth:`NeutralModel.ndde`
+returns its matrices (Eq. 3.13) for control design. :func:`simulate_neutral` runs the wave form
+(compiled, open loop or with the EID controller in the same kernel) and returns a Result.
+
+Conventions. Velocities positive downward / forward. The top boundary is the seed's
+``N(0) = alpha_A (v_top - U_A) + (M_S + M_B) g`` (Eq. 3.5) with the string weight carried at the
+top, so U_A = M_S g / alpha_A holds the string hanging still; ``U_A = v + (W + M_S g)/alpha_A``
+drills at ROP v with WOB W (Eq. 3.9 at steady state). At t = 0 the string hangs at rest (uniform
+tension M_B g, the bit touching the rock with zero WOB; U_A = M_S g / alpha_A and U_T = 0 before
+t = 0). Reported hook load = N(0) + M_S g (= (M_S + M_B) g - WOB at steady state); surface torque
+= alpha_T (U_T - omega_top).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from downhole.bit.detournay import approx_depth_of_cut, bit_force_slopes, bit_forces
+from downhole.bit.rock_surface import RockSurfaceSpec, rock_advance, rock_depth, rock_init
+from downhole.control.eid._kernel import NSIG, eid_arrays, eid_step
+from downhole.errors import DownholeInputError, SimulationDiverged
+from downhole.params import BitParams, NeutralStringParams, get_preset
+from downhole.sim.result import Result
+from downhole.string.wave import (WaveSegment, segments_from_pipe, wave_incoming, wave_push,
+                                  wave_state)
+
+__all__ = ["NeutralModel", "NDDEMatrices", "neutral_model", "simulate_neutral",
+           "NEUTRAL_CHANNELS", "NOMINAL_U_A", "NOMINAL_U_T"]
+
+#: SPEC.md: open-loop commands giving 10 mm/s and 20 rad/s with Table 3.1.
+NOMINAL_U_A = 1.147224
+NOMINAL_U_T = 22.5196
+
+NEUTRAL_CHANNELS = (
+    "time", "bit_axial_position", "bit_axial_velocity", "bit_angle", "bit_angular_velocity",
+    "depth_of_cut", "wob", "tob", "hook_load", "surface_torque", "top_drive_axial_velocity",
+    "top_drive_angular_velocity", "command_axial", "command_angular",
+)
+_EXTRA_UNITS = {"command_axial": "m/s", "command_angular": "rad/s",
+                "measured_axial_velocity": "m/s", "measured_angular_velocity": "rad/s",
+                "eid_disturbance_axial": "m/s", "eid_disturbance_angular": "rad/s",
+                "eid_prediction_axial": "m/s", "eid_prediction_angular": "rad/s"}
+
+
+@dataclass(frozen=True)
+class NDDEMatrices:
+    """Design model of seed Eq. 3.13 (all matrices 2x2 diagonal; state x = [v_bit, omega_bit]).
+
+    ``x' = A0 x + A1 x(t-h1) + A2 x(t-h2) + G1 x'(t-h1) + G2 x'(t-h2) + Bd d + B u(t - tau)``
+    with ``u = [U_A - M_S g/alpha_A, U_T]``, ``d = [-W + Gamma1 W(t-h1), -T + Upsilon1 T(t-h2)]``,
+    ``h = 2 tau`` and the input delays ``tau = (tau1, tau2)``.
+    """
+
+    A0: np.ndarray
+    A1: np.ndarray
+    A2: np.ndarray
+    G1: np.ndarray
+    G2: np.ndarray
+    B: np.ndarray
+    Bd: np.ndarray
+    C: np.ndarray
+    h1: float
+    h2: float
+    tau: tuple[float, float]
+    u_offset: tuple[float, float]
+
+    def channel(self, i: int) -> dict:
+        """Scalar coefficients of channel ``i`` (0 axial, 1 torsional)."""
+        a1 = self.A1[0, 0] if i == 0 else self.A2[1, 1]
+        g1 = self.G1[0, 0] if i == 0 else self.G2[1, 1]
+        return {"a0": float(self.A0[i, i]), "a1": float(a1), "g1": float(g1),
+                "b": float(self.B[i, i]), "h": self.h1 if i == 0 else self.h2,
+                "tau": self.tau[i], "offset": self.u_offset[i]}
+
+
+@dataclass(frozen=True)
+class NeutralModel:
+    """Immutable neutral-type model: parameters plus derived wave segments and coefficients.
+
+    Use :func:`neutral_model` to build it.
+    """
+
+    params: NeutralStringParams
+    bit: BitParams
+    axial: WaveSegment
+    torsional: WaveSegment
+    name: str = "neutral"
+
+    # --- Eq. 3.9 coefficients -----------------------------------------------------------------
+    @property
+    def tau1(self) -> float:
+        """Axial one-way delay L sqrt(rho/E), s."""
+        return self.axial.delay
+
+    @property
+    def tau2(self) -> float:
+        """Torsional one-way delay L sqrt(rho/G), s."""
+        return self.torsional.delay
+
+    @property
+    def gammas(self) -> tuple[float, float, float]:
+        """(Gamma1, Gamma2, Gamma3) of Eq. 3.9 (EA/c_A = Z_axial)."""
+        z, a, m = self.axial.impedance, self.params.alpha_axial, self.params.bit_mass
+        return (a - z) / (a + z), z / m, 2 * a * z / (m * (a + z))
+
+    @property
+    def upsilons(self) -> tuple[float, float, float]:
+        """(Upsilon1, Upsilon2, Upsilon3) of Eq. 3.9 (GJ/c_T = Z_torsional)."""
+        z, a, m = self.torsional.impedance, self.params.alpha_torsional, self.params.bit_inertia
+        return (a - z) / (a + z), z / m, 2 * a * z / (m * (a + z))
+
+    @property
+    def hang_command(self) -> float:
+        """U_A that holds the string hanging still: M_S g / alpha_A, m/s."""
+        return self.params.string_mass * self.params.g / self.params.alpha_axial
+
+    def steady_inputs(self, rop: float, omega: float, wob: float, tob: float) -> tuple[float, float]:
+        """Open-loop commands (U_A, U_T) for a steady state: U_A = v + (W + M_S g)/alpha_A,
+        U_T = omega + T/alpha_T."""
+        p = self.params
+        return (rop + (wob + p.string_mass * p.g) / p.alpha_axial, omega + tob / p.alpha_torsional)
+
+    def steady_state(self, u_axial: float, u_angular: float, iterations: int = 200):
+        """Steady drilling state (v, omega, W, T) under constant commands, with the approximated
+        depth of cut d = 2 pi v/omega (fixed point of v = U_A - (W + M_S g)/alpha_A,
+        omega = U_T - T/alpha_T)."""
+        p = self.params
+        bp = self.bit.to_array()
+        v, w = u_axial - self.hang_command, u_angular
+        for _ in range(iterations):
+            d = approx_depth_of_cut(max(v, 0.0), max(w, 1e-9), bp)
+            wob, tob = bit_forces(d, v, w, bp)
+            v_new = u_axial - (wob + p.string_mass * p.g) / p.alpha_axial
+            w_new = u_angular - tob / p.alpha_torsional
+            v, w = 0.5 * (v + v_new), 0.5 * (w + w_new)
+        return v, w, wob, tob
+
+    def ndde(self) -> NDDEMatrices:
+        """Matrices of the design model (Eq. 3.13) with the corrected delays."""
+        g1, g2, g3 = self.gammas
+        u1, u2, u3 = self.upsilons
+        d = np.diag
+        return NDDEMatrices(
+            A0=d([-g2, -u2]), A1=d([-g1 * g2, 0.0]), A2=d([0.0, -u1 * u2]),
+            G1=d([g1, 0.0]), G2=d([0.0, u1]), B=d([g3, u3]),
+            Bd=d([1.0 / self.params.bit_mass, 1.0 / self.params.bit_inertia]), C=np.eye(2),
+            h1=2 * self.tau1, h2=2 * self.tau2, tau=(self.tau1, self.tau2),
+            u_offset=(self.hang_command, 0.0))
+
+    def with_bit(self, bit: BitParams) -> "NeutralModel":
+        """Same string, another bit (e.g. a perturbed epsilon)."""
+        return NeutralModel(self.params, bit, self.axial, self.torsional, self.name)
+
+
+def neutral_model(string: NeutralStringParams | str = "table_3_1",
+                  bit: BitParams | None = None) -> NeutralModel:
+    """Build a :class:`NeutralModel` from parameters or a preset name.
+
+    Parameters
+    ----------
+    string : NeutralStringParams or str
+        String parameters, or a preset name of kind ``neutral`` (``"table_3_1"``).
+    bit : BitParams, optional
+        Bit parameters; default the preset's bit (Table 3.1's for a NeutralStringParams).
+
+    Raises
+    ------
+    DownholeInputError
+        Unknown or wrong-kind preset, or |Gamma1| >= 1 / |Upsilon1| >= 1 (unstable difference
+        operator; impossible with positive alpha and impedance, checked anyway).
+    """
+    name = "neutral"
+    if isinstance(string, str):
+        try:
+            pre = get_preset(string)
+        except KeyError as exc:
+            raise DownholeInputError(str(exc.args[0])) from None
+        if pre.kind != "neutral":
+            raise DownholeInputError(f"preset {string!r} is a {pre.kind} preset; the neutral model "
+                                     "needs a 'neutral' preset such as 'table_3_1'")
+        name = f"neutral:{string}"
+        bit = bit or pre.bit
+        string = pre.string
+    elif not isinstance(string, NeutralStringParams):
+        raise DownholeInputError(f"string must be NeutralStringParams or a preset name, got "
+                                 f"{type(string).__name__}")
+    if bit is None:
+        bit = get_preset("table_3_1").bit
+    ax, to = segments_from_pipe(string.pipe, string.length)
+    model = NeutralModel(string, bit, ax, to, name)
+    for label, val in (("Gamma1", model.gammas[0]), ("Upsilon1", model.upsilons[0])):
+        if not abs(val) < 1.0:
+            raise DownholeInputError(f"|{label}| = {abs(val):.6g} >= 1: the difference operator "
+                                     "of the neutral model is unstable")
+    return model
+
+
+# ----------------------------------------------------------------------------------------------
+# compiled kernel
+# ----------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, approx,
+                 ha, pa, wpa, ht, pt, wpt, surf, istate, rp,
+                 u_in, use_eid, cp, cs, ch, cpos, ref, noise, fnoise,
+                 nsteps, dt, every, out, sigout):
+    """Advance the wave model ``nsteps`` steps; returns (status, step, channel)."""
+    v = 0.0
+    w = 0.0
+    x = 0.0
+    th = 0.0
+    # incoming waves at t0 and the top node at t0
+    a_in, _b = wave_incoming(ha, pa, wpa)
+    _a, b_in = wave_incoming(ha, pa, wpa)
+    a_in_t, _b = wave_incoming(ht, pt, wpt)
+    _a, b_in_t = wave_incoming(ht, pt, wpt)
+    uvec = np.zeros(2)
+    y = np.zeros(2)
+    r = np.zeros(2)
+    sig = np.zeros((2, 4))
+    rec = 0
+    for k in range(nsteps + 1):
+        # commands at t_k
+        if use_eid:
+            y[0] = v + noise[0, k]
+            y[1] = w + noise[1, k]
+            r[0] = ref[0, k]
+            r[1] = ref[1, k]
+            eid_step(cp, cs, ch, cpos, y, r, dt, uvec, sig)
+            ua = uvec[0]
+            ut = uvec[1]
+        else:
+            ua = u_in[0, k]
+            ut = u_in[1, k]
+        # massless top nodes (algebraic)
+        vtop = (2.0 * za * b_in + alpha_a * ua - f_top) / (za + alpha_a)
+        wtop = (2.0 * zt * b_in_t + alpha_t * ut) / (zt + alpha_t)
+        # bit forces at t_k
+        if approx:
+            d = approx_depth_of_cut(v, w, bitp)
+        else:
+            d = rock_depth(surf, istate, rp, x, th)
+        wob, tob = bit_forces(d, v, w, bitp)
+        wob += fnoise[0, k]
+        tob += fnoise[1, k]
+        if k % every == 0 or k == nsteps:
+            out[rec, 0] = k * dt
+            out[rec, 1] = x
+            out[rec, 2] = v
+            out[rec, 3] = th
+            out[rec, 4] = w
+            out[rec, 5] = d
+            out[rec, 6] = wob
+            out[rec, 7] = tob
+            out[rec, 8] = alpha_a * (vtop - ua) + f_top + m_s_g
+            out[rec, 9] = alpha_t * (ut - wtop)
+            out[rec, 10] = vtop
+            out[rec, 11] = wtop
+            out[rec, 12] = ua
+            out[rec, 13] = ut
+            if use_eid:
+                sigout[rec, 0] = y[0]
+                sigout[rec, 1] = y[1]
+                sigout[rec, 2] = sig[0, 1]
+                sigout[rec, 3] = sig[1, 1]
+                sigout[rec, 4] = sig[0, 2]
+                sigout[rec, 5] = sig[1, 2]
+            for c in range(1, 14):
+                if not math.isfinite(out[rec, c]):
+                    return 1, k, c
+            rec += 1
+        # outgoing waves of t_k, then incoming at t_{k+1}
+        wave_push(ha, pa, wpa, vtop - b_in, v - a_in)
+        wave_push(ht, pt, wpt, wtop - b_in_t, w - a_in_t)
+        if k == nsteps:
+            break
+        a1, _b = wave_incoming(ha, pa, wpa)
+        _a, b1 = wave_incoming(ha, pa, wpa)
+        a1t, _b = wave_incoming(ht, pt, wpt)
+        _a, b1t = wave_incoming(ht, pt, wpt)
+        # bit node: trapezoidal on the line terms, bit forces with implicit frozen slopes
+        ca, ct = bit_force_slopes(d, v, w, bitp, approx)
+        v1 = (m_b * v / dt + 0.5 * za * (2.0 * a_in - v) + za * a1 + grav - wob + ca * v) / (
+            m_b / dt + 0.5 * za + ca)
+        w1 = (i_b * w / dt + 0.5 * zt * (2.0 * a_in_t - w) + zt * a1t - tob + ct * w) / (
+            i_b / dt + 0.5 * zt + ct)
+        xprev = x
+        thprev = th
+        x += 0.5 * dt * (v + v1)
+        th += 0.5 * dt * (w + w1)
+        v = v1
+        w = w1
+        a_in, b_in, a_in_t, b_in_t = a1, b1, a1t, b1t
+        if not approx:
+            rock_advance(surf, istate, rp, thprev, xprev, th, x)
+    return 0, nsteps, 0
+
+
+def _check_positive(name, value):
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise DownholeInputError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(x) or x <= 0:
+        raise DownholeInputError(f"{name} must be a positive finite number, got {value!r}")
+    return x
+
+
+def _sample(sig, t, name):
+    from downhole.sim.inputs import sample_signal
+
+    return sample_signal(sig, t, name)
+
+
+def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_1",
+                     bit: BitParams | None = None, *, duration: float = 10.0, dt: float = 1e-4,
+                     controller=None, inputs=None, reference=None, noise=None,
+                     depth_of_cut: str = "delayed", record_dt: float | None = None,
+                     seed: int = 0, rock_points_per_pitch: int = 512,
+                     attrs: dict | None = None) -> Result:
+    """Simulate the neutral-type (wave) model, open loop or with an EID controller.
+
+    Parameters
+    ----------
+    model : NeutralModel, NeutralStringParams or str
+        The string (a preset name such as ``"table_3_1"`` works).
+    bit : BitParams, optional
+        Overrides the model's bit (e.g. a perturbed epsilon for a sensitivity study).
+    duration, dt : float
+        Simulated time and step, s (dt <= tau1; default 1e-4).
+    controller : EIDController, optional
+        Closed loop. The controller's compiled step runs inside the plant kernel.
+    inputs : SurfaceInputs or tuple, optional
+        Open-loop commands (U_A, U_T) in the seed's convention (U_A includes M_S g/alpha_A):
+        ``SurfaceInputs.velocity(axial=U_A, angular=U_T)`` or a pair of signals (constant,
+        ``(t, values)`` or ``f(t)``). Default SPEC's nominal (1.147224 m/s, 22.5196 rad/s), which
+        gives 10 mm/s and 20 rad/s. Ignored with a controller.
+    reference : Reference or pair of signals, optional
+        Closed-loop reference (bit axial velocity m/s, bit angular velocity rad/s); default the
+        controller's constant reference. See :mod:`downhole.control.eid.references`.
+    noise : dict, optional
+        White noise: ``{"axial": sigma_v, "angular": sigma_w}`` measurement noise (standard
+        deviation per controller sample, m/s and rad/s) and optionally ``"wob"``, ``"tob"``
+        (N, N m) as bit-force noise.
+    depth_of_cut : {"delayed", "approximate"}
+    record_dt : float, optional
+        Output interval, s; default: every step up to 20 000 samples, then thinned.
+    seed : int
+        Noise seed.
+
+    Returns
+    -------
+    Result
+        Standard channels plus ``command_axial``/``command_angular`` (U_A, U_T); with a controller
+        also the measured velocities and the EID's disturbance estimates and predictions. The
+        attribute ``bit_radius`` is set (for MSE).
+
+    Raises
+    ------
+    DownholeInputError
+        Bad arguments (named). SimulationDiverged: a channel went non-finite.
+    """
+    if not isinstance(model, NeutralModel):
+        model = neutral_model(model, bit)
+    elif bit is not None:
+        model = model.with_bit(bit)
+    duration = _check_positive("duration", duration)
+    dt = _check_positive("dt", dt)
+    if depth_of_cut not in ("delayed", "approximate"):
+        raise DownholeInputError(f"depth_of_cut must be 'delayed' or 'approximate', got "
+                                 f"{depth_of_cut!r}")
+    if dt > model.tau1:
+        raise DownholeInputError(f"dt = {dt} s exceeds the axial wave delay tau1 = "
+                                 f"{model.tau1:.6g} s")
+    nsteps = int(round(duration / dt))
+    if nsteps < 1:
+        raise DownholeInputError(f"duration = {duration} s is shorter than one step dt = {dt} s")
+    if record_dt is None:
+        every = max(1, int(math.ceil((nsteps + 1) / 20000)))
+    else:
+        every = max(1, int(round(_check_positive("record_dt", record_dt) / dt)))
+    t = np.arange(nsteps + 1) * dt
+    p = model.params
+    g = p.g
+
+    rng = np.random.default_rng(seed)
+    noise = dict(noise or {})
+    unknown = set(noise) - {"axial", "angular", "wob", "tob"}
+    if unknown:
+        raise DownholeInputError(f"noise: unknown keys {sorted(unknown)}; expected axial, "
+                                 "angular, wob, tob")
+    mnoise = np.zeros((2, nsteps + 1))
+    fnoise = np.zeros((2, nsteps + 1))
+    for i, key in enumerate(("axial", "angular")):
+        s = float(noise.get(key, 0.0))
+        if s < 0:
+            raise DownholeInputError(f"noise.{key} must be >= 0, got {s}")
+        if s > 0:
+            mnoise[i] = rng.normal(0.0, s, nsteps + 1)
+    for i, key in enumerate(("wob", "tob")):
+        s = float(noise.get(key, 0.0))
+        if s < 0:
+            raise DownholeInputError(f"noise.{key} must be >= 0, got {s}")
+        if s > 0:
+            fnoise[i] = rng.normal(0.0, s, nsteps + 1)
+
+    use_eid = controller is not None
+    u_in = np.zeros((2, nsteps + 1))
+    ref = np.zeros((2, nsteps + 1))
+    if use_eid:
+        from downhole.control.eid.controller import EIDController
+        from downhole.control.eid.references import as_reference
+
+        if not isinstance(controller, EIDController):
+            raise DownholeInputError("controller must be an EIDController (other controllers: "
+                                     "step a NeutralPlant from Python)")
+        cp = controller.compiled_params(dt)
+        cs, ch, cpos = eid_arrays(cp)
+        reference = as_reference(reference if reference is not None else controller.reference)
+        ref[:] = reference.sample(t)
+    else:
+        cp = np.zeros((2, 17))
+        cs, ch, cpos = np.zeros((2, 4)), np.zeros((2, 6, 4)), np.zeros(1, dtype=np.int64)
+        if inputs is None:
+            inputs = (NOMINAL_U_A, NOMINAL_U_T)
+        if hasattr(inputs, "mode"):
+            if inputs.mode != "velocity":
+                raise DownholeInputError("the neutral model takes velocity commands (U_A, U_T); "
+                                         f"got SurfaceInputs.{inputs.mode}")
+            sigs = (inputs.axial, inputs.angular)
+        else:
+            try:
+                sigs = tuple(inputs)
+            except TypeError:
+                raise DownholeInputError("inputs must be SurfaceInputs.velocity(U_A, U_T) or a "
+                                         f"pair of signals, got {inputs!r}") from None
+            if len(sigs) != 2:
+                raise DownholeInputError(f"inputs: expected (U_A, U_T), got {len(sigs)} items")
+        u_in[0] = _sample(sigs[0], t, "inputs axial (U_A)")
+        u_in[1] = _sample(sigs[1], t, "inputs angular (U_T)")
+
+    ha, pa, wpa = wave_state(model.axial, dt, 0.0, p.bit_mass * g)
+    ht, pt, wpt = wave_state(model.torsional, dt, 0.0, 0.0)
+    spec = RockSurfaceSpec(model.bit.n_blades, rock_points_per_pitch, True)
+    surf, istate, rp = rock_init(spec, 0.0, 0.0)
+    nrec = nsteps // every + 1 + (1 if nsteps % every else 0)
+    out = np.empty((nrec, len(NEUTRAL_CHANNELS)))
+    sigout = np.zeros((nrec, 6))
+    status, kfail, cfail = _run_neutral(
+        model.axial.impedance, model.torsional.impedance, p.bit_mass, p.bit_inertia,
+        p.alpha_axial, p.alpha_torsional, (p.string_mass + p.bit_mass) * g,
+        p.string_mass * g, p.bit_mass * g, model.bit.to_array(), depth_of_cut == "approximate",
+        ha, pa, wpa, ht, pt, wpt, surf, istate, rp, u_in, use_eid, cp, cs, ch, cpos, ref,
+        mnoise, fnoise, nsteps, dt, every, out, sigout)
+    if status != 0:
+        raise SimulationDiverged(kfail * dt, NEUTRAL_CHANNELS[cfail])
+    channels = {name: out[:, i] for i, name in enumerate(NEUTRAL_CHANNELS) if name != "time"}
+    if use_eid:
+        tr = out[:, 0]
+        idx = np.minimum(np.round(tr / dt).astype(int), nsteps)
+        channels["reference_axial_velocity"] = ref[0, idx]
+        channels["reference_angular_velocity"] = ref[1, idx]
+        for j, name in enumerate(("measured_axial_velocity", "measured_angular_velocity",
+                                  "eid_disturbance_axial", "eid_disturbance_angular",
+                                  "eid_prediction_axial", "eid_prediction_angular")):
+            channels[name] = sigout[:, j]
+    meta = {"model": model.name, "dt": dt, "depth_of_cut": depth_of_cut,
+            "bit_radius": model.bit.radius, "n_blades": model.bit.n_blades,
+            "controller": "eid" if use_eid else "open-loop", "tau1": model.tau1,
+            "tau2": model.tau2}
+    meta.update(attrs or {})
+    return Result(out[:, 0], channels, units=_EXTRA_UNITS, attrs=meta)
