@@ -1,0 +1,864 @@
+"""Directional drill-string FEM: axial-torsional bar elements along measured depth (seed Sec. 4.2).
+
+:func:`fem_model` meshes a :class:`~downhole.string.drillstring.DrillString` along a
+:class:`~downhole.well.WellPath` into 2-node bar elements carrying two 1-D fields along measured
+depth (axial displacement, twist angle). There is no cos-angle "rotation" (seed Eqs. 4.3-4.5,
+SPEC.md): curvature enters only through gravity (rho A g cos(inclination), lumped exactly as
+w * delta-TVD per element) and soft-string wellbore contact. Damping is Rayleigh (alpha0 M +
+beta0 K) or modal. The model is an immutable :class:`DirectionalModel`; :func:`simulate_directional`
+runs it (compiled implicit Newmark, :mod:`downhole.sim.fem_kernels`) from the static equilibrium
+and :class:`DirectionalPlant` steps it one dt at a time. ``DirectionalModel.linear_model`` and
+``DirectionalModel.control_affine`` export the discrete linear model (A_d, B_d) and the
+non-dimensional control-affine form (Eqs. 4.13-4.19, 4.25) for the DHP design.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import solve_banded
+
+from downhole.bit.rock_surface import RockSurfaceSpec, rock_init
+from downhole.control.topdrive import Hook, TopDrive
+from downhole.errors import DownholeInputError, SimulationDiverged
+from downhole.params import BitParams, DirectionalWellParams
+from downhole.params.presets import get_preset
+from downhole.sim.fem_kernels import CHANNELS, TOP_LAYOUT, run_directional
+from downhole.sim.result import Result
+from downhole.string.drillstring import DrillString
+from downhole.well import WellPath
+
+__all__ = ["DirectionalModel", "fem_model", "simulate_directional", "DirectionalPlant",
+           "table_5_1_setup", "EXTRA_UNITS"]
+
+#: Units of the extra (non-standard) channels written by the directional models.
+EXTRA_UNITS = {"force_b": "N", "torque_b": "N*m", "force_c": "N", "torque_c": "N*m",
+               "top_drive_angle": "rad"}
+
+
+@dataclass(frozen=True, eq=False)
+class DirectionalModel:
+    """Immutable description of a directional FEM or hybrid model (matrices in SI units).
+
+    Attributes
+    ----------
+    name, kind : str
+        Label; ``"fem"`` or ``"hybrid"``.
+    well : WellPath
+    string : DrillString
+    bit : BitParams
+    node_md : ndarray (n,)
+        Measured depth of each node, m (top first; bit last).
+    Ma, Ka, Ca, Mt, Kt, Ct : ndarray (2, n)
+        Tridiagonal mass, stiffness and damping per field: row 0 diagonal, row 1 off-diagonal
+        (last entry unused). The torsional mass includes no top drive (added at run time).
+    Cdense : ndarray (2, n, n) or None
+        Dense damping per field (modal damping) or None (Rayleigh, tridiagonal).
+    gravity : ndarray (n,)
+        Nodal axial gravity force (buoyed), N, downward positive.
+    elem : ndarray (n, 8)
+        Per element: length, dt/ds (3), w g_perp (3), contact flag.
+    radius : ndarray (n,)
+        Torque arm of contact friction at each node, m (pipe outer radius, stabilizer radius).
+    mu, v_eps : float
+        Wellbore friction coefficient and regularization velocity (m/s).
+    node_b, node_c : int
+        Node indices of B and C (hybrid: ends of the wave segment; FEM: nodes at those depths).
+    wave : dict or None
+        Hybrid only: wave segments and their damping treatment.
+    """
+
+    name: str
+    kind: str
+    well: WellPath
+    string: DrillString
+    bit: BitParams
+    node_md: np.ndarray
+    Ma: np.ndarray
+    Ka: np.ndarray
+    Ca: np.ndarray
+    Mt: np.ndarray
+    Kt: np.ndarray
+    Ct: np.ndarray
+    Cdense: np.ndarray | None
+    gravity: np.ndarray
+    elem: np.ndarray
+    radius: np.ndarray
+    mu: float
+    v_eps: float
+    node_b: int
+    node_c: int
+    wave: dict | None = None
+    info: dict = field(default_factory=dict)
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.node_md.size)
+
+    @property
+    def n_states(self) -> int:
+        """Number of mechanical states (4 per node), the seed's state count."""
+        return 4 * self.n_nodes
+
+    @property
+    def buoyed_weight(self) -> float:
+        """Axial buoyed weight carried by hook + bit in static equilibrium, N."""
+        w = float(self.gravity.sum())
+        if self.wave is not None:
+            w += self.wave["line_weight"]
+        return w
+
+    def __repr__(self) -> str:
+        return (f"DirectionalModel({self.name!r}, {self.kind}, {self.n_nodes} nodes = "
+                f"{self.n_states} states, md {self.node_md[0]:g}..{self.node_md[-1]:g} m)")
+
+    # ---------------------------------------------------------------- natural frequencies
+    def natural_frequencies(self, field: str = "axial", count: int = 5, top: str = "free",
+                            bottom: str = "free") -> np.ndarray:
+        """Lowest natural frequencies (Hz) of the undamped string, FEM only.
+
+        ``top``/``bottom`` = ``"fixed"`` or ``"free"`` (top drive inertia not included)."""
+        from scipy.linalg import eigh
+
+        if self.kind != "fem":
+            raise DownholeInputError("natural_frequencies is defined for FEM models only")
+        M = _tri_dense(self.Ma if field == "axial" else self.Mt)
+        K = _tri_dense(self.Ka if field == "axial" else self.Kt)
+        keep = np.ones(self.n_nodes, bool)
+        if top == "fixed":
+            keep[0] = False
+        if bottom == "fixed":
+            keep[-1] = False
+        w2 = eigh(K[np.ix_(keep, keep)], M[np.ix_(keep, keep)], eigvals_only=True)
+        f = np.sqrt(np.clip(w2, 0, None)) / (2 * math.pi)
+        f = f[f > 1e-9 * max(1.0, f.max())] if top == bottom == "free" else f
+        return f[:count]
+
+    # ---------------------------------------------------------------- linear export
+    def design_model(self) -> "DirectionalModel":
+        """The FEM this model is linearized on (itself for FEM; see the hybrid's override)."""
+        return self
+
+    def continuous_linear_model(self, top_drive_inertia: float = 500.0):
+        """Continuous ``(A, B, names)`` of Eq. 4.14 with B = [0; +M^-1 B_u] (SPEC correction).
+
+        States (seed Eq. 4.13 layout): [x_1, alpha_1, ..., x_N, alpha_N, then their velocities],
+        deviations from the static hanging equilibrium. Inputs: ``slack_off_force`` (N, downward
+        at the top node) and ``surface_torque`` (N m on the top node). Top drive inertia is added
+        to node 1's angular DOF; no PI (the controller supplies the torque).
+        """
+        m = self.design_model()
+        n = m.n_nodes
+        M = np.zeros((2 * n, 2 * n))
+        K = np.zeros((2 * n, 2 * n))
+        C = np.zeros((2 * n, 2 * n))
+        Ma, Mt = _tri_dense(m.Ma), _tri_dense(m.Mt)
+        Mt[0, 0] += top_drive_inertia
+        ia, it = np.arange(0, 2 * n, 2), np.arange(1, 2 * n, 2)
+        M[np.ix_(ia, ia)] = Ma
+        M[np.ix_(it, it)] = Mt
+        K[np.ix_(ia, ia)] = _tri_dense(m.Ka)
+        K[np.ix_(it, it)] = _tri_dense(m.Kt)
+        if m.Cdense is not None:
+            C[np.ix_(ia, ia)] = m.Cdense[0]
+            C[np.ix_(it, it)] = m.Cdense[1]
+        else:
+            C[np.ix_(ia, ia)] = _tri_dense(m.Ca)
+            C[np.ix_(it, it)] = _tri_dense(m.Ct)
+        Minv = np.linalg.inv(M)
+        A = np.block([[np.zeros((2 * n, 2 * n)), np.eye(2 * n)], [-Minv @ K, -Minv @ C]])
+        Bu = np.zeros((2 * n, 2))
+        Bu[0, 0] = 1.0
+        Bu[1, 1] = 1.0
+        B = np.vstack([np.zeros((2 * n, 2)), Minv @ Bu])
+        names = ([f"x_{i + 1}" if j == 0 else f"alpha_{i + 1}" for i in range(n) for j in (0, 1)]
+                 + [f"v_{i + 1}" if j == 0 else f"omega_{i + 1}" for i in range(n) for j in (0, 1)])
+        return A, B, names, Minv
+
+    def linear_model(self, dt: float, top_drive_inertia: float = 500.0):
+        """Discrete linear model ``(A_d, B_d)`` at step ``dt`` by exact zero-order hold (expm).
+
+        Replaces the seed's truncated Taylor series (Eq. 4.15), which diverges with beta0 = 0.03
+        (|lambda dt| up to ~78 at dt = 1e-3 on fine meshes). See :meth:`continuous_linear_model`
+        for the state and input layout.
+
+        Returns
+        -------
+        A_d : ndarray (4N, 4N)
+        B_d : ndarray (4N, 2)
+        """
+        from scipy.linalg import expm
+
+        if not dt > 0:
+            raise DownholeInputError(f"dt must be > 0 s, got {dt!r}")
+        A, B, _, _ = self.continuous_linear_model(top_drive_inertia)
+        ns, m = A.shape[0], B.shape[1]
+        aug = np.zeros((ns + m, ns + m))
+        aug[:ns, :ns] = A
+        aug[:ns, ns:] = B
+        E = expm(aug * dt)
+        return E[:ns, :ns], E[:ns, ns:]
+
+    def control_affine(self, dt: float = 1e-3, *, state_scale=None, input_scale=(1e5, 1e4),
+                       top_drive_inertia: float = 500.0, friction: bool = True,
+                       v_eps_design: float = 0.05):
+        """Non-dimensional control-affine model of Eqs. 4.17-4.19, 4.25 for the DHP design.
+
+        ``z_{k+1} = A_d z_k + B_d u_k + h(z_k)`` with h the ZOH effect over one step of the bit law
+        (approximated depth of cut with the floor omega* of Eq. 4.16) and, with ``friction``, of
+        the wellbore friction (normal force from the hanging tension; regularization
+        ``v_eps_design`` m/s so the design model stays smooth). States are deviations from the
+        static hanging equilibrium (bit on bottom with zero WOB).
+
+        Parameters
+        ----------
+        dt : float
+            Step, s.
+        state_scale : array_like, optional
+            ``P`` of Eq. 4.17; default: 0.05 m, 30 rad, 0.02 m/s, 20 rad/s per kind.
+        input_scale : (float, float)
+            Input scale (N, N m).
+
+        Returns
+        -------
+        downhole.control.affine.ControlAffineModel
+        """
+        from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+        from downhole.control.affine import ControlAffineModel
+
+        m = self.design_model()
+        n = m.n_nodes
+        A_d, B_d = self.linear_model(dt, top_drive_inertia)
+        A, _, names, Minv = self.continuous_linear_model(top_drive_inertia)
+        ns = A.shape[0]
+        # ZOH map of arbitrary nodal forces (2n): Gamma = int_0^dt e^{As} ds [0; M^-1]
+        from scipy.linalg import expm
+
+        Bf = np.vstack([np.zeros((2 * n, 2 * n)), Minv])
+        aug = np.zeros((ns + 2 * n, ns + 2 * n))
+        aug[:ns, :ns] = A
+        aug[:ns, ns:] = Bf
+        Gam = expm(aug * dt)[:ns, ns:]
+        bitp = m.bit.to_array()
+        ib = n - 1
+        # hanging tension per element (zero WOB) for the friction normal force
+        tension = _hanging_tension(m)
+        elem = m.elem
+        radius = m.radius
+        mu = m.mu if friction else 0.0
+
+        def h(zb, _G=Gam):
+            N = zb.shape[0]
+            F = np.zeros((N, 2 * n))
+            va = zb[:, 2 * n + 2 * ib]
+            vt = zb[:, 2 * n + 2 * ib + 1]
+            for j in range(N):
+                d = approx_depth_of_cut(va[j], vt[j], bitp)
+                w, t = bit_forces(d, va[j], vt[j], bitp)
+                F[j, 2 * ib] -= w
+                F[j, 2 * ib + 1] -= t
+            if mu > 0:
+                xa = zb[:, 0:2 * n:2]
+                T = tension[None, :] - m.Ka[1, None, :n - 1] * (xa[:, 1:] - xa[:, :-1])
+                kv = elem[:n - 1, 1:4]
+                gv = elem[:n - 1, 4:7]
+                Nl = np.linalg.norm(T[:, :, None] * kv[None] + gv[None], axis=2)
+                Nl *= elem[None, :n - 1, 7] * elem[None, :n - 1, 0] * 0.5
+                Nn = np.zeros((N, n))
+                Nn[:, :-1] += Nl
+                Nn[:, 1:] += Nl
+                vax = zb[:, 2 * n:4 * n:2]
+                vtr = zb[:, 2 * n + 1:4 * n:2]
+                den = np.sqrt(vax**2 + (radius[None] * vtr) ** 2 + v_eps_design**2)
+                c = mu * Nn / den
+                F[:, 0:2 * n:2] -= c * vax
+                F[:, 1:2 * n:2] -= c * radius[None] ** 2 * vtr
+            return F @ _G.T
+
+        kinds, nodes = [], []
+        for blk in ("position", "velocity"):
+            for i in range(n):
+                kinds += [f"axial_{blk}", f"angular_{blk}"]
+                nodes += [i, i]
+        if state_scale is None:
+            base = {"axial_position": 0.05, "angular_position": 30.0, "axial_velocity": 0.02,
+                    "angular_velocity": 20.0}
+            state_scale = np.array([base[k] for k in kinds])
+        rows = np.arange(ns)
+        return ControlAffineModel.from_physical(
+            A_d, B_d, state_scale=state_scale, input_scale=input_scale, dt=dt,
+            nonlinear_physical=h, state_names=names, state_kinds=kinds, state_nodes=nodes,
+            input_names=["slack_off_force", "surface_torque"], bit=m.bit,
+            hanging_hook_load=m.buoyed_weight, node_depths=m.node_md, nonlinear_rows=rows,
+            name=f"{self.name} ({m.n_states} states)",
+            metadata={"model": self.name, "kind": self.kind})
+
+
+# ------------------------------------------------------------------------------ helpers
+def _tri_dense(T):
+    n = T.shape[1]
+    D = np.diag(T[0].copy())
+    if n > 1:
+        D += np.diag(T[1, :-1], 1) + np.diag(T[1, :-1], -1)
+    return D
+
+
+def _hanging_tension(m: DirectionalModel) -> np.ndarray:
+    """Element tensions in the static hanging state with zero WOB, N."""
+    u = _static_axial(m, wob=0.0)
+    return -m.Ka[1, :-1] * (u[1:] - u[:-1])
+
+
+def _mesh(keys, n_elements, min_per_interval=1):
+    keys = np.unique(np.asarray(keys, float))
+    lengths = np.diff(keys)
+    total = lengths.sum()
+    counts = np.maximum(min_per_interval, np.round(n_elements * lengths / total).astype(int))
+    # fix rounding so that the total matches when possible
+    while counts.sum() > n_elements and np.any(counts > min_per_interval):
+        j = int(np.argmin(np.where(counts > min_per_interval, lengths / counts, np.inf)))
+        counts[j] -= 1
+    while counts.sum() < n_elements:
+        j = int(np.argmax(lengths / counts))
+        counts[j] += 1
+    md = [keys[0]]
+    for a, b, c in zip(keys[:-1], keys[1:], counts):
+        md.extend(np.linspace(a, b, c + 1)[1:])
+    return np.array(md)
+
+
+def _check_int(name, value, lo):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise DownholeInputError(f"{name} must be an integer, got {value!r}")
+    if value < lo:
+        raise DownholeInputError(f"{name} must be >= {lo}, got {value}")
+    return int(value)
+
+
+def _assemble_chain(well, string, md, top_md, mass="consistent"):
+    """Element matrices of one chain with nodes at measured depths ``md``."""
+    n = md.size
+    L = np.diff(md)
+    if np.any(L <= 0):
+        raise DownholeInputError("node measured depths must increase strictly")
+    mid = 0.5 * (md[:-1] + md[1:])
+    s_mid = mid - top_md
+    EA = string.property_at(s_mid, "area") * string.property_at(s_mid, "young_modulus")
+    GJ = string.property_at(s_mid, "polar_moment") * string.property_at(s_mid, "shear_modulus")
+    rA = string.property_at(s_mid, "area") * string.property_at(s_mid, "density")
+    rJ = string.property_at(s_mid, "polar_moment") * string.property_at(s_mid, "density")
+    wb = string.buoyed_weight_per_length(s_mid)
+    Ma, Mt, Ka, Kt = (np.zeros((2, n)) for _ in range(4))
+    for e in range(n - 1):
+        for arr, val in ((Ka, EA[e] / L[e]), (Kt, GJ[e] / L[e])):
+            arr[0, e] += val
+            arr[0, e + 1] += val
+            arr[1, e] -= val
+        for arr, val in ((Ma, rA[e] * L[e]), (Mt, rJ[e] * L[e])):
+            if mass == "consistent":
+                arr[0, e] += val / 3
+                arr[0, e + 1] += val / 3
+                arr[1, e] += val / 6
+            else:
+                arr[0, e] += val / 2
+                arr[0, e + 1] += val / 2
+    tvd = well.tvd(md)
+    grav = np.zeros(n)
+    dz = np.diff(tvd)
+    grav[:-1] += 0.5 * wb * dz
+    grav[1:] += 0.5 * wb * dz
+    elem = np.zeros((n, 8))
+    t = well.tangent(mid)
+    k = well.curvature_vector(mid)
+    down = np.array([0.0, 0.0, 1.0])
+    gperp = down[None, :] - (t @ down)[:, None] * t
+    elem[:-1, 0] = L
+    elem[:-1, 1:4] = k
+    elem[:-1, 4:7] = wb[:, None] * gperp
+    elem[:-1, 7] = 1.0
+    od = string.property_at(s_mid, "outer_diameter")
+    radius = np.zeros(n)
+    radius[:-1] = np.maximum(radius[:-1], od / 2)
+    radius[1:] = np.maximum(radius[1:], od / 2)
+    return dict(Ma=Ma, Mt=Mt, Ka=Ka, Kt=Kt, grav=grav, elem=elem, radius=radius)
+
+
+def _apply_stabilizers(string, md, radius, bit_md):
+    for st in string.stabilizers:
+        j = int(np.argmin(np.abs(md - (bit_md - st.distance_from_bit))))
+        radius[j] = max(radius[j], st.outer_diameter / 2)
+
+
+def _damping(Ma, Ka, Mt, Kt, damping, alpha, beta, modal_ratio):
+    if damping == "rayleigh":
+        return alpha * Ma + beta * Ka, alpha * Mt + beta * Kt, None
+    if damping == "modal":
+        from scipy.linalg import eigh
+
+        out = []
+        for M, K in ((Ma, Ka), (Mt, Kt)):
+            Md, Kd = _tri_dense(M), _tri_dense(K)
+            w2, phi = eigh(Kd, Md)
+            w = np.sqrt(np.clip(w2, 0, None))
+            C = Md @ phi @ np.diag(2 * modal_ratio * w) @ phi.T @ Md
+            out.append(0.5 * (C + C.T))
+        Ca = np.zeros_like(Ma)
+        Ct = np.zeros_like(Mt)
+        Ca[0] = np.diag(out[0])
+        Ct[0] = np.diag(out[1])
+        Ca[1, :-1] = np.diag(out[0], 1)
+        Ct[1, :-1] = np.diag(out[1], 1)
+        return Ca, Ct, np.stack(out)
+    raise DownholeInputError(f"damping must be 'rayleigh' or 'modal', got {damping!r}")
+
+
+def table_5_1_setup(params: DirectionalWellParams | None = None):
+    """Well, string and bit of the seed's Table 5.1 (corrected, SPEC.md)."""
+    from downhole.string.drillstring import DrillString
+
+    p = params or get_preset("table_5_1").string
+    well = WellPath.table_5_1(p)
+    string = DrillString.uniform(well.total_depth, p.pipe, g=p.g)
+    return well, string, get_preset("table_5_1").bit, p
+
+
+def fem_model(well: WellPath | None = None, string: DrillString | None = None,
+              bit: BitParams | None = None, *, n_elements: int = 107,
+              damping: str = "rayleigh", rayleigh_alpha: float | None = None,
+              rayleigh_beta: float | None = None, modal_ratio: float = 0.03,
+              friction: float | None = None, v_eps: float = 1e-3, mass: str = "consistent",
+              md_b: float | None = None, md_c: float | None = None,
+              name: str | None = None) -> DirectionalModel:
+    """Mesh a drill string in a well into axial-torsional bar elements.
+
+    Parameters
+    ----------
+    well, string, bit : optional
+        Default: the seed's Table 5.1 setup (:func:`table_5_1_setup`). The string hangs from
+        the top with its bit at the well's total depth (string length <= well depth).
+    n_elements : int
+        Number of elements (>= 1); nodes are placed at well stations and string joints. The
+        seed's 432-state FEM is ``n_elements=107`` (108 nodes).
+    damping : {"rayleigh", "modal"}
+        Rayleigh alpha0 M + beta0 K (Table 5.1: 0.05, 0.03) or modal (``modal_ratio`` of
+        critical in every mode; dense, slower).
+    friction : float, optional
+        Wellbore friction coefficient (Table 5.1: 0.5); 0 disables contact.
+    v_eps : float
+        Friction regularization velocity, m/s.
+    mass : {"consistent", "lumped"}
+    md_b, md_c : float, optional
+        Depths reported as B and C (forces/torques there); default Table 5.1's 2000 and 3000 m.
+
+    Returns
+    -------
+    DirectionalModel
+
+    Raises
+    ------
+    DownholeInputError
+        Too few elements, a string longer than the well, bad damping or mass names.
+
+    Examples
+    --------
+    >>> m = fem_model(n_elements=107)
+    >>> m.n_states
+    432
+    """
+    well0, string0, bit0, p = table_5_1_setup()
+    well = well or well0
+    string = string or (string0 if well is well0 else
+                        DrillString.uniform(well.total_depth, p.pipe, g=p.g))
+    bit = bit or bit0
+    n_elements = _check_int("n_elements", n_elements, 1)
+    if mass not in ("consistent", "lumped"):
+        raise DownholeInputError(f"mass must be 'consistent' or 'lumped', got {mass!r}")
+    if string.length > well.total_depth + 1e-6:
+        raise DownholeInputError(
+            f"string length {string.length:g} m exceeds the well's total depth "
+            f"{well.total_depth:g} m")
+    alpha = p.rayleigh_alpha if rayleigh_alpha is None else float(rayleigh_alpha)
+    beta = p.rayleigh_beta if rayleigh_beta is None else float(rayleigh_beta)
+    mu = p.wellbore_friction if friction is None else float(friction)
+    if alpha < 0 or beta < 0 or mu < 0 or v_eps <= 0:
+        raise DownholeInputError(
+            f"rayleigh_alpha, rayleigh_beta, friction must be >= 0 and v_eps > 0; got "
+            f"{alpha}, {beta}, {mu}, {v_eps}")
+    top_md = well.total_depth - string.length
+    keys = [top_md, well.total_depth]
+    keys += [m_ for m_ in well.stations["md"] if top_md < m_ < well.total_depth]
+    keys += list(top_md + string.boundaries[1:-1])
+    keys = np.unique(np.round(np.array(keys), 9))
+    if n_elements < keys.size - 1:
+        raise DownholeInputError(
+            f"n_elements = {n_elements} is too few: the well and string have {keys.size - 1} "
+            "sections, each needs at least one element")
+    md = _mesh(keys, n_elements)
+    ch = _assemble_chain(well, string, md, top_md, mass)
+    _apply_stabilizers(string, md, ch["radius"], well.total_depth)
+    Ca, Ct, Cd = _damping(ch["Ma"], ch["Ka"], ch["Mt"], ch["Kt"], damping, alpha, beta,
+                          modal_ratio)
+    md_b = p.length_ab if md_b is None else md_b
+    md_c = p.length_ab + p.length_bc if md_c is None else md_c
+    nb = int(np.argmin(np.abs(md - md_b)))
+    nc = int(np.argmin(np.abs(md - md_c)))
+    return DirectionalModel(
+        name=name or f"fem {n_elements} elements", kind="fem", well=well, string=string, bit=bit,
+        node_md=md, Ma=ch["Ma"], Ka=ch["Ka"], Ca=Ca, Mt=ch["Mt"], Kt=ch["Kt"], Ct=Ct, Cdense=Cd,
+        gravity=ch["grav"], elem=ch["elem"], radius=ch["radius"], mu=mu, v_eps=float(v_eps),
+        node_b=nb, node_c=nc, wave=None,
+        info={"damping": damping, "rayleigh_alpha": alpha, "rayleigh_beta": beta,
+              "modal_ratio": modal_ratio, "mass": mass})
+
+
+# ------------------------------------------------------------------------ static state
+def _solve_pinned(Kdiag, Koff, f, pin, value):
+    """Solve the tridiagonal K u = f with u[pin] = value (free-free chain pinned at one node)."""
+    n = Kdiag.size
+    u = np.zeros(n)
+    u[pin] = value
+    if n == 1:
+        return u
+    keep = np.array([i for i in range(n) if i != pin])
+    rhs = f[keep].copy()
+    if pin - 1 >= 0:
+        rhs[pin - 1] -= Koff[pin - 1] * value
+    if pin + 1 < n:
+        rhs[pin] -= Koff[pin] * value  # index shift: keep[pin] == pin + 1
+    d = Kdiag[keep]
+    o = np.array([Koff[keep[i]] if keep[i + 1] == keep[i] + 1 else 0.0
+                  for i in range(keep.size - 1)])
+    ab = np.zeros((3, keep.size))
+    ab[0, 1:] = o
+    ab[1] = d
+    ab[2, :-1] = o
+    u[keep] = solve_banded((1, 1), ab, rhs)
+    return u
+
+
+def _static_axial(m: DirectionalModel, wob: float) -> np.ndarray:
+    """Static axial displacements (bit node at 0) with the bit carrying ``wob`` N."""
+    n = m.n_nodes
+    W = m.buoyed_weight
+    f = m.gravity.copy()
+    f[0] -= W - wob
+    f[-1] -= wob
+    if m.wave is None:
+        return _solve_pinned(m.Ka[0], m.Ka[1], f, n - 1, 0.0)
+    iB, iC = m.node_b, m.node_c
+    fb0, fc0, delta = _line_preload(m, wob)
+    f[iB] += fb0
+    f[iC] += fc0
+    u = np.zeros(n)
+    u[iC:] = _solve_pinned(m.Ka[0, iC:], m.Ka[1, iC:], f[iC:], n - 1 - iC, 0.0)
+    u[:iB + 1] = _solve_pinned(m.Ka[0, :iB + 1], m.Ka[1, :iB + 1], f[:iB + 1], iB,
+                               u[iC] - delta)
+    return u
+
+
+def _line_preload(m: DirectionalModel, wob: float):
+    """Static forces of the wave segment on B and C (downward) and its static elongation."""
+    wv = m.wave
+    n_c = float(m.gravity[m.node_c:].sum()) - wob
+    wl = wv["line_weight"]
+    fb0 = n_c + wl
+    fc0 = -n_c
+    delta = (n_c * wv["length"] + 0.5 * wl * wv["length"]) / wv["EA"]
+    return fb0, fc0, delta
+
+
+def _wob_depth(bit: BitParams, wob: float) -> float:
+    """Depth of cut d with WOB(d, v=0, omega=0) = wob (bisection), m."""
+    from downhole.bit.detournay import bit_forces
+
+    if wob <= 0:
+        return 0.0
+    p = bit.to_array()
+    lo, hi = 0.0, 1e-3
+    while bit_forces(hi, 0.0, 0.0, p)[0] < wob:
+        hi *= 2.0
+        if hi > 10.0:
+            raise DownholeInputError(f"initial WOB {wob:g} N cannot be carried by the bit law")
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        if bit_forces(mid, 0.0, 0.0, p)[0] < wob:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+# ------------------------------------------------------------------------ kernel packing
+class _Packed:
+    """Kernel arrays for one (model, dt, top drive, hook, depth-of-cut) combination."""
+
+    def __init__(self, model: DirectionalModel, dt: float, top_drive: TopDrive, hook: Hook,
+                 depth_of_cut: str):
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise DownholeInputError(f"dt must be a positive number of seconds, got {dt!r}")
+        if depth_of_cut not in ("delayed", "approximate"):
+            raise DownholeInputError(
+                f"depth_of_cut must be 'delayed' or 'approximate', got {depth_of_cut!r}")
+        self.model, self.dt, self.top_drive, self.hook = model, float(dt), top_drive, hook
+        self.approx = depth_of_cut == "approximate"
+        n = model.n_nodes
+        Ma, Mt = model.Ma.copy(), model.Mt.copy()
+        Ma[0, 0] += hook.block_mass
+        Mt[0, 0] += top_drive.inertia
+        h = 0.5 * dt
+        La = Ma + h * model.Ca + h * h * model.Ka
+        Lt = Mt + h * model.Ct + h * h * model.Kt
+        self.mats = np.vstack([Ma[0], Ma[1], model.Ka[0], model.Ka[1], La[0], La[1],
+                               Mt[0], Mt[1], model.Kt[0], model.Kt[1], Lt[0], Lt[1],
+                               model.Ca[0], model.Ca[1], model.Ct[0], model.Ct[1],
+                               np.zeros(n), np.zeros(n)])
+        if model.Cdense is not None:
+            Ld = np.zeros((2, n, n))
+            Ld[0] = _tri_dense(Ma) + h * model.Cdense[0] + h * h * _tri_dense(model.Ka)
+            Ld[1] = _tri_dense(Mt) + h * model.Cdense[1] + h * h * _tri_dense(model.Kt)
+            self.mats[4] = np.diagonal(Ld[0])
+            self.mats[10] = np.diagonal(Ld[1])
+            self.Ldense = Ld
+        else:
+            self.Ldense = np.zeros((2, 1, 1))
+        self.node = np.column_stack([model.gravity, model.radius])
+        self.elem = np.ascontiguousarray(model.elem)
+        self.bitp = model.bit.to_array()
+        top = np.zeros(len(TOP_LAYOUT))
+        T = {k: i for i, k in enumerate(TOP_LAYOUT)}
+        self.hook_load0 = model.buoyed_weight - hook.wob
+        top[T["axial_mode"]] = 0.0 if hook.mode == "force" else 1.0
+        top[T["hook_k"]] = hook.servo_stiffness
+        top[T["hook_c"]] = hook.servo_damping
+        top[T["hook_load0"]] = self.hook_load0
+        top[T["torsional_mode"]] = 1.0 if top_drive.mode == "torque" else 0.0
+        top[T["kp"]] = top_drive.kp
+        top[T["ki"]] = top_drive.ki
+        top[T["soft_gain"]] = top_drive.soft_gain if top_drive.mode == "soft_torque" else 0.0
+        top[T["soft_tau"]] = top_drive.soft_tau
+        top[T["mu"]] = model.mu
+        top[T["v_eps"]] = model.v_eps
+        top[T["approx_doc"]] = 1.0 if self.approx else 0.0
+        top[T["bit_node"]] = n - 1
+        top[T["node_b"]] = model.node_b
+        top[T["node_c"]] = model.node_c
+        top[T["dense"]] = 1.0 if model.Cdense is not None else 0.0
+        if model.wave is not None:
+            wv = model.wave
+            top[T["hybrid"]] = 1.0
+            top[T["n_lags_a"]] = wv["n_lags"]
+            top[T["lag_tau_a"]] = wv["lag_tau"][0]
+            top[T["n_lags_t"]] = wv["n_lags"]
+            top[T["lag_tau_t"]] = wv["lag_tau"][1]
+            fb0, fc0, _ = _line_preload(model, hook.wob)
+            top[T["fb0"]] = fb0
+            top[T["fc0"]] = fc0
+            for seg in wv["segments"]:
+                seg.delay_steps(dt)  # raises if the line is shorter than one step
+        self.top = top
+
+    def initial_state(self):
+        """Static equilibrium: bit on bottom carrying the hook's WOB, everything at rest."""
+        from downhole.string.wave import wave_state
+
+        model = self.model
+        n = model.n_nodes
+        state = np.zeros((6, n))
+        state[0] = _static_axial(model, self.hook.wob)
+        misc = np.zeros(6)
+        misc[1] = state[0, 0]  # hook servo reference position
+        misc[4] = state[0, -1]
+        spec = RockSurfaceSpec(model.bit.n_blades)
+        d0 = 0.0 if self.approx else _wob_depth(model.bit, self.hook.wob)
+        surf, istate, rp = rock_init(spec, state[0, -1] - d0 / model.bit.n_blades, 0.0)
+        if model.wave is not None:
+            wa = wave_state(model.wave["segments"][0], self.dt)
+            wt = wave_state(model.wave["segments"][1], self.dt)
+            from downhole.string.wave import wave_push
+
+            wave_push(*wa, 0.0, 0.0)
+            wave_push(*wt, 0.0, 0.0)
+        else:
+            wa = (np.zeros((2, 4)), np.zeros(1, np.int64), np.array([0.0, 1.0, 4.0, 0.0, 0.0]))
+            wt = wa
+        lag = np.zeros((4, max(1, int(self.top[TOP_LAYOUT.index("n_lags_a")]))))
+        return dict(state=state, misc=misc, surf=surf, istate=istate, rp=rp, wa=wa, wt=wt,
+                    lag=lag)
+
+    def run(self, st, cmd, rec, rec_every, rec_start=0):
+        wa, wt = st["wa"], st["wt"]
+        return run_directional(self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
+                               st["state"], st["misc"], st["surf"], st["istate"], st["rp"],
+                               wa[0], wa[1], wa[2], wt[0], wt[1], wt[2], st["lag"], cmd,
+                               cmd.shape[0], self.dt, rec, rec_every, rec_start)
+
+
+def _check_duration(duration, dt, record_dt):
+    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
+        raise DownholeInputError(f"duration must be a positive number of seconds, got {duration!r}")
+    if record_dt is not None and not (record_dt >= dt):
+        raise DownholeInputError(f"record_dt must be >= dt = {dt}, got {record_dt!r}")
+
+
+def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: float = 1e-3, *,
+                         top_drive: TopDrive | None = None, hook: Hook | None = None,
+                         depth_of_cut: str = "delayed", record_dt: float | None = 0.01,
+                         hook_load=None, scenario: str = "") -> Result:
+    """Run a directional FEM or hybrid model from its static equilibrium.
+
+    Parameters
+    ----------
+    model : DirectionalModel
+    duration, dt : float
+        Simulated time and step, s.
+    top_drive : TopDrive, optional
+        Default: PI at 10 rad/s, J_td = 500 kg m^2, Kp = 1e4, Ki = 2e3 (SPEC.md).
+    hook : Hook, optional
+        Default: constant hook load = buoyed weight - 120 kN.
+    depth_of_cut : {"delayed", "approximate"}
+    record_dt : float or None
+        Recording interval (None: every step).
+    hook_load : callable, optional
+        ``hook_load(t) -> N`` overriding the constant hook load (force mode).
+
+    Returns
+    -------
+    Result
+        Standard channels plus ``force_b``, ``torque_b``, ``force_c``, ``torque_c`` (string
+        tension and torque at B and C), ``top_drive_angle``; attrs ``bit_radius``, ``model``,
+        ``n_states``, ``dt``.
+
+    Raises
+    ------
+    DownholeInputError, SimulationDiverged
+    """
+    top_drive = top_drive or TopDrive()
+    hook = hook or Hook()
+    _check_duration(duration, dt, record_dt)
+    pk = _Packed(model, dt, top_drive, hook, depth_of_cut)
+    n_steps = int(round(duration / dt))
+    every = 1 if record_dt is None else max(1, int(round(record_dt / dt)))
+    t = (np.arange(n_steps) + 1) * dt
+    cmd = np.empty((n_steps, 2))
+    if hook.mode == "force":
+        cmd[:, 0] = pk.hook_load0 if hook_load is None else np.asarray(
+            [hook_load(tt) for tt in t], float)
+    else:
+        cmd[:, 0] = hook.velocity
+    cmd[:, 1] = top_drive.command(t)
+    st = pk.initial_state()
+    n_rec = n_steps // every
+    rec = np.zeros((n_rec + 1, len(CHANNELS)))
+    rec0 = _initial_record(pk, st)
+    rec[0] = rec0
+    status, rows = pk.run(st, cmd, rec, every, 1)
+    if status != 0:
+        raise SimulationDiverged(float(st["misc"][0]), "bit_angular_velocity")
+    time = np.concatenate([[0.0], (np.arange(1, rows + 1)) * every * dt])
+    channels = {name: rec[:rows + 1, i] for i, name in enumerate(CHANNELS)}
+    channels["reference_angular_velocity"] = np.concatenate(
+        [[top_drive.command(np.array([0.0]))[0]], channels["reference_angular_velocity"][1:]])
+    if top_drive.mode == "torque":
+        del channels["reference_angular_velocity"]
+    return Result(time, channels, units=EXTRA_UNITS,
+                  attrs={"bit_radius": model.bit.radius, "model": model.name,
+                         "model_kind": model.kind, "n_states": model.n_states, "dt": dt,
+                         "depth_of_cut": depth_of_cut, "top_drive_mode": top_drive.mode,
+                         "hook_mode": hook.mode, "scenario": scenario})
+
+
+def _initial_record(pk: _Packed, st) -> np.ndarray:
+    """Channels at t = 0 (a zero-length run of the kernel records nothing, so compute here)."""
+    m = pk.model
+    u = st["state"][0]
+    out = np.zeros(len(CHANNELS))
+    d0 = 0.0 if pk.approx else _wob_depth(m.bit, pk.hook.wob)
+    from downhole.bit.detournay import bit_forces
+
+    w, tq = bit_forces(d0, 0.0, 0.0, pk.bitp)
+    out[4], out[5], out[6] = d0, w, tq
+    out[7] = pk.hook_load0
+    ten = -m.Ka[1, :-1] * (u[1:] - u[:-1])
+    if m.wave is None:
+        out[11] = ten[min(m.node_b, ten.size - 1)]
+        out[13] = ten[min(m.node_c, ten.size - 1)]
+    else:
+        fb0, fc0, _ = _line_preload(m, pk.hook.wob)
+        out[11], out[13] = fb0, -fc0
+    return out
+
+
+class DirectionalPlant:
+    """Step-by-step plant over a directional model: ``reset() -> obs``, ``step(cmd) -> obs``.
+
+    Commands (named): ``hook_load`` (N; or ``top_drive_axial_velocity`` m/s with a velocity
+    hook) and ``top_drive_angular_velocity`` (speed set-point, rad/s; PI/soft-torque top drive)
+    or ``surface_torque`` (N m; ``TopDrive(mode="torque")``). Missing commands keep their last
+    value. Observations: the standard channels (``bit_axial_velocity``, ``bit_angular_velocity``,
+    ``wob``, ``tob``, ``hook_load``, ``surface_torque``, ``top_drive_*_velocity``, ...), forces
+    at B and C, ``time`` and, for hardware-in-the-loop, ``last_node_axial_velocity`` and
+    ``last_node_angular_velocity`` (the string's last node, where a rig replaces the bit).
+
+    Parameters
+    ----------
+    model : DirectionalModel
+    dt : float
+        Step, s (1e-3 for the real-time testbed).
+    top_drive, hook : optional
+        As in :func:`simulate_directional`.
+    depth_of_cut : {"delayed", "approximate"}
+    """
+
+    def __init__(self, model: DirectionalModel, dt: float = 1e-3, *,
+                 top_drive: TopDrive | None = None, hook: Hook | None = None,
+                 depth_of_cut: str = "delayed"):
+        self.model = model
+        self.top_drive = top_drive or TopDrive()
+        self.hook = hook or Hook()
+        self._pk = _Packed(model, dt, self.top_drive, self.hook, depth_of_cut)
+        self.dt = float(dt)
+        self._rec = np.zeros((1, len(CHANNELS)))
+        self.reset()
+
+    @property
+    def command_names(self) -> tuple[str, str]:
+        ax = "hook_load" if self.hook.mode == "force" else "top_drive_axial_velocity"
+        tq = "surface_torque" if self.top_drive.mode == "torque" else "top_drive_angular_velocity"
+        return ax, tq
+
+    def reset(self) -> dict:
+        """Back to the static equilibrium; returns the observation at t = 0."""
+        self._st = self._pk.initial_state()
+        ax = self._pk.hook_load0 if self.hook.mode == "force" else self.hook.velocity
+        self._cmd = np.array([[ax, float(self.top_drive.speed)]])
+        self._obs = dict(zip(CHANNELS, _initial_record(self._pk, self._st)))
+        self._obs["time"] = 0.0
+        self._obs["last_node_axial_velocity"] = 0.0
+        self._obs["last_node_angular_velocity"] = 0.0
+        return dict(self._obs)
+
+    @property
+    def time(self) -> float:
+        return float(self._st["misc"][0])
+
+    def step(self, command: dict | None = None) -> dict:
+        """Hold ``command`` over one step and advance ``dt``; returns the new observation."""
+        if command:
+            names = self.command_names
+            for key, val in command.items():
+                if key not in names:
+                    raise DownholeInputError(
+                        f"unknown command {key!r} for this plant; expected {names}")
+                self._cmd[0, names.index(key)] = float(val)
+        status, _ = self._pk.run(self._st, self._cmd, self._rec, 1, 0)
+        if status != 0:
+            raise SimulationDiverged(self.time, "bit_angular_velocity")
+        obs = dict(zip(CHANNELS, self._rec[0].tolist()))
+        obs["time"] = self.time
+        s = self._st["state"]
+        obs["last_node_axial_velocity"] = float(s[1, -1])
+        obs["last_node_angular_velocity"] = float(s[4, -1])
+        self._obs = obs
+        return dict(obs)

@@ -1,0 +1,443 @@
+"""Well paths along measured depth: sections, survey stations and minimum-curvature geometry.
+
+A :class:`WellPath` is an immutable list of survey stations (measured depth, inclination,
+azimuth) joined by minimum-curvature arcs, the industry convention (SPE/ISCWSA, ``welleng``).
+Sections (:class:`Vertical`, :class:`Tangent`, :class:`Arc`, :class:`BuildTurn`) are turned into
+stations; surveys are read from CSV in SI or oilfield units. Queries take measured depths and
+return inclination, azimuth, curvature, true vertical depth, position and tangent vectors.
+
+Coordinates: north, east, TVD (down), metres. Angles in radians inside; inclination 0 is
+vertical down, azimuth from north towards east.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from downhole.errors import DownholeInputError
+
+__all__ = ["Vertical", "Tangent", "Arc", "BuildTurn", "WellPath", "read_survey_csv",
+           "minimum_curvature"]
+
+_FT = 0.3048
+
+
+# ----------------------------------------------------------------------------------- sections
+@dataclass(frozen=True)
+class Vertical:
+    """Straight vertical section of ``length`` m (inclination 0)."""
+
+    length: float
+
+
+@dataclass(frozen=True)
+class Tangent:
+    """Straight section of ``length`` m keeping the current inclination and azimuth."""
+
+    length: float
+
+
+@dataclass(frozen=True)
+class Arc:
+    """Circular arc of ``radius`` m turning the tangent by ``angle`` rad (dogleg).
+
+    ``toolface`` (rad) sets the plane: 0 builds (inclination grows), pi drops, +pi/2 turns right.
+    From a vertical tangent the arc builds towards ``azimuth`` (rad, default 0 = north).
+    """
+
+    radius: float
+    angle: float
+    toolface: float = 0.0
+    azimuth: float | None = None
+
+
+@dataclass(frozen=True)
+class BuildTurn:
+    """Minimum-curvature section of ``length`` m ending at ``inclination`` and ``azimuth`` (rad)."""
+
+    length: float
+    inclination: float
+    azimuth: float
+
+
+# ------------------------------------------------------------------------------- geometry core
+def _tangent(inc, azi):
+    inc = np.asarray(inc, float)
+    azi = np.asarray(azi, float)
+    return np.stack([np.sin(inc) * np.cos(azi), np.sin(inc) * np.sin(azi), np.cos(inc)], axis=-1)
+
+
+def _inc_azi(t):
+    t = np.asarray(t, float)
+    t = t / np.linalg.norm(t, axis=-1, keepdims=True)
+    inc = np.arccos(np.clip(t[..., 2], -1.0, 1.0))
+    azi = np.mod(np.arctan2(t[..., 1], t[..., 0]), 2 * math.pi)
+    return inc, azi
+
+
+def minimum_curvature(md, inc, azi, start=(0.0, 0.0, 0.0)):
+    """Positions of survey stations by the minimum-curvature method.
+
+    Parameters
+    ----------
+    md, inc, azi : array_like
+        Measured depth (m), inclination and azimuth (rad) of the stations.
+    start : sequence of 3 floats
+        North, east, TVD of the first station, m.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        North, east, TVD of each station, m.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> p = minimum_curvature([0, 100], [0, 0], [0, 0])
+    >>> float(p[-1, 2])
+    100.0
+    """
+    md = np.asarray(md, float)
+    t = _tangent(inc, azi)
+    pos = np.zeros((md.size, 3))
+    pos[0] = start
+    for i in range(md.size - 1):
+        dmd = md[i + 1] - md[i]
+        cosb = float(np.clip(np.dot(t[i], t[i + 1]), -1.0, 1.0))
+        beta = math.acos(cosb)
+        rf = 1.0 if beta < 1e-9 else 2.0 / beta * math.tan(beta / 2.0)
+        pos[i + 1] = pos[i] + dmd / 2.0 * (t[i] + t[i + 1]) * rf
+    return pos
+
+
+def _check_stations(md, inc, azi):
+    md = np.asarray(md, float).ravel()
+    inc = np.asarray(inc, float).ravel()
+    azi = np.asarray(azi, float).ravel()
+    if not (md.size == inc.size == azi.size):
+        raise DownholeInputError(
+            f"survey columns differ in length: md {md.size}, inclination {inc.size}, "
+            f"azimuth {azi.size}")
+    if md.size < 2:
+        raise DownholeInputError(f"a survey needs at least 2 stations, got {md.size}")
+    for name, arr in (("measured depth", md), ("inclination", inc), ("azimuth", azi)):
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            raise DownholeInputError(f"{name} of station {bad[0]} is not finite ({arr[bad[0]]})")
+    dmd = np.diff(md)
+    bad = np.flatnonzero(dmd <= 0)
+    if bad.size:
+        i = bad[0]
+        raise DownholeInputError(
+            f"measured depth must increase strictly: station {i + 1} has md = {md[i + 1]:g} m "
+            f"after md = {md[i]:g} m at station {i}")
+    bad = np.flatnonzero((inc < -1e-12) | (inc > math.pi + 1e-12))
+    if bad.size:
+        i = bad[0]
+        raise DownholeInputError(
+            f"inclination of station {i} (md = {md[i]:g} m) is {math.degrees(inc[i]):g} deg; "
+            "expected 0 to 180 deg")
+    return md, np.clip(inc, 0.0, math.pi), np.mod(azi, 2 * math.pi)
+
+
+# ----------------------------------------------------------------------------------- WellPath
+class WellPath:
+    """An immutable well trajectory: survey stations joined by minimum-curvature arcs.
+
+    Parameters
+    ----------
+    md, inclination, azimuth : array_like
+        Stations: measured depth (m, strictly increasing), inclination (rad, 0..pi) and
+        azimuth (rad). Use :meth:`from_sections` or :meth:`from_survey` for friendlier input.
+    start : sequence of 3 floats
+        North, east, TVD of the first station, m.
+
+    Raises
+    ------
+    DownholeInputError
+        Non-monotonic measured depth, inclination outside [0, 180] deg, too few stations.
+
+    Examples
+    --------
+    >>> import math
+    >>> w = WellPath.from_sections([Vertical(2000), Arc(4000, math.radians(30))])
+    >>> round(float(w.tvd(w.total_depth)), 1)
+    4000.0
+    """
+
+    def __init__(self, md, inclination, azimuth, start=(0.0, 0.0, 0.0)):
+        md, inc, azi = _check_stations(md, inclination, azimuth)
+        self._md, self._inc, self._azi = md, inc, azi
+        for a in (md, inc, azi):
+            a.setflags(write=False)
+        self._t = _tangent(inc, azi)
+        self._pos = minimum_curvature(md, inc, azi, start)
+        n = md.size - 1
+        self._beta = np.empty(n)
+        for i in range(n):
+            self._beta[i] = math.acos(float(np.clip(np.dot(self._t[i], self._t[i + 1]), -1, 1)))
+
+    # --- constructors ------------------------------------------------------------------------
+    @classmethod
+    def from_sections(cls, sections, inclination: float = 0.0, azimuth: float = 0.0,
+                      start=(0.0, 0.0, 0.0)) -> "WellPath":
+        """Build a path from sections, starting at ``inclination``/``azimuth`` (rad).
+
+        Raises
+        ------
+        DownholeInputError
+            A section with a non-positive length, radius or angle, or an unknown section type.
+        """
+        if not sections:
+            raise DownholeInputError("sections is empty: give at least one section")
+        md, inc, azi = [0.0], [float(inclination)], [float(azimuth)]
+        for k, s in enumerate(sections):
+            if isinstance(s, (Vertical, Tangent)):
+                if not s.length > 0:
+                    raise DownholeInputError(
+                        f"section {k} ({type(s).__name__}): length must be > 0 m, got {s.length}")
+                if isinstance(s, Vertical):
+                    if inc[-1] != 0.0:
+                        # a vertical section after a deviated one: new station kinks the path
+                        raise DownholeInputError(
+                            f"section {k} (Vertical) follows a section ending at inclination "
+                            f"{math.degrees(inc[-1]):g} deg; use Tangent or an Arc first")
+                md.append(md[-1] + s.length)
+                inc.append(inc[-1])
+                azi.append(azi[-1])
+            elif isinstance(s, Arc):
+                if not s.radius > 0:
+                    raise DownholeInputError(f"section {k} (Arc): radius must be > 0 m, got {s.radius}")
+                if not (0 < s.angle < math.pi):
+                    raise DownholeInputError(
+                        f"section {k} (Arc): angle must be in (0, 180) deg, got "
+                        f"{math.degrees(s.angle):g} deg")
+                t = _tangent(inc[-1], azi[-1])
+                if inc[-1] < 1e-12:
+                    az = azi[-1] if s.azimuth is None else s.azimuth
+                    high = np.array([math.cos(az), math.sin(az), 0.0])  # build towards az
+                    right = np.array([-math.sin(az), math.cos(az), 0.0])
+                else:
+                    high = np.array([math.cos(inc[-1]) * math.cos(azi[-1]),
+                                     math.cos(inc[-1]) * math.sin(azi[-1]), -math.sin(inc[-1])])
+                    right = np.array([-math.sin(azi[-1]), math.cos(azi[-1]), 0.0])
+                nvec = math.cos(s.toolface) * high + math.sin(s.toolface) * right
+                t2 = t * math.cos(s.angle) + nvec * math.sin(s.angle)
+                i2, a2 = _inc_azi(t2)
+                md.append(md[-1] + s.radius * s.angle)
+                inc.append(float(i2))
+                azi.append(float(a2) if float(i2) > 1e-12 else azi[-1])
+            elif isinstance(s, BuildTurn):
+                if not s.length > 0:
+                    raise DownholeInputError(f"section {k} (BuildTurn): length must be > 0 m, got {s.length}")
+                if not (0 <= s.inclination <= math.pi):
+                    raise DownholeInputError(
+                        f"section {k} (BuildTurn): inclination {math.degrees(s.inclination):g} "
+                        "deg outside 0..180 deg")
+                md.append(md[-1] + s.length)
+                inc.append(float(s.inclination))
+                azi.append(float(s.azimuth))
+            else:
+                raise DownholeInputError(
+                    f"section {k}: unknown section type {type(s).__name__}; expected Vertical, "
+                    "Tangent, Arc or BuildTurn")
+        return cls(md, inc, azi, start)
+
+    @classmethod
+    def from_survey(cls, md, inclination, azimuth, *, degrees: bool = True,
+                    length_unit: str = "m", start=(0.0, 0.0, 0.0)) -> "WellPath":
+        """Path from survey columns; ``degrees`` for the angles, ``length_unit`` "m" or "ft"."""
+        scale = _length_scale(length_unit)
+        ang = math.pi / 180.0 if degrees else 1.0
+        inc = np.asarray(inclination, float).ravel()
+        if degrees:
+            bad = np.flatnonzero((inc < 0) | (inc > 180))
+            if bad.size:
+                raise DownholeInputError(
+                    f"inclination of station {bad[0]} is {inc[bad[0]]:g} deg; expected 0 to 180 deg")
+        return cls(np.asarray(md, float) * scale, inc * ang, np.asarray(azimuth, float) * ang,
+                   tuple(float(x) * scale for x in start))
+
+    @classmethod
+    def table_5_1(cls, params=None) -> "WellPath":
+        """The seed's Table 5.1 well: AB vertical 2000 m, BC vertical 1000 m, CD arc R 4000 m, 30 deg."""
+        from downhole.params import DirectionalWellParams
+
+        p = params or DirectionalWellParams()
+        return cls.from_sections([Vertical(p.length_ab), Vertical(p.length_bc),
+                                  Arc(p.arc_radius_cd, p.arc_angle_cd)])
+
+    # --- stations ----------------------------------------------------------------------------
+    @property
+    def stations(self) -> dict:
+        """Station arrays: ``md``, ``inclination``, ``azimuth`` (rad), ``north``, ``east``, ``tvd``."""
+        return {"md": self._md.copy(), "inclination": self._inc.copy(),
+                "azimuth": self._azi.copy(), "north": self._pos[:, 0].copy(),
+                "east": self._pos[:, 1].copy(), "tvd": self._pos[:, 2].copy()}
+
+    @property
+    def total_depth(self) -> float:
+        """Measured depth of the last station, m."""
+        return float(self._md[-1])
+
+    @property
+    def top_depth(self) -> float:
+        return float(self._md[0])
+
+    # --- queries -----------------------------------------------------------------------------
+    def _locate(self, md):
+        md = np.asarray(md, float)
+        if np.any(~np.isfinite(md)):
+            raise DownholeInputError("measured depth query contains non-finite values")
+        lo, hi = self._md[0], self._md[-1]
+        tol = 1e-9 * max(1.0, hi)
+        if np.any(md < lo - tol) or np.any(md > hi + tol):
+            raise DownholeInputError(
+                f"measured depth query outside the path: got {md.min():g}..{md.max():g} m, "
+                f"path spans {lo:g}..{hi:g} m")
+        md = np.clip(md, lo, hi)
+        i = np.clip(np.searchsorted(self._md, md, side="right") - 1, 0, self._md.size - 2)
+        f = (md - self._md[i]) / (self._md[i + 1] - self._md[i])
+        return md, i, f
+
+    def _frame(self, i, f):
+        """Tangent and position at fraction f of interval i (vectorised)."""
+        t1, t2 = self._t[i], self._t[i + 1]
+        beta = self._beta[i]
+        L = self._md[i + 1] - self._md[i]
+        f = np.asarray(f, float)
+        small = beta < 1e-9
+        sb = np.where(small, 1.0, np.sin(beta))
+        w1 = np.where(small, 1.0 - f, np.sin((1 - f) * beta) / sb)
+        w2 = np.where(small, f, np.sin(f * beta) / sb)
+        t = w1[..., None] * t1 + w2[..., None] * t2
+        t = t / np.linalg.norm(t, axis=-1, keepdims=True)
+        # position: p1 + R (sin(f b) t1 + (1 - cos(f b)) n), n = (t2 - t1 cos b)/sin b
+        bs = np.where(small, 1.0, beta)
+        R = L / bs
+        nvec = (t2 - t1 * np.cos(beta)[..., None]) / sb[..., None]
+        arc = (R * np.sin(f * beta))[..., None] * t1 + (R * (1 - np.cos(f * beta)))[..., None] * nvec
+        straight = (f * L)[..., None] * t1
+        pos = self._pos[i] + np.where(small[..., None], straight, arc)
+        kappa = np.where(small, 0.0, beta / L)
+        # dt/ds = kappa * (unit vector normal to t in the arc plane)
+        nrm = nvec - np.sum(nvec * t, axis=-1, keepdims=True) * t
+        nn = np.linalg.norm(nrm, axis=-1, keepdims=True)
+        dtds = np.where(small[..., None], 0.0, kappa[..., None] * nrm / np.where(nn > 0, nn, 1.0))
+        return t, pos, kappa, dtds
+
+    def tangent(self, md) -> np.ndarray:
+        """Unit tangent (north, east, down) at ``md``, shape (..., 3)."""
+        _, i, f = self._locate(md)
+        return self._frame(i, f)[0]
+
+    def position(self, md) -> np.ndarray:
+        """North, east, TVD at ``md``, m, shape (..., 3)."""
+        _, i, f = self._locate(md)
+        return self._frame(i, f)[1]
+
+    def tvd(self, md) -> np.ndarray:
+        """True vertical depth at ``md``, m."""
+        return self.position(md)[..., 2]
+
+    def inclination(self, md) -> np.ndarray:
+        """Inclination at ``md``, rad (0 = vertical down)."""
+        return _inc_azi(self.tangent(md))[0]
+
+    def azimuth(self, md) -> np.ndarray:
+        """Azimuth at ``md``, rad (from north towards east)."""
+        return _inc_azi(self.tangent(md))[1]
+
+    def curvature(self, md) -> np.ndarray:
+        """Curvature (dogleg severity) at ``md``, rad/m; piecewise constant between stations."""
+        _, i, f = self._locate(md)
+        return self._frame(i, f)[2]
+
+    def curvature_vector(self, md) -> np.ndarray:
+        """dt/ds at ``md``, 1/m, shape (..., 3)."""
+        _, i, f = self._locate(md)
+        return self._frame(i, f)[3]
+
+    def __repr__(self) -> str:
+        return (f"WellPath({self._md.size} stations, md {self._md[0]:g}..{self._md[-1]:g} m, "
+                f"max inclination {math.degrees(self._inc.max()):.1f} deg)")
+
+
+def _length_scale(unit: str) -> float:
+    u = unit.strip().lower()
+    if u in ("m", "meter", "metre", "si"):
+        return 1.0
+    if u in ("ft", "foot", "feet", "oilfield"):
+        return _FT
+    raise DownholeInputError(f"length_unit must be 'm' or 'ft', got {unit!r}")
+
+
+_MD_NAMES = ("md", "measured_depth", "measured depth", "depth", "md_m", "md_ft", "md (m)", "md (ft)")
+_INC_NAMES = ("inc", "inclination", "incl", "inc_deg", "inc (deg)")
+_AZI_NAMES = ("azi", "az", "azimuth", "azi_deg", "azi (deg)", "azimuth (deg)")
+
+
+def read_survey_csv(path, *, units: str = "si", angle_unit: str = "deg") -> WellPath:
+    """Read a survey CSV with columns MD, INC, AZI (header names case-insensitive).
+
+    Parameters
+    ----------
+    path : path-like
+        CSV file with a header row naming measured depth (``md``/``measured_depth``),
+        inclination (``inc``/``inclination``) and azimuth (``azi``/``azimuth``).
+    units : {"si", "oilfield"}
+        Measured depth in metres (``si``) or feet (``oilfield``). A header like ``md_ft`` or
+        ``MD (ft)`` overrides this.
+    angle_unit : {"deg", "rad"}
+        Unit of inclination and azimuth.
+
+    Returns
+    -------
+    WellPath
+
+    Raises
+    ------
+    DownholeInputError
+        Missing file or column, non-numeric cell (row and column named), bad stations.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise DownholeInputError(f"survey file {str(p)!r} does not exist")
+    if units not in ("si", "oilfield"):
+        raise DownholeInputError(f"units must be 'si' or 'oilfield', got {units!r}")
+    if angle_unit not in ("deg", "rad"):
+        raise DownholeInputError(f"angle_unit must be 'deg' or 'rad', got {angle_unit!r}")
+    with p.open(newline="") as fh:
+        rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+    if len(rows) < 3:
+        raise DownholeInputError(f"{p}: expected a header and at least 2 stations, got {len(rows)} rows")
+    header = [h.strip().lower() for h in rows[0]]
+
+    def col(names, what):
+        for k, h in enumerate(header):
+            if h in names:
+                return k
+        raise DownholeInputError(f"{p}: no {what} column; header is {rows[0]}, expected one of {names}")
+
+    imd, iinc, iazi = col(_MD_NAMES, "measured depth"), col(_INC_NAMES, "inclination"), col(_AZI_NAMES, "azimuth")
+    length_unit = "ft" if units == "oilfield" else "m"
+    if "ft" in header[imd]:
+        length_unit = "ft"
+    elif header[imd].endswith("_m") or "(m)" in header[imd]:
+        length_unit = "m"
+    data = np.empty((len(rows) - 1, 3))
+    for r, row in enumerate(rows[1:], start=2):
+        for c, k in enumerate((imd, iinc, iazi)):
+            try:
+                data[r - 2, c] = float(row[k])
+            except (ValueError, IndexError):
+                raise DownholeInputError(
+                    f"{p}: line {r}, column {rows[0][k]!r}: expected a number, got "
+                    f"{row[k] if k < len(row) else '<missing>'!r}") from None
+    return WellPath.from_survey(data[:, 0], data[:, 1], data[:, 2], degrees=angle_unit == "deg",
+                                length_unit=length_unit)
