@@ -1,0 +1,362 @@
+"""The optimal drilling control problem of seed Eqs. 2.12-2.14 as a validated, immutable object.
+
+A :class:`DPProblem` holds the horizon and DP step, the (x2, x4) search grids (bit axial and
+angular velocity), the optional x1/x3 index regions of the seed's Table 2.2, the cost weights
+lambda1..4 and targets (v_m, w_m, v_d, w_d) of Eq. 2.13, the string force/torque bounds (and
+optional top-drive speed bounds), the 4th-order model parameters (a preset, e.g. ``table_2_1``,
+with an optional epsilon override) and the settings of the standard and robust DP. Every
+inconsistency is rejected with a precise :class:`~downhole.errors.DownholeInputError` (or
+:class:`~downhole.errors.ScenarioError` when loaded from a TOML file) before any search.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from downhole.errors import DownholeInputError, ScenarioError
+from downhole.params import BitParams, LumpedParams, get_preset
+from downhole.params.quantity import Q
+
+__all__ = ["GridSpec", "DPProblem", "ModelArrays", "load_problem", "problem_from_dict"]
+
+_TOL = 1e-9
+
+
+class GridSpec(BaseModel):
+    """A uniform grid of ``points`` values from ``min`` to ``max`` (both included)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    min: float
+    max: float
+    points: int
+
+    def values(self) -> np.ndarray:
+        """The grid values (``points`` floats from ``min`` to ``max``)."""
+        return np.linspace(self.min, self.max, self.points)
+
+
+class TargetSpec(BaseModel):
+    """Targets of Eq. 2.13: mean (v_m, w_m) and final (v_d, w_d) bit velocities."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    v_m: Q["velocity"] = 0.01
+    w_m: Q["angular_velocity"] = 10.0
+    v_d: Q["velocity"] = 0.01
+    w_d: Q["angular_velocity"] = 10.0
+
+
+class WeightSpec(BaseModel):
+    """Weights lambda1..lambda4 of Eq. 2.13 (s^-1 m^-2 s^2, ..., see docs/dp.md)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    lambda1: float = Field(1.0e4, ge=0)
+    lambda2: float = Field(1.0e-2, ge=0)
+    lambda3: float = Field(1.0e5, ge=0)
+    lambda4: float = Field(1.0e-1, ge=0)
+
+
+class BoundSpec(BaseModel):
+    """Admissible inputs, expressed as string loads (seed: the feasible set U_f of Eq. 2.14).
+
+    ``force`` bounds the string force K_a (u1 - x1) (N, slack-off relative to the hanging
+    equilibrium), ``torque`` the string torque K_t (u2 - x3) (N m); both are checked at both ends
+    of every DP step. ``top_speed`` / ``rotary_speed`` (optional) bound the mean top-drive axial
+    speed (m/s) and rotary speed (rad/s) over each step of the replayed input (the input rates).
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    force: tuple[float, float] = (-50.0e3, 250.0e3)
+    torque: tuple[float, float] = (-20.0e3, 60.0e3)
+    top_speed: Optional[tuple[float, float]] = None
+    rotary_speed: Optional[tuple[float, float]] = None
+
+
+class RobustSpec(BaseModel):
+    """Robust DP (Eq. 2.25): the ensemble of epsilon scale factors and the integration substep.
+
+    The cost is averaged over the models with epsilon multiplied by each factor. The seed states
+    the ensemble three ways (+/-10 %, 150-250 %, 50/150/200 %), hence a parameter.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    epsilon_scales: tuple[float, ...] = (0.9, 1.0, 1.1)
+    substep: float = Field(5e-3, gt=0)
+
+
+class StandardSpec(BaseModel):
+    """Standard DP baseline: the input grid (string force x torque levels) and the substep of the
+    forward projection (explicit Euler of the 4th-order model, input held over the DP step)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    force_levels: int = Field(21, ge=2)
+    torque_levels: int = Field(21, ge=2)
+    substep: float = Field(5e-3, gt=0)
+
+
+class ModelSpec(BaseModel):
+    """The 4th-order model: a lumped preset and an optional epsilon override (Pa)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    preset: str = "table_2_1"
+    epsilon: Optional[Q["pressure"]] = None
+
+
+class DPProblem(BaseModel):
+    """Optimal control problem of seed Eqs. 2.12-2.14 on the 4th-order model.
+
+    Attributes
+    ----------
+    horizon : float
+        Total time T, s.
+    step : float
+        DP step Delta t, s; must divide ``horizon``.
+    x2, x4 : GridSpec
+        Search grids of the bit axial velocity (m/s) and angular velocity (rad/s). The initial
+        state (0, 0) and the targets must lie on them.
+    x1_regions, x3_regions : int or None
+        Number of x1 / x3 index regions of the seed's customized DP (Eqs. 2.19-2.20, the "index
+        grid" of Table 2.2). None: the DP runs over (x2, x4) only; the optimum is the same.
+    targets, weights, bounds, model, robust, standard
+        See :class:`TargetSpec`, :class:`WeightSpec`, :class:`BoundSpec`, :class:`ModelSpec`,
+        :class:`RobustSpec`, :class:`StandardSpec`.
+
+    Examples
+    --------
+    >>> p = DPProblem(horizon=5.0, step=0.25)
+    >>> p.steps
+    20
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    horizon: Q["time"] = 20.0
+    step: Q["time"] = 0.25
+    x2: GridSpec = GridSpec(min=0.0, max=0.02, points=11)
+    x4: GridSpec = GridSpec(min=0.0, max=20.0, points=11)
+    x1_regions: Optional[int] = None
+    x3_regions: Optional[int] = None
+    targets: TargetSpec = TargetSpec()
+    weights: WeightSpec = WeightSpec()
+    bounds: BoundSpec = BoundSpec()
+    model: ModelSpec = ModelSpec()
+    robust: RobustSpec = RobustSpec()
+    standard: StandardSpec = StandardSpec()
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def steps(self) -> int:
+        """Number of DP steps N = T / Delta t."""
+        return int(round(self.horizon / self.step))
+
+    @property
+    def times(self) -> np.ndarray:
+        """Sample times k Delta t, k = 0..N (s)."""
+        return np.arange(self.steps + 1) * self.step
+
+    def grid2(self) -> np.ndarray:
+        """x2 grid values, m/s."""
+        return self.x2.values()
+
+    def grid4(self) -> np.ndarray:
+        """x4 grid values, rad/s."""
+        return self.x4.values()
+
+    def params(self) -> tuple[LumpedParams, BitParams]:
+        """The lumped and bit parameters (preset with the epsilon override applied)."""
+        preset = get_preset(self.model.preset)
+        bit = preset.bit
+        if self.model.epsilon is not None:
+            bit = bit.model_copy(update={"epsilon": float(self.model.epsilon)})
+        return preset.string, bit
+
+    def arrays(self, epsilon_scale: float = 1.0) -> "ModelArrays":
+        """Plain arrays for the compiled kernels, with epsilon scaled by ``epsilon_scale``."""
+        string, bit = self.params()
+        p = bit.to_array()
+        p[0] *= epsilon_scale
+        return ModelArrays(mass=string.mass, inertia=string.inertia,
+                           ka=string.axial_stiffness, ca=string.axial_damping,
+                           kt=string.torsional_stiffness, ct=string.torsional_damping, bit=p)
+
+    def target_indices(self) -> dict[str, int]:
+        """Grid indices of the targets and of the initial state (all lie on the grids)."""
+        g2, g4 = self.grid2(), self.grid4()
+        out = {}
+        for name, val, grid in (("v_m", self.targets.v_m, g2), ("v_d", self.targets.v_d, g2),
+                                ("w_m", self.targets.w_m, g4), ("w_d", self.targets.w_d, g4),
+                                ("x2_0", 0.0, g2), ("x4_0", 0.0, g4)):
+            out[name] = int(np.argmin(np.abs(grid - val)))
+        return out
+
+    # ------------------------------------------------------------------ validation
+    def model_post_init(self, __context) -> None:  # noqa: D401
+        self._check()
+
+    def _check(self) -> None:
+        err = DownholeInputError
+        if not self.horizon > 0:
+            raise err(f"horizon must be > 0 s, got {self.horizon!r}")
+        if not self.step > 0:
+            raise err(f"step must be > 0 s, got {self.step!r}")
+        ratio = self.horizon / self.step
+        if abs(ratio - round(ratio)) > 1e-6 * max(1.0, ratio) or round(ratio) < 1:
+            raise err(f"step {self.step} s does not divide horizon {self.horizon} s "
+                      f"(horizon/step = {ratio:.6g}; expected a positive integer)")
+        for name, grid, unit in (("x2", self.x2, "m/s"), ("x4", self.x4, "rad/s")):
+            if grid.points < 2:
+                raise err(f"grid {name} needs at least 2 points, got points={grid.points}")
+            if not (math.isfinite(grid.min) and math.isfinite(grid.max)) or grid.max <= grid.min:
+                raise err(f"grid {name} is empty or inverted: min={grid.min} {unit} must be < "
+                          f"max={grid.max} {unit}")
+            vals = grid.values()
+            spacing = vals[1] - vals[0]
+            for tname, tval in ((("x2 initial state", 0.0), ("v_m", self.targets.v_m),
+                                 ("v_d", self.targets.v_d)) if name == "x2" else
+                                (("x4 initial state", 0.0), ("w_m", self.targets.w_m),
+                                 ("w_d", self.targets.w_d))):
+                if tval < grid.min - _TOL * spacing or tval > grid.max + _TOL * spacing:
+                    raise err(f"target {tname} = {tval} {unit} is outside the {name} grid "
+                              f"[{grid.min}, {grid.max}] {unit}")
+                off = np.min(np.abs(vals - tval))
+                if off > 1e-6 * spacing:
+                    raise err(f"target {tname} = {tval} {unit} is not on the {name} grid "
+                              f"(spacing {spacing:.6g} {unit}, nearest point off by {off:.3g}); "
+                              f"choose min/max/points so that it is a grid point")
+        for name in ("x1_regions", "x3_regions"):
+            val = getattr(self, name)
+            if val is not None and val < 1:
+                raise err(f"{name} must be a positive number of regions or omitted, got {val}")
+        if (self.x1_regions is None) != (self.x3_regions is None):
+            raise err("x1_regions and x3_regions must be given together (or both omitted), got "
+                      f"x1_regions={self.x1_regions}, x3_regions={self.x3_regions}")
+        for name, pair, unit in (("force", self.bounds.force, "N"),
+                                 ("torque", self.bounds.torque, "N m"),
+                                 ("top_speed", self.bounds.top_speed, "m/s"),
+                                 ("rotary_speed", self.bounds.rotary_speed, "rad/s")):
+            if pair is None:
+                continue
+            if not (pair[0] < pair[1]):
+                raise err(f"bounds.{name} = {list(pair)} {unit} is empty: expected [min, max] "
+                          f"with min < max")
+        scales = self.robust.epsilon_scales
+        if len(scales) < 1 or any(not (s > 0) for s in scales):
+            raise err(f"robust.epsilon_scales must be positive factors, got {list(scales)}")
+        for name in ("substep",):
+            for spec, label in ((self.robust, "robust"), (self.standard, "standard")):
+                if getattr(spec, name) > self.step:
+                    raise err(f"{label}.{name} = {getattr(spec, name)} s exceeds the DP step "
+                              f"{self.step} s")
+        try:
+            self.params()
+        except KeyError as exc:
+            raise err(f"model.preset: {exc.args[0]}") from None
+        preset = get_preset(self.model.preset)
+        if preset.kind != "lumped":
+            raise err(f"model.preset {self.model.preset!r} is a {preset.kind} preset; the DP "
+                      "needs a lumped one (e.g. table_2_1, plausible_lumped)")
+        self._check_hold_feasible()
+
+    def _check_hold_feasible(self) -> None:
+        """The targets must be holdable: steady force/torque at (v_d, w_d) within the bounds."""
+        from downhole.control.dp.kernels import steady_loads
+
+        a = self.arrays()
+        for label, v, w in (("final target (v_d, w_d)", self.targets.v_d, self.targets.w_d),
+                            ("mean target (v_m, w_m)", self.targets.v_m, self.targets.w_m)):
+            f, t = steady_loads(v, w, a.ca, a.ct, a.bit)
+            lo, hi = self.bounds.force
+            if not lo <= f <= hi:
+                raise DownholeInputError(
+                    f"infeasible bounds: holding the {label} = ({v} m/s, {w} rad/s) needs a "
+                    f"string force of {f:.4g} N, outside bounds.force = [{lo:.4g}, {hi:.4g}] N")
+            lo, hi = self.bounds.torque
+            if not lo <= t <= hi:
+                raise DownholeInputError(
+                    f"infeasible bounds: holding the {label} = ({v} m/s, {w} rad/s) needs a "
+                    f"string torque of {t:.4g} N m, outside bounds.torque = [{lo:.4g}, {hi:.4g}] "
+                    "N m")
+
+    def with_updates(self, **changes) -> "DPProblem":
+        """A validated copy with top-level fields replaced (nested specs as dicts or objects)."""
+        data = self.model_dump()
+        for k, v in changes.items():
+            data[k] = v.model_dump() if isinstance(v, BaseModel) else v
+        return problem_from_dict(data)
+
+
+class ModelArrays:
+    """Plain floats and the packed bit-parameter array handed to the compiled kernels."""
+
+    __slots__ = ("mass", "inertia", "ka", "ca", "kt", "ct", "bit")
+
+    def __init__(self, mass, inertia, ka, ca, kt, ct, bit):
+        self.mass, self.inertia = float(mass), float(inertia)
+        self.ka, self.ca, self.kt, self.ct = float(ka), float(ca), float(kt), float(ct)
+        self.bit = np.ascontiguousarray(bit, dtype=np.float64)
+
+    def lumped(self) -> np.ndarray:
+        """``[M, I, Ka, Ca, Kt, Ct]`` as a float64 array."""
+        return np.array([self.mass, self.inertia, self.ka, self.ca, self.kt, self.ct])
+
+
+def _flatten_error(exc: ValidationError) -> tuple[str, str]:
+    e = exc.errors()[0]
+    field = ".".join(str(p) for p in e.get("loc", ()))
+    msg = e.get("msg", str(exc))
+    if "input" in e and not isinstance(e["input"], dict):
+        msg += f" (got {e['input']!r})"
+    return field, msg
+
+
+def problem_from_dict(data: dict, source: str = "<dict>") -> DPProblem:
+    """Build a :class:`DPProblem` from a plain dict (the TOML schema of docs/dp.md).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the source, the offending field and what was expected.
+    """
+    try:
+        return DPProblem.model_validate(data)
+    except ValidationError as exc:
+        field, msg = _flatten_error(exc)
+        raise ScenarioError(source, field, msg) from None
+    except ScenarioError:
+        raise
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "", str(exc)) from None
+
+
+def load_problem(path: str | Path) -> DPProblem:
+    """Read a DP problem TOML file (schema in docs/dp.md; examples in ``examples/dp_*.toml``).
+
+    The file may hold the problem at top level or under a ``[dp]`` table.
+
+    Raises
+    ------
+    ScenarioError
+        If the file is missing, is not valid TOML or fails validation.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(str(path), "", "file not found")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(str(path), "", f"not valid TOML: {exc}") from None
+    if "dp" in data and isinstance(data["dp"], dict):
+        data = data["dp"]
+    return problem_from_dict(data, source=str(path))
