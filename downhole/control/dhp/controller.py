@@ -1,0 +1,292 @@
+"""The trained DHP controller: online law, behaviour past the horizon, save/load without pickle.
+
+Online (Eq. 4.34 with the network of Eq. 4.35 and the feed-forward):
+
+    u_k = u_ff,k - R^-1 g^T W_k^T phi(zbar_k) = u_ff,k - kc_k - kd_k (zbar_k - rbar_k)
+
+in non-dimensional units, then u = U ubar, clipped to the input limits. The stored arrays are
+``kc`` (n_steps, m) and ``kd`` (n_steps, m, n), i.e. exactly the rows R^-1 g^T W_k^T that the law
+uses (the full weights W_k, (n + 1) x n per step, would take 190 MB for 24 states over 40 s at
+dt = 1e-3; snapshots are kept in ``weights`` for plots).
+
+Past the trained horizon (k >= n_steps) the behaviour is set by ``past_horizon``:
+
+``"stationary"`` (default, receding-horizon re-use)
+    The gain of the stationary stage, kd at ``stationary_step`` (default n_steps // 2: far from
+    the final condition, where the backward recursion has converged to its stationary value),
+    is re-used with kc = 0 and the reference and feed-forward continued from the reference
+    description (the affine term kc vanishes when the feed-forward is consistent with the
+    reference, which :func:`~downhole.control.dhp.drilling.feed_forward` makes it). The
+    feed-forward past the horizon is computed from the attached model when there is one
+    (:meth:`DHPController.attach_model`, automatic after design) and otherwise extrapolated
+    linearly from the last two trained steps.
+``"error"``
+    Raise :class:`~downhole.errors.DownholeInputError` (re-train with a longer horizon).
+
+Files: ``save(path)`` writes ``path.npz`` (arrays) and ``path.json`` (settings, model
+description, reference, weights, version); :func:`load_controller` reads them back with
+``allow_pickle=False``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from downhole.control.dhp.references import BitReference
+from downhole.errors import DownholeInputError
+
+__all__ = ["DHPController", "load_controller", "PAST_HORIZON_POLICIES"]
+
+PAST_HORIZON_POLICIES = ("stationary", "error")
+_FORMAT = "downhole.dhp_controller/1"
+
+
+class DHPController:
+    """A trained DHP tracking controller (time-varying affine state feedback).
+
+    Build with :func:`downhole.control.dhp.design_dhp` or :func:`load_controller`.
+
+    Parameters
+    ----------
+    kc, kd : ndarray
+        (n_steps, m) and (n_steps, m, n): R^-1 g^T c_k and R^-1 g^T D_k^T.
+    reference_nd : ndarray (n_steps + 1, n)
+        Non-dimensional state reference of the training.
+    u_ff : ndarray (n_steps, m)
+        Non-dimensional feed-forward of the training.
+    state_scale, input_scale : ndarray
+        P and U.
+    dt : float
+        Step, s.
+    state_names, state_kinds, input_names : sequence of str
+    reference : BitReference
+        The bit-velocity reference it was trained for.
+    input_limits : ndarray (m, 2) or None
+        Physical limits applied online (clip).
+    past_horizon : {"stationary", "error"}
+    stationary_step : int or None
+    meta : dict
+        JSON-able information (settings, weights, model description, training diagnostics).
+    arrays : dict
+        Extra arrays saved with the controller (weights snapshots, iterations, errors, mu).
+    """
+
+    def __init__(self, kc, kd, reference_nd, u_ff, state_scale, input_scale, dt, state_names,
+                 state_kinds, input_names, reference: BitReference, input_limits=None,
+                 past_horizon: str = "stationary", stationary_step: int | None = None,
+                 meta: dict | None = None, arrays: dict | None = None):
+        self.kc = np.asarray(kc, float)
+        self.kd = np.asarray(kd, float)
+        ns, m, n = self.kd.shape
+        if self.kc.shape != (ns, m):
+            raise DownholeInputError(f"kc must be ({ns}, {m}), got {self.kc.shape}")
+        self.reference_nd = np.asarray(reference_nd, float)
+        self.u_ff = np.asarray(u_ff, float)
+        if self.reference_nd.shape != (ns + 1, n) or self.u_ff.shape != (ns, m):
+            raise DownholeInputError("reference_nd / u_ff do not match the gains' horizon")
+        self.state_scale = np.asarray(state_scale, float)
+        self.input_scale = np.asarray(input_scale, float)
+        self.dt = float(dt)
+        self.state_names = tuple(state_names)
+        self.state_kinds = tuple(state_kinds)
+        self.input_names = tuple(input_names)
+        self.reference = reference
+        self.input_limits = None if input_limits is None else np.asarray(input_limits, float)
+        if past_horizon not in PAST_HORIZON_POLICIES:
+            raise DownholeInputError(f"past_horizon must be one of {PAST_HORIZON_POLICIES}, got "
+                                     f"{past_horizon!r}")
+        self.past_horizon = past_horizon
+        self.stationary_step = ns // 2 if stationary_step is None else int(stationary_step)
+        if not 0 <= self.stationary_step < ns:
+            raise DownholeInputError(f"stationary_step must be in 0..{ns - 1}, got "
+                                     f"{self.stationary_step}")
+        self.meta = dict(meta or {})
+        self.arrays = dict(arrays or {})
+        self._model = None
+        self._ext_ref = None
+        self._ext_uff = None
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_steps(self) -> int:
+        return self.kd.shape[0]
+
+    @property
+    def horizon(self) -> float:
+        """Trained horizon, s."""
+        return self.n_steps * self.dt
+
+    @property
+    def n_states(self) -> int:
+        return self.kd.shape[2]
+
+    def attach_model(self, model) -> "DHPController":
+        """Attach the design model (used for the feed-forward past the horizon)."""
+        if model.n_states != self.n_states or tuple(model.state_names) != self.state_names:
+            raise DownholeInputError(f"model {model.name!r} does not match the controller's "
+                                     f"states ({self.n_states}: {self.state_names[:3]}...)")
+        self._model = model
+        return self
+
+    def reset(self) -> None:
+        """Nothing to reset (the law depends only on the step index); kept for the interface."""
+
+    # ------------------------------------------------------------------ reference beyond
+    def _extend(self, k: int) -> None:
+        """Continue reference and feed-forward up to step k (past-horizon policy)."""
+        from downhole.control.dhp.drilling import feed_forward, reference_states
+
+        have = self.n_steps if self._ext_uff is None else self.n_steps + self._ext_uff.shape[0]
+        if k < have:
+            return
+        total = max(k + 1, 2 * have) + 1
+        v, w, x, a = self.reference.sample(total, self.dt)
+        kinds = {"axial_position": x, "angular_position": a, "axial_velocity": v,
+                 "angular_velocity": w}
+        r = np.zeros((total + 1, self.n_states))
+        for i, kind in enumerate(self.state_kinds):
+            if kind in kinds:
+                r[:, i] = kinds[kind]
+        r /= self.state_scale
+        if self._model is not None:
+            uff = feed_forward(self._model, r)
+        else:
+            rate = self.u_ff[-1] - self.u_ff[-2] if self.n_steps > 1 else 0.0 * self.u_ff[-1]
+            extra = np.arange(1, total - self.n_steps + 1)[:, None] * rate + self.u_ff[-1]
+            uff = np.vstack([self.u_ff, extra])
+        self._ext_ref = r[self.n_steps + 1:]
+        self._ext_uff = uff[self.n_steps:total]
+
+    def step_terms(self, k: int):
+        """(rbar_k, u_ff,k, kc_k, kd_k) for step ``k`` (>= 0), applying the past-horizon policy."""
+        if k < 0:
+            raise DownholeInputError(f"step index must be >= 0, got {k}")
+        if k < self.n_steps:
+            return self.reference_nd[k], self.u_ff[k], self.kc[k], self.kd[k]
+        if self.past_horizon == "error":
+            raise DownholeInputError(
+                f"step {k} (t = {k * self.dt:.6g} s) is past the trained horizon "
+                f"{self.horizon:.6g} s; re-train with a longer horizon or use "
+                "past_horizon='stationary'")
+        self._extend(k)
+        j = k - self.n_steps
+        ks = self.stationary_step
+        return self._ext_ref[j], self._ext_uff[j], np.zeros_like(self.kc[ks]), self.kd[ks]
+
+    # ------------------------------------------------------------------ the law
+    def control(self, k: int, z) -> np.ndarray:
+        """Physical input at step ``k`` for the physical state ``z`` (n,)."""
+        z = np.asarray(z, dtype=float)
+        if z.shape != (self.n_states,):
+            raise DownholeInputError(f"state must have shape ({self.n_states},), got {z.shape}")
+        r, uff, kc, kd = self.step_terms(k)
+        ubar = uff - kc - kd @ (z / self.state_scale - r)
+        u = ubar * self.input_scale
+        if self.input_limits is not None:
+            u = np.clip(u, self.input_limits[:, 0], self.input_limits[:, 1])
+        return u
+
+    def unclipped(self, k: int, z) -> np.ndarray:
+        r, uff, kc, kd = self.step_terms(k)
+        return (uff - kc - kd @ (np.asarray(z, float) / self.state_scale - r)) * self.input_scale
+
+    def reference_at(self, k: int) -> tuple[float, float]:
+        """(v_d, omega_d) at step k, m/s and rad/s."""
+        v, w = self.reference.velocities(np.array([k * self.dt]))
+        return float(v[0]), float(w[0])
+
+    def command(self, t: float, observation: dict, reference=None) -> dict:
+        """Controller interface: named command from named observations at time ``t``.
+
+        ``observation`` holds either ``"state"`` (the physical state vector in the model's
+        order) or one entry per state name. ``reference`` is ignored (the DHP law is trained for
+        its own reference; re-train for another one). Returns ``{input_name: value}``.
+        """
+        if "state" in observation:
+            z = np.asarray(observation["state"], dtype=float)
+        else:
+            try:
+                z = np.array([float(observation[n]) for n in self.state_names])
+            except KeyError as exc:
+                raise DownholeInputError(
+                    f"observation lacks state {exc.args[0]!r}: the DHP controller needs the full "
+                    f"state ({', '.join(self.state_names)}) or an entry 'state'") from None
+        k = int(round(t / self.dt))
+        u = self.control(k, z)
+        return {name: float(val) for name, val in zip(self.input_names, u)}
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: str | os.PathLike) -> tuple[Path, Path]:
+        """Write ``path.npz`` and ``path.json`` (no pickle). Returns both paths."""
+        path = Path(path)
+        stem = path.with_suffix("") if path.suffix in (".npz", ".json") else path
+        npz, js = stem.with_suffix(".npz"), stem.with_suffix(".json")
+        arrays = {"kc": self.kc, "kd": self.kd, "reference_nd": self.reference_nd,
+                  "u_ff": self.u_ff, "state_scale": self.state_scale,
+                  "input_scale": self.input_scale}
+        if self.input_limits is not None:
+            arrays["input_limits"] = self.input_limits
+        for k, v in self.arrays.items():
+            arrays[f"extra_{k}"] = np.asarray(v)
+        from downhole import __version__
+
+        meta = {"format": _FORMAT, "downhole_version": __version__, "dt": self.dt,
+                "state_names": list(self.state_names), "state_kinds": list(self.state_kinds),
+                "input_names": list(self.input_names), "reference": self.reference.to_dict(),
+                "past_horizon": self.past_horizon, "stationary_step": self.stationary_step,
+                "meta": self.meta}
+        tmp = npz.with_name(npz.name + ".part.npz")
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+        tmp.replace(npz)
+        js.write_text(json.dumps(meta, indent=2, default=_json_default))
+        return npz, js
+
+    def __repr__(self) -> str:
+        return (f"DHPController(n={self.n_states}, m={len(self.input_names)}, "
+                f"horizon={self.horizon:g} s, dt={self.dt:g}, reference={self.reference.kind})")
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.bool_):
+        return bool(o)
+    raise TypeError(f"not JSON-able: {type(o).__name__}")
+
+
+def load_controller(path: str | os.PathLike) -> DHPController:
+    """Load a controller written by :meth:`DHPController.save` (``path`` with or without suffix).
+
+    Raises
+    ------
+    DownholeInputError
+        Missing files or a file that is not a downhole DHP controller.
+    """
+    path = Path(path)
+    stem = path.with_suffix("") if path.suffix in (".npz", ".json") else path
+    npz, js = stem.with_suffix(".npz"), stem.with_suffix(".json")
+    for f in (npz, js):
+        if not f.exists():
+            raise DownholeInputError(f"DHP controller file {f} does not exist")
+    meta = json.loads(js.read_text())
+    if meta.get("format") != _FORMAT:
+        raise DownholeInputError(f"{js} is not a downhole DHP controller (format "
+                                 f"{meta.get('format')!r}, expected {_FORMAT!r})")
+    with np.load(npz, allow_pickle=False) as data:
+        arr = {k: data[k] for k in data.files}
+    extras = {k[len("extra_"):]: v for k, v in arr.items() if k.startswith("extra_")}
+    return DHPController(arr["kc"], arr["kd"], arr["reference_nd"], arr["u_ff"],
+                         arr["state_scale"], arr["input_scale"], meta["dt"], meta["state_names"],
+                         meta["state_kinds"], meta["input_names"],
+                         BitReference.from_dict(meta["reference"]),
+                         input_limits=arr.get("input_limits"),
+                         past_horizon=meta["past_horizon"],
+                         stationary_step=meta["stationary_step"], meta=meta.get("meta", {}),
+                         arrays=extras)

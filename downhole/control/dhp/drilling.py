@@ -1,0 +1,323 @@
+"""Drilling specifics of the DHP design (seed Sec. 4.3.1-4.3.2, 4.4): models, references, weights.
+
+- :func:`lumped_affine_model`: the 4th-order lumped string (Eq. 2.1, deviations from the hanging
+  equilibrium) as a :class:`ControlAffineModel` with the approximated depth of cut and its floor
+  (Eq. 4.16), zero-order-hold discretization and the non-dimensionalization of Eqs. 4.17-4.19.
+- :func:`reference_states`: the reference transform of Eqs. 4.21-4.23 (all positions follow
+  x_d = int v_d, alpha_d = int omega_d; all velocities follow v_d, omega_d; non-dimensional).
+  The "rotation" R_i of Eq. 4.22 is the identity: downhole models both fields along the measured
+  depth (SPEC.md: the cos-rotation of Eqs. 4.3-4.5 is not a valid transformation).
+- :func:`feed_forward`: the steady-state inputs u_ff that keep the model on the reference.
+- :class:`PenaltyWeights` / :func:`penalty_matrices`: the diagonal layout of Eq. 4.45 and
+  Table 4.1 (weights on the top, selected nodes and the bit), and :func:`table_4_1_weights`
+  (the seed's numbers, for comparison: with physical inputs they violate the contraction
+  condition, see :mod:`downhole.control.dhp.trainer`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import scipy.linalg
+from numba import njit
+
+from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+from downhole.control.affine import ControlAffineModel
+from downhole.errors import DownholeInputError
+from downhole.params.bit import BitParams
+from downhole.params.lumped import LumpedParams
+
+__all__ = ["lumped_affine_model", "reference_states", "feed_forward", "PenaltyWeights",
+           "penalty_matrices", "table_4_1_weights", "zoh"]
+
+
+def zoh(Ac: np.ndarray, Bc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretization (matrix exponential of the augmented matrix)."""
+    n, m = Bc.shape
+    aug = np.zeros((n + m, n + m))
+    aug[:n, :n] = Ac
+    aug[:n, n:] = Bc
+    E = scipy.linalg.expm(aug * dt)
+    return E[:n, :n], E[:n, n:]
+
+
+@njit(cache=True)
+def _bit_batch(v, w, p, out):
+    for i in range(v.shape[0]):
+        d = approx_depth_of_cut(v[i], w[i], p)
+        wob, tob = bit_forces(d, v[i], w[i], p)
+        out[i, 0] = wob
+        out[i, 1] = tob
+        out[i, 2] = d
+
+
+def bit_forces_batch(v, omega, bit: BitParams | np.ndarray) -> np.ndarray:
+    """WOB, TOB (N, N m) and approximated depth of cut (m) for arrays of bit velocities.
+
+    Returns an array (N, 3). The depth of cut is d = 2 pi v / max(omega, omega*) (Eq. 4.16)."""
+    p = bit.to_array() if isinstance(bit, BitParams) else np.asarray(bit, float)
+    v = np.ascontiguousarray(np.asarray(v, float).ravel())
+    w = np.ascontiguousarray(np.asarray(omega, float).ravel())
+    out = np.empty((v.size, 3))
+    _bit_batch(v, w, p, out)
+    return out
+
+
+def lumped_affine_model(string: str | LumpedParams = "table_2_1", bit: BitParams | None = None,
+                        *, dt: float = 1e-3, state_scale=None, input_scale=None,
+                        name: str | None = None) -> ControlAffineModel:
+    """4th-order lumped drill string (Eq. 2.1) as a non-dimensional control-affine model.
+
+    States (physical, deviations from the hanging equilibrium): bit axial position x (m, down),
+    bit axial velocity v (m/s), bit angle theta (rad), bit angular velocity omega (rad/s).
+    Inputs: top-drive axial displacement u1 (m) and angle u2 (rad) from the hanging position:
+
+        M dv/dt = K_a (u1 - x) - C_a v - WOB(v, omega)
+        I domega/dt = K_t (u2 - theta) - C_t omega - TOB(v, omega)
+
+    with WOB, TOB from :func:`downhole.bit.bit_forces` at the approximated depth of cut
+    2 pi v / max(omega, omega*) (Eq. 4.16). The linear part is discretized exactly (ZOH); the bit
+    forces are held over the step (their ZOH map is ``force_map``).
+
+    Parameters
+    ----------
+    string : str or LumpedParams
+        Preset name (``"table_2_1"``, ``"plausible_lumped"``) or parameters.
+    bit : BitParams, optional
+        Default: the preset's bit.
+    dt : float
+        Time step, s.
+    state_scale : array_like (4,), optional
+        P of Eq. 4.17; default [1 m, 0.02 m/s, 1000 rad, 40 rad/s] (typical maxima over a 40 s
+        horizon at the seed's references).
+    input_scale : array_like (2,), optional
+        Default [0.1 m, 10 rad].
+
+    Returns
+    -------
+    ControlAffineModel
+    """
+    if isinstance(string, str):
+        from downhole.params import get_preset
+
+        pre = get_preset(string)
+        if pre.kind != "lumped":
+            raise DownholeInputError(f"preset {string!r} is a {pre.kind} preset; "
+                                     "lumped_affine_model needs a lumped one")
+        params, bit = pre.string, bit or pre.bit
+        label = string
+    else:
+        if not isinstance(string, LumpedParams):
+            raise DownholeInputError(f"string must be a preset name or LumpedParams, got "
+                                     f"{type(string).__name__}")
+        if bit is None:
+            raise DownholeInputError("bit parameters are required with explicit LumpedParams")
+        params, label = string, "custom"
+    M, inertia = params.mass, params.inertia
+    ka, ca, kt, ct = (params.axial_stiffness, params.axial_damping, params.torsional_stiffness,
+                      params.torsional_damping)
+    Ac = np.array([[0, 1, 0, 0], [-ka / M, -ca / M, 0, 0], [0, 0, 0, 1],
+                   [0, 0, -kt / inertia, -ct / inertia]], dtype=float)
+    Bc = np.array([[0, 0, 0, 0], [ka / M, 0, -1.0 / M, 0], [0, 0, 0, 0],
+                   [0, kt / inertia, 0, -1.0 / inertia]], dtype=float)
+    Ad, Bd_all = zoh(Ac, Bc, dt)
+    Bd, Fd = Bd_all[:, :2], Bd_all[:, 2:]
+    P = np.array([1.0, 0.02, 1000.0, 40.0]) if state_scale is None else state_scale
+    U = np.array([0.1, 10.0]) if input_scale is None else input_scale
+    P = np.asarray(P, dtype=float)
+    bitp = bit.to_array()
+    Pv, Pw = float(P[1]), float(P[3])
+
+    def forces(zb, _p=bitp, _Pv=Pv, _Pw=Pw):
+        out = bit_forces_batch(zb[:, 1] * _Pv, zb[:, 3] * _Pw, _p)
+        return out[:, :2]
+
+    weight = params.mass * params.g
+
+    def outputs(z, u, _p=bitp, _ka=ka, _kt=kt, _w=weight, _dt=dt):
+        f = bit_forces_batch(z[:, 1], z[:, 3], _p)
+        du = np.diff(u, axis=0, prepend=u[:1] * 0.0) / _dt
+        return {"wob": f[:, 0], "tob": f[:, 1], "depth_of_cut": f[:, 2],
+                "hook_load": _w - _ka * (u[:, 0] - z[:, 0]),
+                "surface_torque": _kt * (u[:, 1] - z[:, 2]),
+                "top_drive_axial_velocity": du[:, 0], "top_drive_angular_velocity": du[:, 1]}
+
+    return ControlAffineModel.from_physical(
+        Ad, Bd, state_scale=P, input_scale=U, dt=dt, force_map=Fd, forces=forces,
+        state_names=["bit_axial_position", "bit_axial_velocity", "bit_angle",
+                     "bit_angular_velocity"],
+        state_kinds=["axial_position", "axial_velocity", "angular_position", "angular_velocity"],
+        state_nodes=[1, 1, 1, 1], bit_node=1,
+        input_names=["top_drive_axial_displacement", "top_drive_angle"], bit=bit,
+        hanging_hook_load=weight, outputs=outputs,
+        name=name or f"lumped {label} (4 states)",
+        metadata={"family": "lumped", "preset": label, "axial_stiffness": ka,
+                  "torsional_stiffness": kt})
+
+
+# ------------------------------------------------------------------------------ references
+def reference_states(model: ControlAffineModel, v_d, omega_d, x_d, alpha_d) -> np.ndarray:
+    """Non-dimensional state reference (Eqs. 4.21-4.23) over time samples.
+
+    Parameters
+    ----------
+    model : ControlAffineModel
+    v_d, omega_d : array_like (T,)
+        Desired bit axial (m/s) and angular (rad/s) velocities.
+    x_d, alpha_d : array_like (T,)
+        Their integrals (m, rad): the desired positions of every node (deviation states).
+
+    Returns
+    -------
+    ndarray (T, n)
+        r-bar: positions of all nodes at x_d / alpha_d, velocities at v_d / omega_d, "other"
+        states at 0, each divided by its scale P_i.
+    """
+    cols = {"axial_position": x_d, "angular_position": alpha_d, "axial_velocity": v_d,
+            "angular_velocity": omega_d}
+    arrs = {k: np.asarray(v, dtype=float) for k, v in cols.items()}
+    T = arrs["axial_velocity"].shape[0]
+    for k, a in arrs.items():
+        if a.shape != (T,):
+            raise DownholeInputError(f"reference arrays must all have shape ({T},); "
+                                     f"{k} has {a.shape}")
+    r = np.zeros((T, model.n_states))
+    for i, kind in enumerate(model.state_kinds):
+        if kind in arrs:
+            r[:, i] = arrs[kind]
+    return r / model.state_scale
+
+
+def feed_forward(model: ControlAffineModel, reference: np.ndarray,
+                 regularization: float = 1e-6) -> np.ndarray:
+    """Steady-state feed-forward u_ff,k (non-dimensional) along a non-dimensional reference.
+
+    Solves, for every step, f(r_k + E d) + g u = r_{k+1} + E d for the input u and a position
+    offset d (E selects the position states: the string's static deflection under WOB/TOB),
+    in the least-squares sense with a small penalty on d (positions enter many models only
+    through differences with the inputs, which leaves d otherwise undetermined). The nonlinear
+    forces are evaluated at the reference velocities (they do not depend on positions in the
+    approximated-depth-of-cut models).
+
+    Returns
+    -------
+    ndarray (n_steps, m)
+    """
+    ref = np.asarray(reference, dtype=float)
+    n = model.n_states
+    pos = [i for i, k in enumerate(model.state_kinds) if k in ("axial_position",
+                                                               "angular_position")]
+    E = np.zeros((n, len(pos)))
+    E[pos, np.arange(len(pos))] = 1.0
+    Mat = np.hstack([(model.linear - np.eye(n)) @ E, model.g])
+    scale = max(1.0, float(np.abs(Mat).max()))
+    reg = np.zeros((len(pos), Mat.shape[1]))
+    reg[:, :len(pos)] = np.eye(len(pos)) * math.sqrt(regularization) * scale
+    big = np.vstack([Mat, reg])
+    rhs = ref[1:] - model.f(ref[:-1])
+    rhs = np.hstack([rhs, np.zeros((rhs.shape[0], len(pos)))])
+    sol = np.linalg.lstsq(big, rhs.T, rcond=None)[0]
+    return np.ascontiguousarray(sol[len(pos):].T)
+
+
+# ------------------------------------------------------------------------------ weights
+@dataclass(frozen=True)
+class PenaltyWeights:
+    """Diagonal weights of Eq. 4.45 (non-dimensional units), axial then torsional in each pair.
+
+    Attributes
+    ----------
+    top_position : (float, float)
+        q_1, q_2: top node (node 0) axial and angular position.
+    node_position : (float, float)
+        q_{N1+1}, q_{N1+2}: positions at the nodes listed in ``nodes`` (e.g. the end of the
+        vertical section).
+    nodes : tuple of int
+        Intermediate nodes weighted by ``node_position``.
+    bit_position : (float, float)
+        Bit axial and angular position.
+    bit_velocity : (float, float)
+        Bit axial and angular velocity.
+    final_scale : float
+        S = final_scale * Q (Table 4.1 uses separate s values; give ``final`` to set them).
+    final : dict or None
+        Optional explicit final weights with the same keys as above.
+    r : (float, float)
+        R diagonal.
+    """
+
+    top_position: tuple = (0.0, 0.0)
+    node_position: tuple = (0.0, 0.0)
+    nodes: tuple = ()
+    bit_position: tuple = (1.0, 0.01)
+    bit_velocity: tuple = (100.0, 1.0)
+    final_scale: float = 1.0
+    final: dict | None = None
+    r: tuple = (1.0, 1.0)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "PenaltyWeights":
+        known = {f for f in cls.__dataclass_fields__}
+        bad = set(d) - known
+        if bad:
+            raise DownholeInputError(f"unknown penalty weight keys {sorted(bad)}; known: "
+                                     f"{sorted(known)}")
+        return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items()})
+
+
+def _layout(model: ControlAffineModel, top, node, nodes, bitpos, bitvel) -> np.ndarray:
+    q = np.zeros(model.n_states)
+
+    def put(kind, nd, w):
+        for i in model.indices(kind, nd):
+            q[i] = w
+
+    if 0 in model.nodes and model.bit_node != 0:
+        put("axial_position", 0, top[0])
+        put("angular_position", 0, top[1])
+    for nd in nodes:
+        if nd not in model.nodes:
+            raise DownholeInputError(f"penalty node {nd} is not a node of model {model.name!r} "
+                                     f"(nodes {model.nodes})")
+        put("axial_position", nd, node[0])
+        put("angular_position", nd, node[1])
+    put("axial_position", model.bit_node, bitpos[0])
+    put("angular_position", model.bit_node, bitpos[1])
+    put("axial_velocity", model.bit_node, bitvel[0])
+    put("angular_velocity", model.bit_node, bitvel[1])
+    return q
+
+
+def penalty_matrices(model: ControlAffineModel, w: PenaltyWeights):
+    """Q, R, S (diagonal matrices) of Eq. 4.45 for ``model``'s state layout."""
+    q = _layout(model, w.top_position, w.node_position, w.nodes, w.bit_position, w.bit_velocity)
+    if w.final is None:
+        s = w.final_scale * q
+    else:
+        f = dict(top_position=w.top_position, node_position=w.node_position,
+                 bit_position=w.bit_position, bit_velocity=w.bit_velocity)
+        f.update(w.final)
+        s = _layout(model, f["top_position"], f["node_position"], w.nodes, f["bit_position"],
+                    f["bit_velocity"])
+    r = np.asarray(w.r, dtype=float)
+    if r.shape != (model.n_inputs,):
+        raise DownholeInputError(f"penalty r must have {model.n_inputs} entries, got {w.r}")
+    return np.diag(q), np.diag(r), np.diag(s)
+
+
+def table_4_1_weights(nodes: tuple = ()) -> PenaltyWeights:
+    """Table 4.1 taken literally (R = 1e-11, q = 10 / 1e10 / 1e8, s = 1e9 / 1e7).
+
+    The table lists s_1 twice (1 and 1e9); the bit entries 1e9 / 1e7 are used for the final
+    weights of the bit states and 1 for the others."""
+    return PenaltyWeights(top_position=(10.0, 10.0), node_position=(10.0, 10.0), nodes=nodes,
+                          bit_position=(1e10, 1e8), bit_velocity=(1e10, 1e8),
+                          final={"top_position": (1.0, 1.0), "node_position": (1.0, 1.0),
+                                 "bit_position": (1e9, 1e7), "bit_velocity": (1e9, 1e7)},
+                          r=(1e-11, 1e-11))

@@ -1,0 +1,818 @@
+"""The DHP (single-network adaptive critic) trainer of seed Sec. 4.3.3: Algorithm 1 and fast paths.
+
+The co-state is approximated by one network, lambda_{k+1} = W_k^T phi(z_k) (Eq. 4.35), trained
+backward from the final condition lambda_n = S (z_n - r_n) (Eqs. 4.36-4.42) on N_S random samples
+per step, and applied as u_k = u_ff,k - R^-1 g^T lambda_{k+1} (Eq. 4.34; u_ff = 0 in the seed,
+see :mod:`downhole.control.dhp` for the feed-forward). Three methods compute the same weights:
+
+``"algorithm1"``
+    The seed's Algorithm 1: at each step, iterate W^{i+1} = LS-fit of the target co-state
+    computed with W^i until the change of the co-state on the samples (Eq. 4.43) falls below
+    ``threshold`` (relative to the target's size), at most ``n_iterations`` times. Compiled
+    (numba) for the linear basis with the seed's Jacobian; ``"algorithm1_numpy"`` is the
+    plain-NumPy reference for any basis and for the exact Jacobian.
+``"closed_form"``
+    g is constant, so the per-sample target is affine in the network output: the iteration's
+    fixed point has the closed form y* = (I + M G)^-1 [M (f(z) + g u_ff - r_{k+1}) + a],
+    G = g R^-1 g^T, and the least-squares fit of y* is Algorithm 1's converged weight exactly
+    (the sample projection acts on the left, M G on the right, so they commute).
+``"riccati"``
+    The same fixed point written as matrices: fit only the nonlinear forces to the samples
+    (h(z) ~ c0 + H (z - r_k)), then D_k^T = N M (A + H), c_k = N [M(f_r + g u_ff - r_{k+1}) + a]
+    with N = (I + M G)^-1 = I - M g (R + g^T M g)^-1 g^T. For a linear plant this is the
+    finite-horizon LQR Riccati recursion.
+
+Algorithm 1's fixed-point iteration contracts only if mu = rho(g^T M g R^-1) < 1, where M is
+the target's derivative with respect to z_{k+1} (S at the last step, Q + A^T W_{z,k+1}^T
+before). Every method computes mu at every step and, with ``require_contraction`` (default),
+stops with :class:`TrainingDiverged` naming the step when mu >= 1.
+
+Internally the network is fitted in centred form lambda_{k+1} = c_k + D_k^T (z_k - r_k)
+(identical to W_k = [c_k - D_k^T r_k; D_k] for phi = [1, z], better conditioned).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from downhole.control.affine import ControlAffineModel
+from downhole.errors import DownholeError, DownholeInputError
+
+__all__ = ["DHPSettings", "DHPProblem", "DHPTraining", "TrainingDiverged", "LinearBasis",
+           "QuadraticBasis", "train_dhp", "METHODS", "finite_horizon_lqr"]
+
+METHODS = ("riccati", "closed_form", "algorithm1", "algorithm1_numpy")
+
+
+class TrainingDiverged(DownholeError, FloatingPointError):
+    """DHP training stopped: names the step (and time), the iteration and why."""
+
+    def __init__(self, step: int, dt: float, reason: str, iteration: int | None = None):
+        self.step, self.time, self.reason, self.iteration = step, step * dt, reason, iteration
+        it = f", iteration {iteration}" if iteration is not None else ""
+        super().__init__(f"DHP training diverged at step k = {step} (t = {step * dt:.6g} s{it}): "
+                         f"{reason}")
+
+
+# ---------------------------------------------------------------------------------------- bases
+class LinearBasis:
+    """phi(z) = [1, z_1, ..., z_n] (Eq. 4.46), p = n + 1. Enables the compiled fast paths."""
+
+    is_linear = True
+    name = "linear"
+
+    def size(self, n: int) -> int:
+        return n + 1
+
+    def __call__(self, Z: np.ndarray) -> np.ndarray:
+        return np.concatenate([np.ones((Z.shape[0], 1)), Z], axis=1)
+
+
+class QuadraticBasis:
+    """phi(z) = [1, z, z_i^2] (linear plus squares), p = 2n + 1 (Algorithm 1 NumPy path only)."""
+
+    is_linear = False
+    name = "quadratic"
+
+    def size(self, n: int) -> int:
+        return 2 * n + 1
+
+    def __call__(self, Z: np.ndarray) -> np.ndarray:
+        return np.concatenate([np.ones((Z.shape[0], 1)), Z, Z * Z], axis=1)
+
+
+_BASES = {"linear": LinearBasis, "quadratic": QuadraticBasis}
+
+
+# ---------------------------------------------------------------------------------------- settings
+@dataclass(frozen=True)
+class DHPSettings:
+    """Hyper-parameters of the trainer (Table 4.1 and Algorithm 1).
+
+    Attributes
+    ----------
+    n_samples : int or None
+        N_S, random samples per step; default ``max(2 (n + 1), 20)``. Fewer than the basis size
+        is rejected (the fit is singular); fewer than 2 (n + 1) is noisy.
+    n_iterations : int
+        N_I, maximum Algorithm 1 iterations per step (20 in Table 4.1).
+    threshold : float
+        Algorithm 1 stops at a step when max |lambda^{i+1} - lambda^i| over the samples is below
+        ``threshold`` times max |lambda^{i+1}| (Eq. 4.43, relative).
+    sample_radius : float or array of float
+        Samples z = r_k + U(-a, a) in non-dimensional units (local to the reference, SPEC.md).
+    method : str
+        One of :data:`METHODS`.
+    jacobian : {"seed", "exact"}
+        A_k in the co-state recursion: the seed's constant P^-1 A_d P, or with the derivative
+        of the nonlinear forces (``algorithm1_numpy`` only).
+    basis : {"linear", "quadratic"}
+        phi; non-linear bases need ``algorithm1_numpy``.
+    warm_start : bool
+        Start Algorithm 1 at step k from W_{k+1} (True) or from zero (False, the seed's "initial
+        guess").
+    require_contraction : bool
+        Stop with :class:`TrainingDiverged` when mu = rho(g^T M g R^-1) >= 1 at some step.
+    seed : int
+        Random generator seed of the samples.
+    record_steps : tuple of int
+        Steps (negative counts from the end, -1 = n - 1) whose Algorithm 1 weight iterates are
+        recorded (Fig. 4.5).
+    weight_stride : int or None
+        Keep the full weights W_k every ``weight_stride`` steps (None: about 400 snapshots).
+    chunk : int
+        Steps per vectorized model evaluation (memory vs. Python overhead).
+    max_weight : float
+        Weights larger than this (or non-finite) count as divergence.
+    """
+
+    n_samples: int | None = None
+    n_iterations: int = 20
+    threshold: float = 1e-6
+    sample_radius: float | tuple = 0.02
+    method: str = "riccati"
+    jacobian: str = "seed"
+    basis: str = "linear"
+    warm_start: bool = True
+    require_contraction: bool = True
+    seed: int = 0
+    record_steps: tuple = (-1,)
+    weight_stride: int | None = None
+    chunk: int = 256
+    max_weight: float = 1e12
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise DownholeInputError(f"method must be one of {METHODS}, got {self.method!r}")
+        if self.jacobian not in ("seed", "exact"):
+            raise DownholeInputError(f"jacobian must be 'seed' or 'exact', got {self.jacobian!r}")
+        if self.basis not in _BASES:
+            raise DownholeInputError(f"basis must be one of {tuple(_BASES)}, got {self.basis!r}")
+        if self.method != "algorithm1_numpy" and (self.jacobian != "seed"
+                                                   or self.basis != "linear"):
+            raise DownholeInputError(
+                f"method {self.method!r} needs basis='linear' and jacobian='seed'; use "
+                "method='algorithm1_numpy' for other bases or the exact Jacobian")
+        if not (isinstance(self.n_iterations, int) and self.n_iterations >= 1):
+            raise DownholeInputError(f"n_iterations must be an integer >= 1, got "
+                                     f"{self.n_iterations!r}")
+        if not (self.threshold > 0 and math.isfinite(self.threshold)):
+            raise DownholeInputError(f"threshold must be positive, got {self.threshold!r}")
+        if self.n_samples is not None and not (isinstance(self.n_samples, int)
+                                               and self.n_samples >= 2):
+            raise DownholeInputError(f"n_samples must be an integer >= 2, got {self.n_samples!r}")
+        r = np.asarray(self.sample_radius, dtype=float)
+        if not np.all(np.isfinite(r)) or np.any(r <= 0):
+            raise DownholeInputError(f"sample_radius must be positive, got {self.sample_radius!r}")
+        if self.chunk < 1:
+            raise DownholeInputError(f"chunk must be >= 1, got {self.chunk!r}")
+
+
+def _psd(name, M, n, definite=False):
+    M = np.asarray(M, dtype=float)
+    if M.ndim == 1:
+        M = np.diag(M)
+    if M.shape != (n, n):
+        raise DownholeInputError(f"{name} must be ({n}, {n}) (or a diagonal of length {n}), "
+                                 f"got shape {M.shape}")
+    if not np.all(np.isfinite(M)):
+        raise DownholeInputError(f"{name} must be finite")
+    if not np.allclose(M, M.T, rtol=1e-10, atol=1e-14 * max(1.0, np.abs(M).max())):
+        raise DownholeInputError(f"{name} must be symmetric")
+    ev = np.linalg.eigvalsh(0.5 * (M + M.T))
+    tol = 1e-12 * max(1.0, float(np.abs(ev).max()))
+    if definite and ev.min() <= 0:
+        raise DownholeInputError(f"{name} must be positive definite; its smallest eigenvalue is "
+                                 f"{ev.min():.6g}")
+    if not definite and ev.min() < -tol:
+        raise DownholeInputError(f"{name} must be positive semi-definite; its smallest "
+                                 f"eigenvalue is {ev.min():.6g}")
+    return M
+
+
+@dataclass
+class DHPProblem:
+    """A finite-horizon tracking problem on a :class:`ControlAffineModel` (Eq. 4.26).
+
+    J = 1/2 sum_{k<n} [(z_k - r_k)^T Q (z_k - r_k) + (u_k - u_ff,k)^T R (u_k - u_ff,k)]
+        + 1/2 (z_n - r_n)^T S (z_n - r_n), all in non-dimensional units (Q, R, S are the
+    discrete weights, i.e. the seed's Qbar dt etc.).
+
+    Parameters
+    ----------
+    model : ControlAffineModel
+    Q, S : array_like (n, n) or (n,)
+        Positive semi-definite state and final-state weights.
+    R : array_like (m, m) or (m,)
+        Positive definite input weight.
+    reference : array_like (n_steps + 1, n)
+        Non-dimensional state reference r_0..r_n (Eqs. 4.21-4.23).
+    u_ff : array_like (n_steps, m), optional
+        Non-dimensional feed-forward inputs (default zero, the seed's formulation).
+    """
+
+    model: ControlAffineModel
+    Q: np.ndarray
+    R: np.ndarray
+    S: np.ndarray
+    reference: np.ndarray
+    u_ff: np.ndarray | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.model, ControlAffineModel):
+            raise DownholeInputError(f"model must be a ControlAffineModel, got "
+                                     f"{type(self.model).__name__}")
+        n, m = self.model.n_states, self.model.n_inputs
+        self.Q = _psd("Q", self.Q, n)
+        self.S = _psd("S", self.S, n)
+        self.R = _psd("R", self.R, m, definite=True)
+        ref = np.asarray(self.reference, dtype=float)
+        if ref.ndim != 2 or ref.shape[1] != n:
+            raise DownholeInputError(f"reference must have shape (n_steps + 1, {n}), got "
+                                     f"{ref.shape}")
+        if ref.shape[0] < 2:
+            raise DownholeInputError(
+                f"the horizon must be at least one step: reference has {ref.shape[0]} row(s), "
+                "expected n_steps + 1 >= 2")
+        if not np.all(np.isfinite(ref)):
+            raise DownholeInputError("reference must be finite")
+        self.reference = ref
+        ns = ref.shape[0] - 1
+        if self.u_ff is None:
+            self.u_ff = np.zeros((ns, m))
+        else:
+            uff = np.asarray(self.u_ff, dtype=float)
+            if uff.shape != (ns, m):
+                raise DownholeInputError(f"u_ff must have shape (n_steps, m) = ({ns}, {m}), got "
+                                         f"{uff.shape}")
+            self.u_ff = uff
+
+    @property
+    def n_steps(self) -> int:
+        return self.reference.shape[0] - 1
+
+
+@dataclass
+class DHPTraining:
+    """What training returns: the time-varying affine policy and diagnostics.
+
+    The online law is u_k = u_ff,k - kc_k - kd_k (z_k - r_k) (non-dimensional), which equals
+    u_ff,k - R^-1 g^T W_k^T phi(z_k) with W_k = [c_k - D_k^T r_k; D_k].
+
+    Attributes
+    ----------
+    kc : ndarray (n_steps, m)
+        R^-1 g^T c_k.
+    kd : ndarray (n_steps, m, n)
+        R^-1 g^T D_k^T.
+    weight_steps : ndarray of int
+        Steps k whose full weights W_k (p, n) are kept in ``weights``.
+    weights : ndarray (len(weight_steps), p, n)
+    iterations : ndarray of int (n_steps,)
+        Algorithm 1 iterations used at each step (0 for the closed-form methods).
+    errors : ndarray (n_steps,)
+        Final relative training error of each step (Eq. 4.44 on the samples; for the
+        closed-form methods the residual of the fixed point).
+    mu : ndarray (n_steps,)
+        Contraction factor rho(g^T M g R^-1) of each step.
+    iteration_history : dict of int to ndarray (iters + 1, p, n)
+        Weight iterates at the recorded steps (Fig. 4.5).
+    seconds : float
+        Wall time of the training.
+    """
+
+    kc: np.ndarray
+    kd: np.ndarray
+    weight_steps: np.ndarray
+    weights: np.ndarray
+    iterations: np.ndarray
+    errors: np.ndarray
+    mu: np.ndarray
+    iteration_history: dict = field(default_factory=dict)
+    seconds: float = 0.0
+    method: str = ""
+
+    def controls(self, z_nd: np.ndarray, k: int, reference: np.ndarray, u_ff: np.ndarray):
+        """u_k (non-dimensional) for state ``z_nd`` at step ``k``."""
+        return u_ff[k] - self.kc[k] - self.kd[k] @ (z_nd - reference[k])
+
+
+# ---------------------------------------------------------------------------------------- kernels
+@njit(cache=True)
+def _mu(g, M, Rinv):
+    X = g.T @ (M @ g) @ Rinv
+    ev = np.linalg.eigvals(X.astype(np.complex128))
+    r = 0.0
+    for e in ev:
+        a = abs(e)
+        if a > r:
+            r = a
+    return r
+
+
+@njit(cache=True)
+def _centered_fit(delta, Y):
+    """LS fit Y ~ c + delta @ Dt over the samples: returns c (q,), Dt (n, q)."""
+    N, n = delta.shape
+    q = Y.shape[1]
+    Phi = np.empty((N, n + 1))
+    Phi[:, 0] = 1.0
+    Phi[:, 1:] = delta
+    Gm = Phi.T @ Phi
+    rhs = Phi.T @ Y
+    sol = np.linalg.solve(Gm, rhs)
+    return sol[0].copy(), sol[1:].copy()
+
+
+@njit(cache=True)
+def _riccati_chunk(k_hi, deltas, fr, hsamp, cols_map, A, g, Q, S, Rinv, R, ref, uff, n_total,
+                   M, c_next, kc, kd, mu_out, err_out, keep_every, w_steps, w_store, w_count,
+                   mu_max_ok, max_weight):
+    """Backward Riccati-form pass over steps k_hi, k_hi-1, ..., k_hi-K+1 of a chunk.
+
+    deltas (K, N, n): samples minus reference; fr (K, n): f at the reference (A r + h(r) fit is
+    recomputed here); hsamp (K, N, q): nonlinear columns at the samples; cols_map (n, q): the map
+    from the fitted columns to the state rows (identity columns or the force map).
+    M (n, n) and c_next (n,) carry the co-state model of step k+1 between chunks.
+    Returns status (0 ok, 1 mu >= 1, 2 non-finite/too large) and the failing step.
+    """
+    K = deltas.shape[0]
+    n = A.shape[0]
+    for j in range(K):
+        k = k_hi - j
+        delta = deltas[j]
+        q = hsamp.shape[2]
+        if q > 0:
+            c0, Ct = _centered_fit(delta, hsamp[j])
+            H = cols_map @ Ct.T          # (n, n): dh/dz of the fit
+            h0 = cols_map @ c0           # (n,): fitted h at the reference
+        else:
+            H = np.zeros((n, n))
+            h0 = np.zeros(n)
+        F = A + H
+        if k == n_total - 1:
+            Mk = S.copy()
+            a = np.zeros(n)
+        else:
+            Mk = M.copy()
+            a = A.T @ c_next
+        mu = _mu(g, Mk, Rinv)
+        mu_out[k] = mu
+        if mu >= mu_max_ok:
+            return 1, k
+        Mg = Mk @ g                                  # (n, m)
+        Sg = R + g.T @ Mg                            # (m, m)
+        Sginv = np.linalg.inv(Sg)
+        NM = Mk - Mg @ (Sginv @ (g.T @ Mk))          # (I + M G)^-1 M
+        e_r = fr[j] + h0 + g @ uff[k] - ref[k + 1]
+        # N v = v - M g Sg^-1 g^T v
+        v = Mk @ e_r + a
+        c = v - Mg @ (Sginv @ (g.T @ v))
+        Dt = NM @ F                                  # D_k^T
+        kc[k] = Rinv @ (g.T @ c)
+        kd[k] = Rinv @ (g.T @ Dt)
+        err_out[k] = 0.0
+        big = 0.0
+        for i in range(n):
+            if abs(c[i]) > big:
+                big = abs(c[i])
+            for l in range(n):
+                if abs(Dt[i, l]) > big:
+                    big = abs(Dt[i, l])
+        if not (big < max_weight):
+            return 2, k
+        if keep_every > 0 and k % keep_every == 0:
+            w_steps[w_count[0]] = k
+            w_store[w_count[0], 0] = c - Dt @ ref[k]
+            w_store[w_count[0], 1:] = Dt.T
+            w_count[0] += 1
+        M[:, :] = Q + A.T @ Dt
+        c_next[:] = c
+    return 0, -1
+
+
+@njit(cache=True)
+def _closed_form_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, R, ref, n_total, M, c_next, kc, kd,
+                       mu_out, err_out, keep_every, w_steps, w_store, w_count, mu_max_ok,
+                       max_weight):
+    """Backward pass with the closed-form per-sample target, then the LS fit.
+
+    base (K, N, n): f(z_s) + g u_ff,k - r_{k+1} at the samples."""
+    K = deltas.shape[0]
+    n = A.shape[0]
+    for j in range(K):
+        k = k_hi - j
+        if k == n_total - 1:
+            Mk = S.copy()
+            a = np.zeros(n)
+        else:
+            Mk = M.copy()
+            a = A.T @ c_next
+        mu = _mu(g, Mk, Rinv)
+        mu_out[k] = mu
+        if mu >= mu_max_ok:
+            return 1, k
+        Mg = Mk @ g
+        Sginv = np.linalg.inv(R + g.T @ Mg)
+        V = base[j] @ Mk.T + a                      # (N, n): M e + a per sample
+        Y = V - (V @ g) @ Sginv.T @ Mg.T            # N v per sample (rows)
+        c, Dt_T = _centered_fit(deltas[j], Y)       # Y ~ c + delta @ Dt_T ; D^T = Dt_T.T
+        Dt = Dt_T.T.copy()
+        # residual of the fit relative to the target size (how far phi = [1, z] is from exact)
+        res = 0.0
+        big_y = 1e-300
+        for s in range(Y.shape[0]):
+            pred = c + Dt @ deltas[j, s]
+            for i in range(n):
+                d = abs(pred[i] - Y[s, i])
+                if d > res:
+                    res = d
+                if abs(Y[s, i]) > big_y:
+                    big_y = abs(Y[s, i])
+        err_out[k] = res / big_y
+        kc[k] = Rinv @ (g.T @ c)
+        kd[k] = Rinv @ (g.T @ Dt)
+        big = np.max(np.abs(Dt))
+        if not (big < max_weight and np.all(np.isfinite(c))):
+            return 2, k
+        if keep_every > 0 and k % keep_every == 0:
+            w_steps[w_count[0]] = k
+            w_store[w_count[0], 0] = c - Dt @ ref[k]
+            w_store[w_count[0], 1:] = Dt.T
+            w_count[0] += 1
+        M[:, :] = Q + A.T @ Dt
+        c_next[:] = c
+    return 0, -1
+
+
+@njit(cache=True)
+def _alg1_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, ref, n_total, Dn, c_next, kc, kd, mu_out,
+                err_out, it_out, keep_every, w_steps, w_store, w_count, n_iter, threshold,
+                warm, mu_max_ok, max_weight, rec_step, rec_out, rec_n):
+    """Algorithm 1 (compiled, linear basis, seed Jacobian) over one chunk of steps.
+
+    Dn (n, n) = D_{k+1}^T and c_next = c_{k+1} carry the network of step k+1.
+    The iteration: y^i = c^i + delta D^i, z1 = base - y^i G, target = M-form of Eq. 4.42,
+    (c, D)^{i+1} = LS fit; stop when max|y^{i+1} - y^i| <= threshold * max|y^{i+1}|."""
+    K = deltas.shape[0]
+    n = A.shape[0]
+    N = deltas.shape[1]
+    G = g @ Rinv @ g.T
+    c = c_next.copy()
+    Dt = Dn.copy()
+    for j in range(K):
+        k = k_hi - j
+        delta = deltas[j]
+        if k == n_total - 1:
+            Mk = S.copy()
+            a = np.zeros(n)
+        else:
+            Mk = Q + A.T @ Dn
+            a = A.T @ c_next
+        mu = _mu(g, Mk, Rinv)
+        mu_out[k] = mu
+        if mu >= mu_max_ok:
+            return 1, k, 0
+        Phi = np.empty((N, n + 1))
+        Phi[:, 0] = 1.0
+        Phi[:, 1:] = delta
+        Gram = Phi.T @ Phi
+        L = np.linalg.cholesky(Gram)
+        if warm and k < n_total - 1:
+            c = c_next.copy()
+            Dt = Dn.copy()
+        else:
+            c = np.zeros(n)
+            Dt = np.zeros((n, n))
+        Y = np.empty((N, n))
+        for s in range(N):
+            Y[s] = c + Dt @ delta[s]
+        err = np.inf
+        it = 0
+        if k == rec_step:
+            rec_out[0, 0] = c - Dt @ ref[k]
+            rec_out[0, 1:] = Dt.T
+        for it in range(1, n_iter + 1):
+            # target co-state at the samples (Eq. 4.41/4.42 in the centred M-form)
+            E = base[j] - Y @ G                      # z_{k+1} - r_{k+1}
+            T = E @ Mk.T + a
+            rhs = Phi.T @ T
+            tmp = np.linalg.solve(L, rhs)
+            sol = np.linalg.solve(L.T, tmp)
+            c = sol[0].copy()
+            Dt = sol[1:].T.copy()
+            Ynew = np.empty((N, n))
+            for s in range(N):
+                Ynew[s] = c + Dt @ delta[s]
+            diff = 0.0
+            big = 1e-300
+            for s in range(N):
+                for i in range(n):
+                    d = abs(Ynew[s, i] - Y[s, i])
+                    if d > diff:
+                        diff = d
+                    if abs(Ynew[s, i]) > big:
+                        big = abs(Ynew[s, i])
+            Y = Ynew
+            err = diff / big
+            if k == rec_step and it < rec_out.shape[0]:
+                rec_out[it, 0] = c - Dt @ ref[k]
+                rec_out[it, 1:] = Dt.T
+                rec_n[0] = it + 1
+            if not (big < max_weight) or not np.isfinite(err):
+                return 2, k, it
+            if err <= threshold:
+                break
+        it_out[k] = it
+        err_out[k] = err
+        kc[k] = Rinv @ (g.T @ c)
+        kd[k] = Rinv @ (g.T @ Dt)
+        if keep_every > 0 and k % keep_every == 0:
+            w_steps[w_count[0]] = k
+            w_store[w_count[0], 0] = c - Dt @ ref[k]
+            w_store[w_count[0], 1:] = Dt.T
+            w_count[0] += 1
+        Dn[:, :] = Dt
+        c_next[:] = c
+    return 0, -1, 0
+
+
+# ---------------------------------------------------------------------------------------- driver
+def _progress(total, enabled, label):
+    if not enabled:
+        return None
+    from rich.progress import (BarColumn, Progress, TextColumn, TimeElapsedColumn,
+                               TimeRemainingColumn)
+
+    prog = Progress(TextColumn(label), BarColumn(), TextColumn("{task.completed}/{task.total} steps"),
+                    TimeElapsedColumn(), TimeRemainingColumn(), transient=True)
+    prog.start()
+    task = prog.add_task(label, total=total)
+    return prog, task
+
+
+def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
+              progress: bool = False) -> DHPTraining:
+    """Train the DHP critic backward over the horizon and return the policy.
+
+    Parameters
+    ----------
+    problem : DHPProblem
+        Model, weights, reference and feed-forward (non-dimensional).
+    settings : DHPSettings, optional
+        Hyper-parameters; default ``DHPSettings()`` (Riccati form).
+    progress : bool
+        Show a progress bar (rich) over the steps.
+
+    Returns
+    -------
+    DHPTraining
+
+    Raises
+    ------
+    DownholeInputError
+        Settings that do not fit the problem (too few samples for the basis, ...).
+    TrainingDiverged
+        mu >= 1 at some step (with ``require_contraction``), non-finite or exploding weights, or
+        Algorithm 1's error growing instead of shrinking; the message names the step and time.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from downhole.control.affine import ControlAffineModel
+    >>> m = ControlAffineModel(np.array([[1.0, 0.1], [0.0, 1.0]]), np.array([[0.0], [0.1]]),
+    ...                        state_scale=1.0, input_scale=1.0, dt=0.1, state_names="xv",
+    ...                        input_names=["u"], strict_inputs=False)
+    >>> pb = DHPProblem(m, Q=[1.0, 0.1], R=[0.1], S=[1.0, 1.0], reference=np.zeros((51, 2)))
+    >>> tr = train_dhp(pb)
+    >>> tr.kd.shape
+    (50, 1, 2)
+    """
+    settings = settings or DHPSettings()
+    if not isinstance(problem, DHPProblem):
+        raise DownholeInputError(f"problem must be a DHPProblem, got {type(problem).__name__}")
+    model = problem.model
+    n, m = model.n_states, model.n_inputs
+    basis = _BASES[settings.basis]()
+    p = basis.size(n)
+    ns = settings.n_samples if settings.n_samples is not None else max(2 * (n + 1), 20)
+    if ns < p:
+        raise DownholeInputError(
+            f"n_samples = {ns} is fewer than the {p} basis functions of a {n}-state model: the "
+            f"least-squares fit is singular; use n_samples >= 2 (n + 1) = {2 * (n + 1)}")
+    radius = np.broadcast_to(np.asarray(settings.sample_radius, dtype=float), (n,)).copy()
+    n_steps = problem.n_steps
+    rng = np.random.default_rng(settings.seed)
+    A = np.ascontiguousarray(model.linear)
+    g = np.ascontiguousarray(model.g)
+    Rinv = np.linalg.inv(problem.R)
+    ref = problem.reference
+    uff = problem.u_ff
+    stride = settings.weight_stride or max(1, n_steps // 400)
+    n_keep = n_steps // stride + 2
+    w_steps = np.full(n_keep, -1, dtype=np.int64)
+    w_store = np.zeros((n_keep, p, n))
+    w_count = np.zeros(1, dtype=np.int64)
+    kc = np.zeros((n_steps, m))
+    kd = np.zeros((n_steps, m, n))
+    mu = np.full(n_steps, np.nan)
+    err = np.zeros(n_steps)
+    iters = np.zeros(n_steps, dtype=np.int64)
+    rec_steps = sorted({(s if s >= 0 else n_steps + s) for s in settings.record_steps
+                        if -n_steps <= s < n_steps})
+    history: dict[int, np.ndarray] = {}
+    mu_ok = 1.0 if settings.require_contraction else np.inf
+    method = settings.method
+    t0 = time.perf_counter()
+    bar = _progress(n_steps, progress, f"DHP {method}")
+    try:
+        if method == "algorithm1_numpy":
+            _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, err, iters,
+                         stride, w_steps, w_store, w_count, rec_steps, history, mu_ok, bar)
+        else:
+            M = np.zeros((n, n))
+            c_next = np.zeros(n)
+            k_hi = n_steps - 1
+            while k_hi >= 0:
+                K = min(settings.chunk, k_hi + 1)
+                ks = np.arange(k_hi, k_hi - K, -1)
+                deltas = rng.uniform(-1.0, 1.0, size=(K, ns, n)) * radius
+                Z = deltas + ref[ks][:, None, :]
+                if method == "riccati":
+                    fr = ref[ks] @ A.T  # linear part at the reference; h enters via the fit
+                    hs, cmap = _nonlinear_samples(model, Z)
+                    status, kf = _riccati_chunk(
+                        k_hi, deltas, fr, hs, cmap, A, g, problem.Q, problem.S, Rinv, problem.R,
+                        ref, uff, n_steps, M, c_next, kc, kd, mu, err, stride, w_steps, w_store,
+                        w_count, mu_ok, settings.max_weight)
+                    it_f = None
+                else:
+                    base = (model.f(Z.reshape(K * ns, n)).reshape(K, ns, n)
+                            + (uff[ks] @ g.T)[:, None, :] - ref[ks + 1][:, None, :])
+                    if method == "closed_form":
+                        status, kf = _closed_form_chunk(
+                            k_hi, deltas, base, A, g, problem.Q, problem.S, Rinv, problem.R, ref,
+                            n_steps, M, c_next, kc, kd, mu, err, stride, w_steps, w_store,
+                            w_count, mu_ok, settings.max_weight)
+                        it_f = None
+                    else:
+                        rec = rec_steps[0] if rec_steps and ks[-1] <= rec_steps[0] <= k_hi else -1
+                        rec_out = np.zeros((settings.n_iterations + 1, p, n))
+                        rec_n = np.ones(1, dtype=np.int64)
+                        status, kf, it_f = _alg1_chunk(
+                            k_hi, deltas, base, A, g, problem.Q, problem.S, Rinv, ref, n_steps,
+                            M, c_next, kc, kd, mu, err, iters, stride, w_steps, w_store, w_count,
+                            settings.n_iterations, settings.threshold, settings.warm_start,
+                            mu_ok, settings.max_weight, rec, rec_out, rec_n)
+                        if rec >= 0:
+                            history[rec] = rec_out[:rec_n[0]].copy()
+                if status == 1:
+                    raise TrainingDiverged(int(kf), model.dt, _mu_reason(mu[kf]))
+                if status == 2:
+                    raise TrainingDiverged(int(kf), model.dt,
+                                           f"weights became non-finite or exceeded max_weight = "
+                                           f"{settings.max_weight:g}", iteration=it_f)
+                if bar:
+                    bar[0].update(bar[1], advance=K)
+                k_hi -= K
+    finally:
+        if bar:
+            bar[0].stop()
+    order = np.argsort(w_steps[:w_count[0]])
+    return DHPTraining(kc=kc, kd=kd, weight_steps=w_steps[:w_count[0]][order],
+                       weights=w_store[:w_count[0]][order], iterations=iters, errors=err, mu=mu,
+                       iteration_history=history, seconds=time.perf_counter() - t0,
+                       method=method)
+
+
+def _mu_reason(mu):
+    return (f"the Algorithm 1 iteration cannot converge: mu = rho(g^T M g R^-1) = {mu:.4g} >= 1 "
+            "(M = S at the last step, Q + A^T W_z^T before). Increase R, decrease Q/S, or scale "
+            "the inputs (input_scale) so that g^T M g is small against R")
+
+
+def _nonlinear_samples(model: ControlAffineModel, Z):
+    """Nonlinear columns at the samples (K, N, q) and the map (n, q) to the state rows."""
+    K, N, n = Z.shape
+    if model.is_linear:
+        return np.zeros((K, N, 0)), np.zeros((n, 0))
+    flat = Z.reshape(K * N, n)
+    if model.force_map is not None:
+        F = np.asarray(model.forces(flat), dtype=float)
+        return F.reshape(K, N, -1), np.ascontiguousarray(model.force_map)
+    rows = model.nonlinear_rows
+    h = model.nonlinear(flat)[:, rows]
+    cmap = np.zeros((n, rows.size))
+    cmap[rows, np.arange(rows.size)] = 1.0
+    return np.ascontiguousarray(h.reshape(K, N, rows.size)), cmap
+
+
+def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, err, iters, stride,
+                 w_steps, w_store, w_count, rec_steps, history, mu_ok, bar):
+    """Plain-NumPy Algorithm 1 (reference): any basis, seed or exact Jacobian."""
+    model = problem.model
+    n = model.n_states
+    A, g = model.linear, model.g
+    G = g @ Rinv @ g.T
+    Q, S, ref, uff = problem.Q, problem.S, problem.reference, problem.u_ff
+    n_steps = problem.n_steps
+    W_next = None
+    for k in range(n_steps - 1, -1, -1):
+        delta = rng.uniform(-1.0, 1.0, size=(ns, n)) * radius
+        Z = ref[k] + delta
+        Phi = basis(Z)
+        base = model.f(Z) + g @ uff[k]
+        last = k == n_steps - 1
+        if basis.is_linear and settings.jacobian == "seed":
+            Mk = S if last else Q + A.T @ W_next[1:].T
+            mu[k] = float(np.max(np.abs(np.linalg.eigvals(g.T @ Mk @ g @ Rinv))))
+            if mu[k] >= mu_ok:
+                raise TrainingDiverged(k, model.dt, _mu_reason(mu[k]))
+        if settings.warm_start and W_next is not None:
+            W = W_next.copy()
+        else:
+            W = np.zeros((Phi.shape[1], n))
+        Y = Phi @ W
+        rec = [W.copy()] if k in rec_steps else None
+        e = np.inf
+        it = 0
+        first_err = None
+        for it in range(1, settings.n_iterations + 1):
+            Z1 = base - Y @ G
+            if last:
+                T = (Z1 - ref[k + 1]) @ S.T
+            else:
+                lam2 = basis(Z1) @ W_next
+                if settings.jacobian == "seed":
+                    T = (Z1 - ref[k + 1]) @ Q.T + lam2 @ A
+                else:
+                    J = model.jacobian(Z1, kind="exact")
+                    T = (Z1 - ref[k + 1]) @ Q.T + np.einsum("sij,si->sj", J, lam2)
+            W = np.linalg.lstsq(Phi, T, rcond=None)[0]
+            Ynew = Phi @ W
+            big = float(np.max(np.abs(Ynew)))
+            e = float(np.max(np.abs(Ynew - Y))) / max(big, 1e-300)
+            Y = Ynew
+            if rec is not None:
+                rec.append(W.copy())
+            if not (np.isfinite(e) and big < settings.max_weight):
+                raise TrainingDiverged(k, model.dt, f"co-state became non-finite or exceeded "
+                                       f"max_weight = {settings.max_weight:g}", iteration=it)
+            first_err = e if first_err is None else first_err
+            if e <= settings.threshold:
+                break
+        else:
+            if e > 10.0 * first_err and e > 1.0:
+                raise TrainingDiverged(k, model.dt, f"training error grew from {first_err:.3g} "
+                                       f"to {e:.3g} over {settings.n_iterations} iterations",
+                                       iteration=it)
+        iters[k] = it
+        err[k] = e
+        if rec is not None:
+            history[k] = np.array(rec)
+        if basis.is_linear:
+            # centred gains: lambda = W0 + Wz^T z = (W0 + Wz^T r_k) + Wz^T (z - r_k)
+            c = W[0] + W[1:].T @ ref[k]
+            Dt = W[1:].T
+            kc[k] = Rinv @ g.T @ c
+            kd[k] = Rinv @ g.T @ Dt
+        else:
+            # linearise the policy at the reference (the online law evaluates phi itself)
+            eps = 1e-6
+            lam0 = basis(ref[k][None])[0] @ W
+            J = np.empty((n, n))
+            for i in range(n):
+                zp = ref[k].copy()
+                zp[i] += eps
+                J[:, i] = (basis(zp[None])[0] @ W - lam0) / eps
+            kc[k] = Rinv @ g.T @ lam0
+            kd[k] = Rinv @ g.T @ J
+        if k % stride == 0:
+            w_steps[w_count[0]] = k
+            if W.shape[0] == w_store.shape[1]:
+                w_store[w_count[0]] = W
+            w_count[0] += 1
+        W_next = W
+        if bar:
+            bar[0].update(bar[1], advance=1)
+
+
+# ---------------------------------------------------------------------------------------- LQR
+def finite_horizon_lqr(A, B, Q, R, S, n_steps):
+    """Time-varying LQR gains of the textbook backward Riccati recursion (independent check).
+
+    Minimizes 1/2 sum_{k<n} (x^T Q x + u^T R u) + 1/2 x_n^T S x_n for x+ = A x + B u; returns
+    gains K (n_steps, m, n) with u_k = -K_k x_k.
+    """
+    P = np.asarray(S, float)
+    K = np.zeros((n_steps, B.shape[1], A.shape[0]))
+    for k in range(n_steps - 1, -1, -1):
+        K[k] = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+        P = Q + A.T @ P @ (A - B @ K[k])
+        P = 0.5 * (P + P.T)
+    return K
