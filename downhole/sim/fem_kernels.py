@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from downhole.bit.detournay import approx_depth_of_cut, bit_force_slopes, bit_forces
+from downhole.bit.detournay import approx_depth_of_cut, bit_forces
 from downhole.bit.rock_surface import rock_advance, rock_depth
 from downhole.contact.softstring import normal_force_per_length
 from downhole.string.wave import wave_incoming, wave_push
@@ -83,13 +83,30 @@ def _tri_mv(d, o, x, i):
 
 
 @njit(cache=True)
+def _bit_g(field, v, d0, x_rate, vother, bitp, approx, omega_frozen):
+    """Bit force on the bit node as a function of its new velocity ``v`` (field 0: axial,
+    returns -WOB; field 1: torsional, returns -TOB). ``d0 + x_rate * v`` is the depth of cut."""
+    if field == 0:
+        if approx:
+            d = approx_depth_of_cut(v, omega_frozen, bitp)
+        else:
+            d = d0 + x_rate * v
+        w, _ = bit_forces(d, v, omega_frozen, bitp)
+        return -w
+    _, t = bit_forces(d0, vother, v, bitp)
+    return -t
+
+
+@njit(cache=True)
 def _field_step(Md, Mo, Kd, Ko, Ld, Lo, Ldense, dense, u, v, a, f0, cx, kx, dt, rhs, d, vnew,
-                work):
-    """Advance one field: solve for v1 with extra diagonal damper cx and stiffness kx."""
+                work, bit_field, bd0, brate, bother, bitp, approx, bomega):
+    """Advance one field: solve for v1 with extra diagonal damper cx and stiffness kx.
+
+    With ``bit_field`` >= 0 the bit force on the last node is applied exactly implicitly
+    (a scalar monotone equation solved after the forward sweep), not linearized."""
     n = u.size
     h = 0.5 * dt
     for i in range(n):
-        # M (v0 + dt/2 a0) - dt/2 K (u0 + dt/2 v0) + dt/2 (f0 - kx dt/2 v0)
         mv = Md[i] * (v[i] + h * a[i])
         if i > 0:
             mv += Mo[i - 1] * (v[i - 1] + h * a[i - 1])
@@ -106,11 +123,67 @@ def _field_step(Md, Mo, Kd, Ko, Ld, Lo, Ldense, dense, u, v, a, f0, cx, kx, dt, 
         A = Ldense.copy()
         for i in range(n):
             A[i, i] = Ldense[i, i] + (d[i] - Ld[i])
+        if bit_field >= 0:
+            # linearize the bit force about the old velocity (dense path only)
+            g0 = _bit_g(bit_field, v[n - 1], bd0, brate, bother, bitp, approx, bomega)
+            hv = 1e-7 + 1e-6 * abs(v[n - 1])
+            g1 = _bit_g(bit_field, v[n - 1] + hv, bd0, brate, bother, bitp, approx, bomega)
+            slope = (g1 - g0) / hv
+            if slope > 0.0:
+                slope = 0.0
+            rhs[n - 1] += h * (g0 - slope * v[n - 1])
+            A[n - 1, n - 1] -= h * slope
         sol = np.linalg.solve(A, rhs)
         for i in range(n):
             vnew[i] = sol[i]
     else:
-        thomas_solve(d, Lo, rhs, vnew, work)
+        # Thomas forward sweep
+        c = work
+        o = Lo
+        den = d[0]
+        r = rhs[0]
+        for i in range(n):
+            if i > 0:
+                den = d[i] - o[i - 1] * c[i - 1]
+                r = rhs[i] - o[i - 1] * vnew[i - 1]
+            if i < n - 1:
+                c[i] = o[i] / den
+                vnew[i] = r / den
+            else:
+                if bit_field < 0:
+                    vnew[i] = r / den
+                else:
+                    # den * x - h * g(x) = r, g decreasing in x: monotone, safeguarded Newton
+                    x = v[i]
+                    lo = x - 1.0
+                    hi = x + 1.0
+                    while den * lo - h * _bit_g(bit_field, lo, bd0, brate, bother, bitp,
+                                                 approx, bomega) > r:
+                        lo -= 2.0 * (hi - lo)
+                    while den * hi - h * _bit_g(bit_field, hi, bd0, brate, bother, bitp,
+                                                 approx, bomega) < r:
+                        hi += 2.0 * (hi - lo)
+                    for it in range(100):
+                        fx = den * x - h * _bit_g(bit_field, x, bd0, brate, bother, bitp,
+                                                  approx, bomega) - r
+                        if fx > 0.0:
+                            hi = x
+                        else:
+                            lo = x
+                        if hi - lo < 1e-13 * (1.0 + abs(x)):
+                            break
+                        eps = 1e-9 * (1.0 + abs(x))
+                        fp = den - h * (_bit_g(bit_field, x + eps, bd0, brate, bother, bitp,
+                                               approx, bomega)
+                                        - _bit_g(bit_field, x, bd0, brate, bother, bitp,
+                                                 approx, bomega)) / eps
+                        xn = x - fx / fp if fp > 0.0 else 0.5 * (lo + hi)
+                        if not (lo < xn < hi):
+                            xn = 0.5 * (lo + hi)
+                        x = xn
+                    vnew[i] = x
+        for i in range(n - 2, -1, -1):
+            vnew[i] -= c[i] * vnew[i + 1]
     for i in range(n):
         an = (vnew[i] - v[i]) / h - a[i]
         u[i] += h * (v[i] + vnew[i])
@@ -261,26 +334,14 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                                                  + veps * veps)
                     ca[i] += c
                     ct[i] += c * r * r
-        # ---- bit
+        # ---- bit: depth of cut from the old state; forces applied exactly implicitly
         if approx:
             d0 = approx_depth_of_cut(va[ib], vt[ib], bitp)
         else:
             d0 = rock_depth(surf, istate, rp, ua[ib], ut[ib])
-        w0, t0 = bit_forces(d0, va[ib], vt[ib], bitp)
-        cwv, ctw = bit_force_slopes(d0, va[ib], vt[ib], bitp, approx)
-        kd = 0.0
-        if (not approx) and d0 > 0.0:
-            hd = 1e-7 + 1e-4 * d0
-            wp_, _ = bit_forces(d0 + hd, va[ib], vt[ib], bitp)
-            wm_, _ = bit_forces(max(d0 - hd, 0.0), va[ib], vt[ib], bitp)
-            kd = (wp_ - wm_) / (d0 + hd - max(d0 - hd, 0.0)) * rp[4]
-            if kd < 0.0:
-                kd = 0.0
-        fa[ib] += -w0 + cwv * va[ib]
-        ca[ib] += cwv
-        kxa[ib] += kd
-        ft[ib] += -t0 + ctw * vt[ib]
-        ct[ib] += ctw
+        # axial: d(v1) = d0 + n h (v0 + v1) = (d0 + n h v0) + n h v1
+        dax0 = d0 + rp[4] * h * va[ib] if not approx else 0.0
+        drate = rp[4] * h if not approx else 0.0
         # ---- wave segment between B and C
         if hybrid:
             a_in, b_in = wave_incoming(wa_hist, wa_pos, wa_wp)
@@ -300,10 +361,17 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         # ---- solve both fields
         thb0 = ut[ib]
         xb0 = ua[ib]
+        thb_w = vt[ib]
         _field_step(MAd, MAo, KAd, KAo, LAd, LAo, Ldense[0], dense, ua, va, aa, fa, ca, kxa, dt,
-                    rhs, dd, vnew, work)
+                    rhs, dd, vnew, work, 0 if ib == n - 1 else -1, dax0, drate, 0.0, bitp,
+                    approx, vt[ib])
+        if approx:
+            d1 = approx_depth_of_cut(va[ib], thb_w, bitp)
+        else:
+            d1 = dax0 + drate * va[ib]
         _field_step(MTd, MTo, KTd, KTo, LTd, LTo, Ldense[1], dense, ut, vt, at, ft, ct, kxt, dt,
-                    rhs, dd, vnew, work)
+                    rhs, dd, vnew, work, 1 if ib == n - 1 else -1, d1, 0.0, va[ib], bitp,
+                    approx, 0.0)
         if not approx:
             rock_advance(surf, istate, rp, thb0, xb0, ut[ib], ua[ib])
         if hybrid:

@@ -30,7 +30,7 @@ from downhole.sim.result import Result
 from downhole.string.drillstring import DrillString
 from downhole.well import WellPath
 
-__all__ = ["DirectionalModel", "fem_model", "simulate_directional", "DirectionalPlant",
+__all__ = ["DirectionalModel", "fem_model", "fem_from_nodes", "simulate_directional", "DirectionalPlant",
            "table_5_1_setup", "EXTRA_UNITS"]
 
 #: Units of the extra (non-standard) channels written by the directional models.
@@ -137,9 +137,23 @@ class DirectionalModel:
         return f[:count]
 
     # ---------------------------------------------------------------- linear export
-    def design_model(self) -> "DirectionalModel":
-        """The FEM this model is linearized on (itself for FEM; see the hybrid's override)."""
-        return self
+    def design_model(self, n_bc: int = 1) -> "DirectionalModel":
+        """The FEM this model is linearized on: itself for a FEM; for a hybrid, a FEM with the
+        same AB and CD nodes and ``n_bc`` elements for the straight section BC (the delay line
+        has no finite state; with ``n_bc = 1`` the state count equals the hybrid's)."""
+        if self.kind == "fem":
+            return self
+        iB, iC = self.node_b, self.node_c
+        md = np.concatenate([self.node_md[:iB + 1],
+                             np.linspace(self.node_md[iB], self.node_md[iC], n_bc + 1)[1:-1],
+                             self.node_md[iC:]])
+        inf = self.info
+        return fem_from_nodes(self.well, self.string, self.bit, md, damping=inf["damping"],
+                              rayleigh_alpha=inf["rayleigh_alpha"],
+                              rayleigh_beta=inf["rayleigh_beta"], modal_ratio=inf["modal_ratio"],
+                              friction=self.mu, v_eps=self.v_eps, mass=inf["mass"],
+                              md_b=self.node_md[iB], md_c=self.node_md[iC],
+                              name=f"{self.name} design FEM")
 
     def continuous_linear_model(self, top_drive_inertia: float = 500.0):
         """Continuous ``(A, B, names)`` of Eq. 4.14 with B = [0; +M^-1 B_u] (SPEC correction).
@@ -496,21 +510,37 @@ def fem_model(well: WellPath | None = None, string: DrillString | None = None,
             f"n_elements = {n_elements} is too few: the well and string have {keys.size - 1} "
             "sections, each needs at least one element")
     md = _mesh(keys, n_elements)
-    ch = _assemble_chain(well, string, md, top_md, mass)
-    _apply_stabilizers(string, md, ch["radius"], well.total_depth)
-    Ca, Ct, Cd = _damping(ch["Ma"], ch["Ka"], ch["Mt"], ch["Kt"], damping, alpha, beta,
-                          modal_ratio)
     md_b = p.length_ab if md_b is None else md_b
     md_c = p.length_ab + p.length_bc if md_c is None else md_c
+    return fem_from_nodes(well, string, bit, md, damping=damping, rayleigh_alpha=alpha,
+                          rayleigh_beta=beta, modal_ratio=modal_ratio, friction=mu, v_eps=v_eps,
+                          mass=mass, md_b=md_b, md_c=md_c,
+                          name=name or f"fem {n_elements} elements")
+
+
+def fem_from_nodes(well, string, bit, md, *, damping="rayleigh", rayleigh_alpha=0.05,
+                   rayleigh_beta=0.03, modal_ratio=0.03, friction=0.5, v_eps=1e-3,
+                   mass="consistent", md_b=2000.0, md_c=3000.0, name="fem") -> DirectionalModel:
+    """A FEM with nodes at the given measured depths (top of string first, bit last)."""
+    md = np.asarray(md, float)
+    top_md = well.total_depth - string.length
+    if md.size < 2 or abs(md[0] - top_md) > 1e-6 or abs(md[-1] - well.total_depth) > 1e-6:
+        raise DownholeInputError(
+            f"node depths must run from the string top ({top_md:g} m) to the bit "
+            f"({well.total_depth:g} m) with at least 2 nodes")
+    ch = _assemble_chain(well, string, md, top_md, mass)
+    _apply_stabilizers(string, md, ch["radius"], well.total_depth)
+    Ca, Ct, Cd = _damping(ch["Ma"], ch["Ka"], ch["Mt"], ch["Kt"], damping, rayleigh_alpha,
+                          rayleigh_beta, modal_ratio)
     nb = int(np.argmin(np.abs(md - md_b)))
     nc = int(np.argmin(np.abs(md - md_c)))
     return DirectionalModel(
-        name=name or f"fem {n_elements} elements", kind="fem", well=well, string=string, bit=bit,
+        name=name, kind="fem", well=well, string=string, bit=bit,
         node_md=md, Ma=ch["Ma"], Ka=ch["Ka"], Ca=Ca, Mt=ch["Mt"], Kt=ch["Kt"], Ct=Ct, Cdense=Cd,
-        gravity=ch["grav"], elem=ch["elem"], radius=ch["radius"], mu=mu, v_eps=float(v_eps),
-        node_b=nb, node_c=nc, wave=None,
-        info={"damping": damping, "rayleigh_alpha": alpha, "rayleigh_beta": beta,
-              "modal_ratio": modal_ratio, "mass": mass})
+        gravity=ch["grav"], elem=ch["elem"], radius=ch["radius"], mu=float(friction),
+        v_eps=float(v_eps), node_b=nb, node_c=nc, wave=None,
+        info={"damping": damping, "rayleigh_alpha": rayleigh_alpha,
+              "rayleigh_beta": rayleigh_beta, "modal_ratio": modal_ratio, "mass": mass})
 
 
 # ------------------------------------------------------------------------ static state

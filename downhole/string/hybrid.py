@@ -1,0 +1,199 @@
+"""Hybrid FEM + wave-segment directional model (seed Sec. 5.2): FEM for the top (AB) and curved
+(CD) parts, a lossless wave (delay) line for the straight, uniform, contact-free part BC.
+
+The line is :class:`downhole.string.wave.WaveSegment` (one implementation shared with Ch. 3):
+force on B = Z (2 b_in - v_B), on C = Z (2 a_in - v_C), Z_axial = A sqrt(rho E),
+Z_torsional = J sqrt(rho G) (seed Eq. 5.18 swaps them; SPEC.md), plus the static preload of the
+hanging line (its weight). The kernels treat -Z v as an implicit damper on B and C. Damping of
+the line (SPEC.md): the Rayleigh alpha0 part is lumped as end dashpots alpha0 rho A L/2 (and
+alpha0 rho J L/2) at B and C; the beta0 part as ``n_lags`` first-order lags on each incoming
+wave with time constant sqrt(beta0 tau / n_lags), which reproduce the low-frequency Kelvin-Voigt
+attenuation exp(-omega^2 beta0 tau / 2); the pure delay is shortened by the lags' group delay
+(n_lags * T) so that the arrival time stays tau.
+
+Presets: the seed's state counts (4 states per FEM node): ``hybrid24`` (2 + 4 nodes),
+``hybrid68`` (4 + 13 nodes, the Ch. 6 plant: (2+1)(2-1)+1 = 4 on AB, (3+1)(4-1)+1 = 13 on CD)
+and ``hybrid108`` (7 + 20 nodes).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from downhole.errors import DownholeInputError
+from downhole.params import BitParams
+from downhole.string.drillstring import DrillString
+from downhole.string.fem import (DirectionalModel, _assemble_chain, _apply_stabilizers,
+                                 _check_int, _damping, _mesh, table_5_1_setup)
+from downhole.string.wave import WaveSegment
+from downhole.well import WellPath
+
+__all__ = ["hybrid_model", "HYBRID_PRESETS"]
+
+#: Seed state counts -> (nodes on AB, nodes on CD).
+HYBRID_PRESETS = {"hybrid24": (2, 4), "hybrid68": (4, 13), "hybrid108": (7, 20)}
+
+
+def _chain_md(well, lo, hi, n_nodes):
+    keys = [lo, hi] + [m for m in well.stations["md"] if lo < m < hi]
+    keys = np.unique(np.round(np.array(keys), 9))
+    if n_nodes - 1 < keys.size - 1:
+        raise DownholeInputError(
+            f"{n_nodes} nodes are too few for {lo:g}..{hi:g} m, which spans {keys.size - 1} "
+            f"well sections (need at least {keys.size} nodes)")
+    return _mesh(keys, n_nodes - 1)
+
+
+def hybrid_model(preset: str | None = "hybrid68", *, n_ab: int | None = None,
+                 n_cd: int | None = None, well: WellPath | None = None,
+                 string: DrillString | None = None, bit: BitParams | None = None,
+                 md_b: float | None = None, md_c: float | None = None,
+                 damping: str = "rayleigh", rayleigh_alpha: float | None = None,
+                 rayleigh_beta: float | None = None, modal_ratio: float = 0.03,
+                 n_lags: int = 3, friction: float | None = None, v_eps: float = 1e-3,
+                 mass: str = "consistent", name: str | None = None) -> DirectionalModel:
+    """Build a hybrid FEM + wave-segment model.
+
+    Parameters
+    ----------
+    preset : {"hybrid24", "hybrid68", "hybrid108"} or None
+        Node counts of the seed's models; ``n_ab``/``n_cd`` override.
+    n_ab, n_cd : int
+        FEM nodes on AB (surface to B, >= 2) and on CD (C to bit, >= 2).
+    well, string, bit : optional
+        Default: Table 5.1 (AB vertical 2000 m, BC vertical 1000 m, CD arc R = 4000 m, 30 deg).
+    md_b, md_c : float, optional
+        Measured depths of B and C; default Table 5.1's 2000 and 3000 m. BC must be straight,
+        vertical (no contact) and of one uniform segment.
+    damping : {"rayleigh", "modal"}
+        FEM damping; with Rayleigh the line gets the end dashpots and lags described above.
+    n_lags : int
+        First-order lags per incoming wave approximating beta0 (0 = none).
+
+    Returns
+    -------
+    DirectionalModel
+        ``kind == "hybrid"``; ``n_states`` = 4 (n_ab + n_cd).
+
+    Raises
+    ------
+    DownholeInputError
+        Unknown preset, too few nodes, BC curved / inclined / non-uniform, line shorter than
+        its lags.
+
+    Examples
+    --------
+    >>> hybrid_model("hybrid68").n_states
+    68
+    """
+    well0, string0, bit0, p = table_5_1_setup()
+    well = well or well0
+    string = string or (string0 if well is well0 else
+                        DrillString.uniform(well.total_depth, p.pipe, g=p.g))
+    bit = bit or bit0
+    if preset is not None:
+        if preset not in HYBRID_PRESETS:
+            raise DownholeInputError(
+                f"unknown hybrid preset {preset!r}; known: {', '.join(HYBRID_PRESETS)}")
+        pa, pc = HYBRID_PRESETS[preset]
+        n_ab = pa if n_ab is None else n_ab
+        n_cd = pc if n_cd is None else n_cd
+    if n_ab is None or n_cd is None:
+        raise DownholeInputError("give a preset or both n_ab and n_cd")
+    n_ab = _check_int("n_ab (nodes on AB)", n_ab, 2)
+    n_cd = _check_int("n_cd (nodes on CD)", n_cd, 2)
+    n_lags = _check_int("n_lags", n_lags, 0)
+    if string.length > well.total_depth + 1e-6:
+        raise DownholeInputError(f"string length {string.length:g} m exceeds the well's total "
+                                 f"depth {well.total_depth:g} m")
+    top_md = well.total_depth - string.length
+    md_b = p.length_ab if md_b is None else float(md_b)
+    md_c = p.length_ab + p.length_bc if md_c is None else float(md_c)
+    if not (top_md < md_b < md_c < well.total_depth):
+        raise DownholeInputError(
+            f"need string top ({top_md:g} m) < md_b ({md_b:g} m) < md_c ({md_c:g} m) < bit "
+            f"({well.total_depth:g} m)")
+    probe = np.linspace(md_b, md_c, 21)[1:-1]
+    if np.max(well.curvature(probe)) > 1e-9:
+        raise DownholeInputError(
+            f"section BC ({md_b:g}..{md_c:g} m) is curved; the wave segment needs a straight "
+            "section (move B/C or model it with FEM)")
+    if np.max(np.sin(well.inclination(probe))) > 1e-6:
+        raise DownholeInputError(
+            f"section BC ({md_b:g}..{md_c:g} m) is inclined: its wall contact (w sin(inc)) "
+            "cannot be carried by a lossless wave segment; use FEM there")
+    seg_idx = np.unique(string.segment_at(probe - top_md))
+    if seg_idx.size != 1:
+        raise DownholeInputError(
+            f"section BC ({md_b:g}..{md_c:g} m) spans {seg_idx.size} string segments; the wave "
+            "segment needs a uniform pipe")
+    pipe = string.segments[int(seg_idx[0])].section
+    alpha = p.rayleigh_alpha if rayleigh_alpha is None else float(rayleigh_alpha)
+    beta = p.rayleigh_beta if rayleigh_beta is None else float(rayleigh_beta)
+    mu = p.wellbore_friction if friction is None else float(friction)
+    md_ab = _chain_md(well, top_md, md_b, n_ab)
+    md_cd = _chain_md(well, md_c, well.total_depth, n_cd)
+    chains = [_assemble_chain(well, string, md_ab, top_md, mass),
+              _assemble_chain(well, string, md_cd, top_md, mass)]
+    md = np.concatenate([md_ab, md_cd])
+    n = md.size
+    iB, iC = n_ab - 1, n_ab
+
+    def cat(key):
+        a, b = chains[0][key], chains[1][key]
+        if key in ("Ma", "Ka", "Mt", "Kt"):
+            out = np.concatenate([a, b], axis=1)
+            out[1, iB] = 0.0  # no element between B and C: the wave segment joins them
+            return out
+        return np.concatenate([a, b], axis=0)
+
+    Ma, Ka, Mt, Kt = cat("Ma"), cat("Ka"), cat("Mt"), cat("Kt")
+    elem = cat("elem")
+    elem[iB] = 0.0
+    grav = cat("grav")
+    radius = cat("radius")
+    _apply_stabilizers(string, md, radius, well.total_depth)
+    Ca, Ct, Cd = _damping(Ma, Ka, Mt, Kt, damping, alpha, beta, modal_ratio)
+    L = md_c - md_b
+    tau_a = L / pipe.axial_wave_speed
+    tau_t = L / pipe.torsional_wave_speed
+    if damping == "rayleigh":
+        for C, rho_x in ((Ca, pipe.density * pipe.area), (Ct, pipe.density * pipe.polar_moment)):
+            dash = alpha * rho_x * L / 2.0
+            if Cd is None:
+                C[0, iB] += dash
+                C[0, iC] += dash
+        lag_beta = beta
+    else:
+        lag_beta = 0.0
+    lag_tau = [1.0, 1.0]
+    segs = []
+    nl = n_lags if lag_beta > 0 else 0
+    for k, (tau, c, Z) in enumerate(((tau_a, pipe.axial_wave_speed, pipe.axial_impedance),
+                                     (tau_t, pipe.torsional_wave_speed,
+                                      pipe.torsional_impedance))):
+        if nl > 0:
+            T = math.sqrt(lag_beta * tau / nl)
+            if nl * T >= 0.9 * tau:
+                raise DownholeInputError(
+                    f"{nl} lags of {T:.3g} s do not fit in the {tau:.3g} s delay of BC; "
+                    "use fewer lags (n_lags) or a longer BC")
+            lag_tau[k] = T
+            segs.append(WaveSegment(c * (tau - nl * T), c, Z))
+        else:
+            segs.append(WaveSegment(L, c, Z))
+    wb = float(string.buoyed_weight_per_length(0.5 * (md_b + md_c) - top_md))
+    line_weight = wb * float(well.tvd(md_c) - well.tvd(md_b))
+    wave = {"segments": tuple(segs), "length": L, "EA": pipe.area * pipe.young_modulus,
+            "line_weight": line_weight, "n_lags": nl, "lag_tau": tuple(lag_tau),
+            "tau": (tau_a, tau_t), "impedance": (pipe.axial_impedance, pipe.torsional_impedance)}
+    return DirectionalModel(
+        name=name or f"hybrid {4 * n} states ({n_ab}+{n_cd} nodes)", kind="hybrid", well=well,
+        string=string, bit=bit, node_md=md, Ma=Ma, Ka=Ka, Ca=Ca, Mt=Mt, Kt=Kt, Ct=Ct, Cdense=Cd,
+        gravity=grav, elem=elem, radius=radius, mu=mu, v_eps=float(v_eps), node_b=iB,
+        node_c=iC, wave=wave,
+        info={"damping": damping, "rayleigh_alpha": alpha, "rayleigh_beta": beta,
+              "modal_ratio": modal_ratio, "mass": mass, "n_ab": n_ab, "n_cd": n_cd,
+              "n_lags": nl})
