@@ -1,12 +1,40 @@
 """Dual heuristic programming (single-network adaptive critic) controller of seed Ch. 4.
 
-- :mod:`~downhole.control.dhp.trainer`: the trainer (Algorithm 1 compiled and in NumPy, the
-  closed-form per-sample target and the Riccati form) for any :class:`ControlAffineModel`.
+- :mod:`~downhole.control.dhp.trainer`: the trainer for any
+  :class:`~downhole.control.affine.ControlAffineModel` - Algorithm 1 (compiled, and in plain
+  NumPy as the reference), the closed-form per-sample target and the Riccati form.
+- :mod:`~downhole.control.dhp.drilling`: the lumped drilling design model, the reference
+  transform (Eqs. 4.21-4.23), the steady-state feed-forward and the penalty layout (Eq. 4.45).
+- :mod:`~downhole.control.dhp.references`: step, ramp (Eqs. 4.48-4.49), sine (Eq. 4.47), user.
+- :mod:`~downhole.control.dhp.design`: :func:`design_dhp` puts them together.
+- :mod:`~downhole.control.dhp.controller`: :class:`DHPController` (online law, past-horizon
+  policy, save/load as npz + JSON).
+- :mod:`~downhole.control.dhp.closed_loop`: closed-loop runs returning Results.
+
+Example
+-------
+>>> from downhole.control.dhp import lumped_affine_model, design_dhp, BitReference
+>>> model = lumped_affine_model("table_2_1", dt=1e-3)
+>>> ctrl = design_dhp(model, BitReference.step(0.01, 20.0), horizon=2.0)
+>>> ctrl.horizon
+2.0
 """
 
+from downhole.control.dhp.closed_loop import (DisplacementToVelocity, lumped_true_plant,
+                                              run_design_model, run_on_plant)
+from downhole.control.dhp.controller import DHPController, load_controller
+from downhole.control.dhp.design import build_problem, design_dhp
+from downhole.control.dhp.drilling import (PenaltyWeights, feed_forward, lumped_affine_model,
+                                           penalty_matrices, reference_states,
+                                           table_4_1_weights)
+from downhole.control.dhp.references import BitReference
 from downhole.control.dhp.trainer import (METHODS, DHPProblem, DHPSettings, DHPTraining,
                                           LinearBasis, QuadraticBasis, TrainingDiverged,
                                           finite_horizon_lqr, train_dhp)
 
 __all__ = ["METHODS", "DHPProblem", "DHPSettings", "DHPTraining", "LinearBasis",
-           "QuadraticBasis", "TrainingDiverged", "finite_horizon_lqr", "train_dhp"]
+           "QuadraticBasis", "TrainingDiverged", "finite_horizon_lqr", "train_dhp",
+           "BitReference", "DHPController", "load_controller", "design_dhp", "build_problem",
+           "PenaltyWeights", "penalty_matrices", "table_4_1_weights", "feed_forward",
+           "reference_states", "lumped_affine_model", "run_design_model", "run_on_plant",
+           "lumped_true_plant", "DisplacementToVelocity"]

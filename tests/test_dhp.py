@@ -1,0 +1,152 @@
+"""DHP trainer tests: LQR equivalence, Algorithm 1 convergence on the drilling model, errors."""
+
+import numpy as np
+import pytest
+
+from downhole.control.affine import ControlAffineModel
+from downhole.control.dhp import (METHODS, BitReference, DHPProblem, DHPSettings,
+                                  PenaltyWeights, TrainingDiverged, build_problem,
+                                  finite_horizon_lqr, lumped_affine_model, table_4_1_weights,
+                                  train_dhp)
+from downhole.errors import DownholeInputError
+
+
+def _linear_plant(n=6, m=2, seed=3):
+    rng = np.random.default_rng(seed)
+    A = np.eye(n) + 0.05 * rng.normal(size=(n, n))
+    B = 0.1 * rng.normal(size=(n, m))
+    model = ControlAffineModel(A, B, state_scale=1.0, input_scale=1.0, dt=0.01,
+                               state_names=[f"s{i}" for i in range(n)],
+                               input_names=[f"u{i}" for i in range(m)], strict_inputs=False)
+    Q = np.diag(rng.uniform(0.1, 1.0, n))
+    R = np.diag([1.0, 2.0])
+    S = np.eye(n) * 2.0
+    return model, A, B, Q, R, S
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_linear_plant_controls_equal_finite_horizon_lqr(method):
+    """Done-means: the trainer's controls equal the Riccati controls within 1% of their scale
+    at every step (regulator, closed loop from a random initial state)."""
+    model, A, B, Q, R, S = _linear_plant()
+    n_steps = 150
+    pb = DHPProblem(model, Q, R, S, np.zeros((n_steps + 1, 6)))
+    tr = train_dhp(pb, DHPSettings(method=method, threshold=1e-9, n_iterations=200))
+    K = finite_horizon_lqr(A, B, Q, R, S, n_steps)
+    x_lqr = x_dhp = np.random.default_rng(7).normal(size=6)
+    u_l, u_d = [], []
+    for k in range(n_steps):
+        ul = -K[k] @ x_lqr
+        ud = tr.controls(x_dhp, k, pb.reference, pb.u_ff)
+        u_l.append(ul)
+        u_d.append(ud)
+        x_lqr = A @ x_lqr + B @ ul
+        x_dhp = A @ x_dhp + B @ ud
+    u_l, u_d = np.array(u_l), np.array(u_d)
+    scale = np.max(np.abs(u_l), axis=0)
+    assert np.all(np.abs(u_d - u_l) <= 0.01 * scale)
+    assert np.max(np.abs(tr.kd - K)) <= 1e-6 * np.max(np.abs(K))
+
+
+def test_linear_tracking_with_feed_forward_is_lqr_on_the_error():
+    """With a consistent reference and feed-forward, the affine term vanishes and the gain is
+    the LQR gain: u - u_ff = -K (z - r)."""
+    model, A, B, Q, R, S = _linear_plant()
+    n_steps = 100
+    rng = np.random.default_rng(1)
+    uff = rng.normal(size=(n_steps, 2)) * 0.1
+    ref = np.zeros((n_steps + 1, 6))
+    ref[0] = rng.normal(size=6)
+    for k in range(n_steps):
+        ref[k + 1] = A @ ref[k] + B @ uff[k]
+    pb = DHPProblem(model, Q, R, S, ref, uff)
+    K = finite_horizon_lqr(A, B, Q, R, S, n_steps)
+    tr = train_dhp(pb, DHPSettings(method="riccati"))
+    np.testing.assert_allclose(tr.kd, K, rtol=1e-8, atol=1e-10)
+    assert np.max(np.abs(tr.kc)) < 1e-9
+
+
+def test_drilling_algorithm1_converges_within_10_iterations():
+    """Done-means: on the drilling model the training error falls below the threshold within 10
+    iterations per step (cold start, as the seed's Algorithm 1), and all methods agree."""
+    model = lumped_affine_model("table_2_1", dt=1e-3)
+    pb = build_problem(model, BitReference.step(0.01, 20.0), 0.5, PenaltyWeights())
+    thr = 1e-6
+    a1 = train_dhp(pb, DHPSettings(method="algorithm1", warm_start=False, threshold=thr,
+                                   n_iterations=20, seed=4))
+    assert a1.iterations.max() <= 10
+    assert np.all(a1.errors <= thr)
+    ric = train_dhp(pb, DHPSettings(method="riccati", seed=4))
+    cf = train_dhp(pb, DHPSettings(method="closed_form", seed=4))
+    scale = np.abs(ric.kd).max(axis=(0, 2), keepdims=True)  # per input
+    assert np.all(np.abs(cf.kd - ric.kd) <= 1e-8 * scale)
+    assert np.all(np.abs(a1.kd - ric.kd) <= 1e-4 * scale)
+    # the seed reports about 4 iterations per step
+    assert 2 <= np.median(a1.iterations) <= 6
+
+
+def test_numpy_algorithm1_matches_compiled():
+    model = lumped_affine_model("table_2_1", dt=1e-3)
+    pb = build_problem(model, BitReference.step(), 0.05, PenaltyWeights())
+    s = dict(threshold=1e-10, n_iterations=30, seed=2)
+    a = train_dhp(pb, DHPSettings(method="algorithm1", **s))
+    b = train_dhp(pb, DHPSettings(method="algorithm1_numpy", **s))
+    np.testing.assert_allclose(a.kd, b.kd, rtol=1e-6, atol=1e-12)
+
+
+def test_table_4_1_literal_violates_contraction_with_clear_error():
+    model = lumped_affine_model("table_2_1", dt=1e-3, input_scale=[1.0, 1.0])
+    pb = build_problem(model, BitReference.step(), 0.1, table_4_1_weights())
+    with pytest.raises(TrainingDiverged, match=r"step k = 99 .*mu = rho"):
+        train_dhp(pb, DHPSettings(method="riccati"))
+
+
+def test_diverging_iteration_names_step_and_reason():
+    model, A, B, Q, R, S = _linear_plant()
+    pb = DHPProblem(model, Q * 1e4, R * 1e-3, S * 1e4, np.zeros((11, 6)))
+    with pytest.raises(TrainingDiverged, match=r"step k = 9 \(t = 0.09 s, iteration \d+\): "
+                                               r"weights became non-finite"):
+        train_dhp(pb, DHPSettings(method="algorithm1", require_contraction=False,
+                                  n_iterations=2000, max_weight=1e8))
+    with pytest.raises(TrainingDiverged, match="step k = 9"):
+        train_dhp(pb, DHPSettings(method="algorithm1_numpy", require_contraction=False,
+                                  n_iterations=2000, max_weight=1e8))
+
+
+@pytest.mark.parametrize("change, msg", [
+    (dict(R=np.diag([1.0, -1.0])), "R must be positive definite"),
+    (dict(R=np.zeros((2, 2))), "R must be positive definite"),
+    (dict(Q=np.eye(5)), r"Q must be \(6, 6\)"),
+    (dict(S=-np.eye(6)), "S must be positive semi-definite"),
+    (dict(reference=np.zeros((1, 6))), "horizon must be at least one step"),
+    (dict(reference=np.zeros((11, 5))), r"reference must have shape \(n_steps \+ 1, 6\)"),
+    (dict(u_ff=np.zeros((10, 3))), r"u_ff must have shape"),
+])
+def test_bad_problem_rejected(change, msg):
+    model, A, B, Q, R, S = _linear_plant()
+    args = dict(model=model, Q=Q, R=R, S=S, reference=np.zeros((11, 6)))
+    args.update(change)
+    with pytest.raises(DownholeInputError, match=msg):
+        DHPProblem(**args)
+
+
+def test_bad_settings_rejected():
+    with pytest.raises(DownholeInputError, match="method must be one of"):
+        DHPSettings(method="newton")
+    with pytest.raises(DownholeInputError, match="needs basis='linear'"):
+        DHPSettings(method="riccati", basis="quadratic")
+    model, A, B, Q, R, S = _linear_plant()
+    pb = DHPProblem(model, Q, R, S, np.zeros((11, 6)))
+    with pytest.raises(DownholeInputError, match="n_samples = 5 is fewer than the 7 basis"):
+        train_dhp(pb, DHPSettings(n_samples=5))
+    with pytest.raises(DownholeInputError, match="shorter than one step"):
+        build_problem(lumped_affine_model(), BitReference.step(), 1e-4, PenaltyWeights())
+
+
+def test_quadratic_basis_reference_path_runs_and_matches_linear_plant():
+    model, A, B, Q, R, S = _linear_plant()
+    pb = DHPProblem(model, Q, R, S, np.zeros((21, 6)))
+    tr = train_dhp(pb, DHPSettings(method="algorithm1_numpy", basis="quadratic", n_samples=40,
+                                   threshold=1e-10, n_iterations=200))
+    K = finite_horizon_lqr(A, B, Q, R, S, 20)
+    np.testing.assert_allclose(tr.kd, K, rtol=1e-5, atol=1e-8)
