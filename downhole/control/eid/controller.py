@@ -1,0 +1,200 @@
+"""The EID controller object (seed Fig. 3.3, corrected): design with :func:`design_eid`, run with
+:func:`downhole.string.neutral.simulate_neutral` (compiled, in the plant kernel) or step it from
+Python with :meth:`EIDController.command`; save/load as ``.npz`` + JSON (no pickle).
+
+Structure (per channel, see :mod:`downhole.control.eid._kernel`): observer driven by the delayed
+command u_f(t - tau) (the plant's own input delay), disturbance estimator
+d_hat = B+ L (y - xhat) + u_f(t-tau) - u(t-tau), filter F(s) = bf/(s + bf), internal model
+x_R' = B_R (r - x_p), state feedback u_f = Kp x_p + K_R x_R on the prediction
+x_p = z + xhat - z(t - tau) (Smith-type predictor, z = delay-free model driven by u_f).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from downhole.control.eid._kernel import NP, NSIG, eid_arrays, eid_step
+from downhole.control.eid.design import ChannelGains, LMIReport, synthesize_channel
+from downhole.control.eid.references import Reference, as_reference, constant_reference
+from downhole.errors import DownholeInputError
+
+__all__ = ["EIDController", "design_eid", "load_eid"]
+
+CHANNELS = ("axial", "torsional")
+
+
+@dataclass
+class EIDController:
+    """Designed EID controller for the neutral model.
+
+    Attributes
+    ----------
+    gains : tuple of ChannelGains
+        (axial, torsional).
+    model_coeffs : tuple of dict
+        Scalar design models (a0, a1, g1, b, h, tau, offset) per channel.
+    reference : Reference
+        Default reference (constant 10 mm/s, 20 rad/s).
+    predictor : bool
+        Smith-type predictor on (default). False: feedback on xhat (printed structure).
+    delayed_input_observer : bool
+        Observer/estimator fed u_f(t - tau) (default). False: fed u_f(t) as printed.
+    reports : list of LMIReport
+    u_limits : ((lo, hi), (lo, hi))
+        Command saturation in plant units (U_A m/s, U_T rad/s).
+    """
+
+    gains: tuple
+    model_coeffs: tuple
+    reference: Reference = constant_reference()
+    predictor: bool = True
+    delayed_input_observer: bool = True
+    reports: list | None = None
+    u_limits: tuple = ((-1e3, 1e3), (-1e3, 1e3))
+
+    # --- compiled parameters ------------------------------------------------------------------
+    def compiled_params(self, dt: float) -> np.ndarray:
+        """Parameter array (2, NP) of the compiled step at step ``dt``."""
+        cp = np.zeros((2, NP))
+        for i in range(2):
+            g, c = self.gains[i], self.model_coeffs[i]
+            if dt > c["tau"]:
+                raise DownholeInputError(f"dt = {dt} s exceeds the {CHANNELS[i]} delay "
+                                         f"{c['tau']:.6g} s")
+            cp[i] = [c["a0"], c["a1"], c["g1"], c["b"], g.l, g.kp, g.kr, g.br, -g.bf, g.bf,
+                     c["h"] / dt, c["tau"] / dt, c["offset"], float(self.predictor),
+                     float(self.delayed_input_observer), self.u_limits[i][0], self.u_limits[i][1]]
+        return cp
+
+    # --- Python stepping (SIL / generic plants) -----------------------------------------------
+    def reset(self, dt: float = 1e-3) -> None:
+        """Zero the controller state for steps of ``dt`` seconds."""
+        self._dt = float(dt)
+        self._cp = self.compiled_params(self._dt)
+        self._cs, self._ch, self._cpos = eid_arrays(self._cp)
+        self._u = np.zeros(2)
+        self._sig = np.zeros((2, NSIG))
+
+    def command(self, t: float, observation: dict, reference=None) -> dict:
+        """One controller step: observation needs ``bit_axial_velocity`` and
+        ``bit_angular_velocity``; returns ``{"command_axial": U_A, "command_angular": U_T}``
+        (seed convention, U_A including M_S g/alpha_A). Call :meth:`reset` first; call once
+        per ``dt``."""
+        if not hasattr(self, "_cp"):
+            self.reset()
+        try:
+            y = np.array([observation["bit_axial_velocity"], observation["bit_angular_velocity"]],
+                         float)
+        except KeyError as exc:
+            raise DownholeInputError(f"observation lacks {exc.args[0]!r}") from None
+        if reference is None:
+            r = self.reference.sample(np.array([t]))[:, 0]
+        else:
+            r = np.asarray(reference, float).reshape(2)
+        eid_step(self._cp, self._cs, self._ch, self._cpos, y, r, self._dt, self._u, self._sig)
+        return {"command_axial": float(self._u[0]), "command_angular": float(self._u[1])}
+
+    # --- persistence --------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        return {"gains": [asdict(g) for g in self.gains], "model_coeffs": list(self.model_coeffs),
+                "predictor": self.predictor,
+                "delayed_input_observer": self.delayed_input_observer,
+                "u_limits": [list(x) for x in self.u_limits],
+                "reference": {"axial": _ref_json(self.reference.axial),
+                              "angular": _ref_json(self.reference.angular),
+                              "name": self.reference.name},
+                "lmi_reports": [r.to_dict() for r in (self.reports or [])]}
+
+    def save(self, directory) -> Path:
+        """Write ``eid_gains.npz`` (gain matrices Kp, K_R, L, B_R, A_F, B_F, C_F) and
+        ``eid_controller.json`` into ``directory``."""
+        d = Path(directory)
+        d.mkdir(parents=True, exist_ok=True)
+        g = self.gains
+        np.savez(d / "eid_gains.npz", Kp=np.diag([g[0].kp, g[1].kp]),
+                 K_R=np.diag([g[0].kr, g[1].kr]), L=np.diag([g[0].l, g[1].l]),
+                 B_R=np.diag([g[0].br, g[1].br]), A_F=np.diag([-g[0].bf, -g[1].bf]),
+                 B_F=np.diag([g[0].bf, g[1].bf]), C_F=np.eye(2))
+        (d / "eid_controller.json").write_text(json.dumps(self.to_dict(), indent=2))
+        return d
+
+
+def _ref_json(sig):
+    if isinstance(sig, (int, float)):
+        return float(sig)
+    return None  # callables/samples are not persisted; the default constant is used on load
+
+
+def load_eid(directory) -> EIDController:
+    """Load a controller saved by :meth:`EIDController.save`."""
+    d = Path(directory)
+    f = d / "eid_controller.json"
+    if not f.exists():
+        raise DownholeInputError(f"{f} not found (expected a directory written by "
+                                 "EIDController.save / downhole design eid)")
+    meta = json.loads(f.read_text())
+    gains = tuple(ChannelGains(**g) for g in meta["gains"])
+    ref = meta.get("reference", {})
+    a, w = ref.get("axial"), ref.get("angular")
+    reference = constant_reference(a if a is not None else 0.01, w if w is not None else 20.0)
+    reports = [LMIReport(**r) for r in meta.get("lmi_reports", [])]
+    return EIDController(gains=gains, model_coeffs=tuple(meta["model_coeffs"]),
+                         reference=reference, predictor=meta["predictor"],
+                         delayed_input_observer=meta["delayed_input_observer"], reports=reports,
+                         u_limits=tuple(tuple(x) for x in meta["u_limits"]))
+
+
+def design_eid(model, *, internal_model_gain=(10.0, 1.0), filter_bandwidth=(10.0, 2.0),
+               observer_gain=(20.0, 7.0), gain_bound: float = 5.0, reference=None,
+               predictor: bool = True, delayed_input_observer: bool = True,
+               eps: float = 1e-6) -> EIDController:
+    """Design the EID controller for a :class:`~downhole.string.neutral.NeutralModel`.
+
+    Solves, per channel, the corrected Theorem 1 LMI (see :mod:`downhole.control.eid.design`)
+    for the feedback gains (Kp, K_R) with the chosen observer gain L and filter F(s), including
+    the delayed disturbance compensation of the delayed-input observer.
+
+    Parameters
+    ----------
+    model : NeutralModel
+    internal_model_gain : (float, float)
+        B_R per channel (seed Eq. 3.32: 1 and 0.05; default 1 and 1, see docs/neutral-eid.md).
+    filter_bandwidth : (float, float)
+        bf of F(s) = bf/(s + bf), rad/s (seed: 200 and 100; with the input delay ~2 rad/s).
+    observer_gain : (float, float)
+        L per channel (seed: 199.3 and 357.6; with the input delay about 1/50 of those).
+    gain_bound : float
+        Bound on |[Kp K_R]| per channel.
+    reference : Reference, optional
+        Default reference (constant 10 mm/s, 20 rad/s).
+    predictor, delayed_input_observer : bool
+        Input-delay handling (both on by default; off reproduces the printed structure).
+
+    Returns
+    -------
+    EIDController
+        With ``reports`` holding each channel's LMI margins.
+
+    Raises
+    ------
+    LMIInfeasible
+        Names the channel and the constraint family.
+    """
+    nd = model.ndde()
+    gains, reports, coeffs = [], [], []
+    for i, name in enumerate(CHANNELS):
+        ch = nd.channel(i)
+        g, rep = synthesize_channel(ch, name, br=float(internal_model_gain[i]),
+                                    bf=float(filter_bandwidth[i]),
+                                    observer_gain=float(observer_gain[i]), gain_bound=gain_bound,
+                                    delayed_input=delayed_input_observer, eps=eps)
+        gains.append(g)
+        reports.append(rep)
+        coeffs.append(ch)
+    return EIDController(gains=tuple(gains), model_coeffs=tuple(coeffs),
+                         reference=as_reference(reference), predictor=predictor,
+                         delayed_input_observer=delayed_input_observer, reports=reports)
