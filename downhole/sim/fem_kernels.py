@@ -379,8 +379,9 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
             wave_push(wt_hist, wt_pos, wt_wp, vt[iB] - tb_in, vt[iC] - ta_in)
             fb_line = top[_FB0] + za * (2.0 * b_in - va[iB])
             fc_line = -top[_FC0] - za * (2.0 * a_in - va[iC])
-            tb_line = zt * (2.0 * tb_in - vt[iB])
-            tc_line = -zt * (2.0 * ta_in - vt[iC])
+            # reported torque GJ (theta_up - theta_down)/L is minus the line's N
+            tb_line = -zt * (2.0 * tb_in - vt[iB])
+            tc_line = zt * (2.0 * ta_in - vt[iC])
         misc[0] += dt
         misc[5] += 1.0
         # ---- record

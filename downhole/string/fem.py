@@ -812,8 +812,12 @@ def _initial_record(pk: _Packed, st) -> np.ndarray:
     out[7] = pk.hook_load0
     ten = -m.Ka[1, :-1] * (u[1:] - u[:-1])
     if m.wave is None:
-        out[11] = ten[min(m.node_b, ten.size - 1)]
-        out[13] = ten[min(m.node_c, ten.size - 1)]
+        def at(i):
+            if 0 < i < ten.size:
+                return 0.5 * (ten[i - 1] + ten[i])
+            return ten[min(max(i, 0), ten.size - 1)]
+        out[11] = at(m.node_b)
+        out[13] = at(m.node_c)
     else:
         fb0, fc0, _ = _line_preload(m, pk.hook.wob)
         out[11], out[13] = fb0, -fc0

@@ -6,7 +6,7 @@ force on B = Z (2 b_in - v_B), on C = Z (2 a_in - v_C), Z_axial = A sqrt(rho E),
 Z_torsional = J sqrt(rho G) (seed Eq. 5.18 swaps them; SPEC.md), plus the static preload of the
 hanging line (its weight). The kernels treat -Z v as an implicit damper on B and C. Damping of
 the line (SPEC.md): the Rayleigh alpha0 part is lumped as end dashpots alpha0 rho A L/2 (and
-alpha0 rho J L/2) at B and C; the beta0 part as ``n_lags`` first-order lags on each incoming
+alpha0 rho J L/2) at B and C; optionally the beta0 part as ``n_lags`` first-order lags on each incoming
 wave with time constant sqrt(beta0 tau / n_lags), which reproduce the low-frequency Kelvin-Voigt
 attenuation exp(-omega^2 beta0 tau / 2); the pure delay is shortened by the lags' group delay
 (n_lags * T) so that the arrival time stays tau.
@@ -52,7 +52,7 @@ def hybrid_model(preset: str | None = "hybrid68", *, n_ab: int | None = None,
                  md_b: float | None = None, md_c: float | None = None,
                  damping: str = "rayleigh", rayleigh_alpha: float | None = None,
                  rayleigh_beta: float | None = None, modal_ratio: float = 0.03,
-                 n_lags: int = 3, friction: float | None = None, v_eps: float = 1e-3,
+                 n_lags: int = 0, friction: float | None = None, v_eps: float = 1e-3,
                  mass: str = "consistent", name: str | None = None) -> DirectionalModel:
     """Build a hybrid FEM + wave-segment model.
 
@@ -70,7 +70,10 @@ def hybrid_model(preset: str | None = "hybrid68", *, n_ab: int | None = None,
     damping : {"rayleigh", "modal"}
         FEM damping; with Rayleigh the line gets the end dashpots and lags described above.
     n_lags : int
-        First-order lags per incoming wave approximating beta0 (0 = none).
+        First-order lags per incoming wave approximating beta0 (default 0 = lossless line with
+        the alpha0 end dashpots only: against a 1000-element FEM with Table 5.1 damping this is
+        closer (bit speed 4.5 % RMS for 68 states) than 1 lag (6.8 %) or 3 lags (8.0 %),
+        because beta0 acts mostly above the frequencies that matter here).
 
     Returns
     -------
