@@ -78,13 +78,19 @@ def check_reachable(problem: DPProblem, succ_ptr, succ) -> None:
         if reach[goal]:
             return
     b = problem.bounds
+    g2, g4 = problem.grid2(), problem.grid4()
+    a = problem.arrays()
+    rates = ""
+    if b.top_speed is not None or b.rotary_speed is not None:
+        rates = f", bounds.top_speed={b.top_speed} m/s, bounds.rotary_speed={b.rotary_speed} rad/s"
     raise DownholeInputError(
         f"infeasible problem: the final target (v_d={problem.targets.v_d} m/s, "
         f"w_d={problem.targets.w_d} rad/s) cannot be reached from rest in {problem.steps} steps "
-        f"of {problem.step} s within bounds.force={list(b.force)} N and "
-        f"bounds.torque={list(b.torque)} N m: one x4 grid step in one DP step needs "
-        f"{problem.arrays().inertia * (problem.grid4()[1] - problem.grid4()[0]) / problem.step:.4g}"
-        " N m of inertial torque; use a longer step, a finer x4 grid or wider bounds")
+        f"of {problem.step} s within bounds.force={list(b.force)} N, "
+        f"bounds.torque={list(b.torque)} N m{rates}. One grid step in one DP step needs "
+        f"{a.mass * (g2[1] - g2[0]) / problem.step:.4g} N (x2) and "
+        f"{a.inertia * (g4[1] - g4[0]) / problem.step:.4g} N m (x4) of inertial load on top of "
+        "the bit load; use a longer step, finer grids or wider bounds")
 
 
 def path_solution(problem: DPProblem, path: np.ndarray, method: str, cost: float,

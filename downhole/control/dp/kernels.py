@@ -11,13 +11,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from downhole.bit import approx_depth_of_cut, bit_forces
 
 __all__ = [
     "steady_loads", "node_bit_loads", "transition_lists", "backward_plain", "regions_step",
     "advance", "project_table", "standard_backward", "standard_choose", "robust_forward_step",
+    "robust_forward_step_parallel",
     "path_replay", "path_inputs", "discrete_replay",
 ]
 
@@ -360,17 +361,16 @@ def _path_loads(x2a, x4a, a, b, tau, lumped, p):
     return wob + lumped[3] * v + lumped[0] * a, tob + lumped[5] * w + lumped[1] * b
 
 
-@njit(cache=True)
-def robust_forward_step(succ_ptr, succ, g2, g4, dt, nsub, lumped, p_nom, p_ens, nominal_mask,
-                        weights_ens, lam, targets, last, cost, states, alive):
+def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens, nominal_mask,
+                         weights_ens, lam, targets, last, cost, states, alive):
     """One forward step of the robust DP (Eq. 2.25) over (x2, x4) nodes.
 
     Each alive node n carries its accumulated ensemble cost and, for every ensemble model e, the
     state (e1, v, e3, w) with e1 = x1_nom - x1_e, e3 = x3_nom - x3_e. Along the linear nominal
     path n -> m the same top inputs (path inversion) drive every model; non-nominal models are
     integrated with ``nsub`` linearly implicit Euler substeps. The candidate cost adds the
-    ensemble-mean stage cost at k+1 (or the terminal cost when ``last``). Returns the new
-    (cost, states, alive, parent) arrays.
+    ensemble-mean stage cost at k+1 (or the terminal cost when ``last``); each node m keeps its
+    best predecessor. Returns the new (cost, states, alive, parent) arrays.
     """
     nn = cost.size
     ne = p_ens.shape[0]
@@ -381,18 +381,23 @@ def robust_forward_step(succ_ptr, succ, g2, g4, dt, nsub, lumped, p_nom, p_ens, 
     new_states = np.zeros((nn, ne, 4))
     new_alive = np.zeros(nn, dtype=np.bool_)
     parent = np.full(nn, -1, dtype=np.int32)
-    tmp = np.empty((ne, 4))
     l1, l2, l3, l4 = lam[0], lam[1], lam[2], lam[3]
     vm, wm, vd, wd = targets[0], targets[1], targets[2], targets[3]
-    for n in range(nn):
-        if not alive[n]:
-            continue
-        x2a = g2[n // n4]
-        x4a = g4[n % n4]
-        for qq in range(succ_ptr[n], succ_ptr[n + 1]):
-            m = succ[qq]
-            a = (g2[m // n4] - x2a) / dt
-            b = (g4[m % n4] - x4a) / dt
+    for m in prange(nn):
+        tmp = np.empty((ne, 4))
+        best = np.empty((ne, 4))
+        best_c = _INF
+        best_n = -1
+        x2m = g2[m // n4]
+        x4m = g4[m % n4]
+        for qq in range(pred_ptr[m], pred_ptr[m + 1]):
+            n = pred[qq]
+            if not alive[n]:
+                continue
+            x2a = g2[n // n4]
+            x4a = g4[n % n4]
+            a = (x2m - x2a) / dt
+            b = (x4m - x4a) / dt
             for e in range(ne):
                 for c in range(4):
                     tmp[e, c] = states[n, e, c]
@@ -414,23 +419,33 @@ def robust_forward_step(succ_ptr, succ, g2, g4, dt, nsub, lumped, p_nom, p_ens, 
             for e in range(ne):
                 if nominal_mask[e]:
                     tmp[e, 0] = 0.0
-                    tmp[e, 1] = g2[m // n4]
+                    tmp[e, 1] = x2m
                     tmp[e, 2] = 0.0
-                    tmp[e, 3] = g4[m % n4]
+                    tmp[e, 3] = x4m
                 if last:
                     add += weights_ens[e] * (l3 * (tmp[e, 1] - vd) ** 2 + l4 * (tmp[e, 3] - wd) ** 2)
                 else:
                     add += weights_ens[e] * (l1 * (tmp[e, 1] - vm) ** 2
                                              + l2 * (tmp[e, 3] - wm) ** 2) * dt
             c = cost[n] + add
-            if c < new_cost[m]:
-                new_cost[m] = c
-                parent[m] = n
-                new_alive[m] = True
+            if c < best_c:
+                best_c = c
+                best_n = n
                 for e in range(ne):
                     for cc in range(4):
-                        new_states[m, e, cc] = tmp[e, cc]
+                        best[e, cc] = tmp[e, cc]
+        if best_n >= 0:
+            new_cost[m] = best_c
+            parent[m] = best_n
+            new_alive[m] = True
+            for e in range(ne):
+                for cc in range(4):
+                    new_states[m, e, cc] = best[e, cc]
     return new_cost, new_states, new_alive, parent
+
+
+robust_forward_step = njit(cache=True)(_robust_forward_step)
+robust_forward_step_parallel = njit(cache=True, parallel=True)(_robust_forward_step)
 
 
 @njit(cache=True)

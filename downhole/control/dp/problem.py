@@ -75,8 +75,8 @@ class BoundSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    force: tuple[float, float] = (-50.0e3, 250.0e3)
-    torque: tuple[float, float] = (-20.0e3, 60.0e3)
+    force: tuple[float, float] = (0.0, 200.0e3)
+    torque: tuple[float, float] = (0.0, 30.0e3)
     top_speed: Optional[tuple[float, float]] = None
     rotary_speed: Optional[tuple[float, float]] = None
 
@@ -144,8 +144,8 @@ class DPProblem(BaseModel):
 
     horizon: Q["time"] = 20.0
     step: Q["time"] = 0.25
-    x2: GridSpec = GridSpec(min=0.0, max=0.02, points=11)
-    x4: GridSpec = GridSpec(min=0.0, max=20.0, points=11)
+    x2: GridSpec = GridSpec(min=0.0, max=0.02, points=21)
+    x4: GridSpec = GridSpec(min=0.0, max=20.0, points=21)
     x1_regions: Optional[int] = None
     x3_regions: Optional[int] = None
     targets: TargetSpec = TargetSpec()
@@ -154,6 +154,13 @@ class DPProblem(BaseModel):
     model: ModelSpec = ModelSpec()
     robust: RobustSpec = RobustSpec()
     standard: StandardSpec = StandardSpec()
+
+    def __init__(self, **data):
+        try:
+            super().__init__(**data)
+        except ValidationError as exc:
+            field, msg = _flatten_error(exc)
+            raise DownholeInputError(f"{field}: {msg}" if field else msg) from None
 
     # ------------------------------------------------------------------ derived
     @property
@@ -316,7 +323,9 @@ def _flatten_error(exc: ValidationError) -> tuple[str, str]:
     e = exc.errors()[0]
     field = ".".join(str(p) for p in e.get("loc", ()))
     msg = e.get("msg", str(exc))
-    if "input" in e and not isinstance(e["input"], dict):
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    if "input" in e and field and not isinstance(e["input"], dict):
         msg += f" (got {e['input']!r})"
     return field, msg
 

@@ -16,14 +16,15 @@ import numpy as np
 from downhole.control.dp._progress import progress_bar
 from downhole.control.dp.customized import check_reachable, path_solution, transitions
 from downhole.control.dp.problem import DPProblem
-from downhole.control.dp.kernels import robust_forward_step
+from downhole.control.dp.kernels import robust_forward_step, robust_forward_step_parallel
 from downhole.control.dp.solution import DPSolution
 from downhole.errors import DownholeInputError
 
 __all__ = ["solve_robust"]
 
 
-def solve_robust(problem: DPProblem, *, epsilon_scales=None, progress: bool = False) -> DPSolution:
+def solve_robust(problem: DPProblem, *, epsilon_scales=None, progress: bool = False,
+                 parallel: bool = False) -> DPSolution:
     """Solve the robust DP over the epsilon ensemble ``problem.robust.epsilon_scales``.
 
     Parameters
@@ -34,6 +35,8 @@ def solve_robust(problem: DPProblem, *, epsilon_scales=None, progress: bool = Fa
         Override of the ensemble (factors multiplying epsilon; 1.0 is the nominal model).
     progress : bool
         Show a rich progress bar.
+    parallel : bool
+        Spread the nodes of each step over threads (numba ``prange``); same result.
 
     Returns
     -------
@@ -45,7 +48,7 @@ def solve_robust(problem: DPProblem, *, epsilon_scales=None, progress: bool = Fa
     if len(scales) == 0 or any(not s > 0 for s in scales):
         raise DownholeInputError(f"epsilon_scales must be positive factors, got {list(scales)}")
     t0 = time.perf_counter()
-    succ_ptr, succ, _, _ = transitions(problem)
+    succ_ptr, succ, pred_ptr, pred = transitions(problem)
     check_reachable(problem, succ_ptr, succ)
     g2, g4 = problem.grid2(), problem.grid4()
     a = problem.arrays()
@@ -68,10 +71,11 @@ def solve_robust(problem: DPProblem, *, epsilon_scales=None, progress: bool = Fa
     alive[start] = True
     states[start, :, :] = 0.0
     parents = []
+    kernel = robust_forward_step_parallel if parallel else robust_forward_step
     with progress_bar(n_steps, "robust DP", progress) as advance:
         for k in range(n_steps):
-            cost, states, alive, parent = robust_forward_step(
-                succ_ptr, succ, g2, g4, dt, nsub, lumped, a.bit, p_ens, nominal, weights, lam,
+            cost, states, alive, parent = kernel(
+                pred_ptr, pred, g2, g4, dt, nsub, lumped, a.bit, p_ens, nominal, weights, lam,
                 targets, k == n_steps - 1, cost, states, alive)
             parents.append(parent)
             advance()
