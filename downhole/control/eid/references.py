@@ -53,9 +53,21 @@ def eq_3_35(t, omega: float = 20.0):
          w])
 
 
-def seed_tracking_reference(v: float = 0.005, omega: float = 20.0) -> Reference:
-    """Eqs. 3.34 (sinusoid, axial) and 3.35 (multi-ramp, torsional), v = 5 mm/s, w = 20 rad/s."""
-    return Reference(lambda t: eq_3_34(t, v), lambda t: eq_3_35(t, omega), "eq3.34-3.35")
+def seed_tracking_reference(v: float = 0.005, omega: float = 20.0,
+                            max_depth_of_cut: float | None = 6e-3) -> Reference:
+    """Eqs. 3.34 (sinusoid, axial) and 3.35 (multi-ramp, torsional), v = 5 mm/s, w = 20 rad/s.
+
+    Eq. 3.35 starts the rotation at 0 rad/s while Eq. 3.34 asks for 15 mm/s from t = 0: drilling
+    without rotation is impossible (the bit stalls and the integrators wind up). With
+    ``max_depth_of_cut`` (m per revolution, default 6 mm) the axial reference is limited to
+    ``max_depth_of_cut * omega_ref / (2 pi)``; it is inactive once omega_ref >= 20 rad/s.
+    ``None`` gives the printed pair."""
+    if max_depth_of_cut is None:
+        return Reference(lambda t: eq_3_34(t, v), lambda t: eq_3_35(t, omega), "eq3.34-3.35")
+    dmax = float(max_depth_of_cut)
+    return Reference(
+        lambda t: np.minimum(eq_3_34(t, v), dmax * eq_3_35(t, omega) / (2 * np.pi)),
+        lambda t: eq_3_35(t, omega), "eq3.34-3.35-limited")
 
 
 def user_reference(axial, angular) -> Reference:
