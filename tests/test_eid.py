@@ -83,3 +83,15 @@ def test_infeasible_lmi_names_the_family(model):
     bad = dict(ch, g1=1.2)
     with pytest.raises(Exception, match=r"\|G\| = 1.2"):
         synthesize_channel(bad, "axial", br=1.0, bf=2.0, observer_gain=4.0)
+
+
+def test_cli_design_eid(tmp_path):
+    from downhole.cli import main
+
+    rc = main(["design", "eid", "examples/eid_nominal.toml", "--out", str(tmp_path)])
+    assert rc == 0
+    assert (tmp_path / "eid_gains.npz").exists() and (tmp_path / "roots.png").exists()
+    assert "stable\": true" in (tmp_path / "report.md").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[eid]\nobserver_gain = [1.0]\n")
+    assert main(["design", "eid", str(bad), "--out", str(tmp_path / "x")]) == 2
