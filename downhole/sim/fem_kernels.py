@@ -155,31 +155,37 @@ def _field_step(Md, Mo, Kd, Ko, Ld, Lo, Ldense, dense, u, v, a, f0, cx, kx, dt, 
                 else:
                     # den * x - h * g(x) = r, g decreasing in x: monotone, safeguarded Newton
                     x = v[i]
-                    lo = x - 1.0
-                    hi = x + 1.0
-                    while den * lo - h * _bit_g(bit_field, lo, bd0, brate, bother, bitp,
-                                                 approx, bomega) > r:
-                        lo -= 2.0 * (hi - lo)
-                    while den * hi - h * _bit_g(bit_field, hi, bd0, brate, bother, bitp,
-                                                 approx, bomega) < r:
-                        hi += 2.0 * (hi - lo)
-                    for it in range(100):
-                        fx = den * x - h * _bit_g(bit_field, x, bd0, brate, bother, bitp,
-                                                  approx, bomega) - r
+                    xprev = x
+                    fprev = 0.0
+                    fp = den
+                    lo = -1e300
+                    hi = 1e300
+                    for it in range(60):
+                        gx = _bit_g(bit_field, x, bd0, brate, bother, bitp, approx, bomega)
+                        fx = den * x - h * gx - r
                         if fx > 0.0:
                             hi = x
                         else:
                             lo = x
-                        if hi - lo < 1e-13 * (1.0 + abs(x)):
-                            break
-                        eps = 1e-9 * (1.0 + abs(x))
-                        fp = den - h * (_bit_g(bit_field, x + eps, bd0, brate, bother, bitp,
-                                               approx, bomega)
-                                        - _bit_g(bit_field, x, bd0, brate, bother, bitp,
-                                                 approx, bomega)) / eps
-                        xn = x - fx / fp if fp > 0.0 else 0.5 * (lo + hi)
+                        if it == 0:
+                            eps = 1e-9 * (1.0 + abs(x))
+                            fp = den - h * (_bit_g(bit_field, x + eps, bd0, brate, bother,
+                                                   bitp, approx, bomega) - gx) / eps
+                        elif x != xprev:
+                            fp = (fx - fprev) / (x - xprev)  # secant: one evaluation per step
+                        xprev = x
+                        fprev = fx
+                        xn = x - fx / fp if fp > 0.0 else x - fx / den
                         if not (lo < xn < hi):
-                            xn = 0.5 * (lo + hi)
+                            if lo > -1e299 and hi < 1e299:
+                                xn = 0.5 * (lo + hi)
+                            elif xn <= lo:
+                                xn = lo + 1.0 + abs(lo)
+                            else:
+                                xn = hi - 1.0 - abs(hi)
+                        if abs(xn - x) < 1e-13 * (1.0 + abs(x)):
+                            x = xn
+                            break
                         x = xn
                     vnew[i] = x
         for i in range(n - 2, -1, -1):

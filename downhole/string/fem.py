@@ -735,7 +735,8 @@ def _check_duration(duration, dt, record_dt):
 def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: float = 1e-3, *,
                          top_drive: TopDrive | None = None, hook: Hook | None = None,
                          depth_of_cut: str = "delayed", record_dt: float | None = 0.01,
-                         hook_load=None, scenario: str = "") -> Result:
+                         hook_load=None, scenario: str = "", record_nodes: bool = False
+                         ) -> Result:
     """Run a directional FEM or hybrid model from its static equilibrium.
 
     Parameters
@@ -752,6 +753,9 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
         Recording interval (None: every step).
     hook_load : callable, optional
         ``hook_load(t) -> N`` overriding the constant hook load (force mode).
+    record_nodes : bool
+        Also record ``node_axial_velocity`` and ``node_angular_velocity`` (time x node) at
+        the recording interval (node depths in the attr ``node_md``).
 
     Returns
     -------
@@ -783,7 +787,20 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
     rec = np.zeros((n_rec + 1, len(CHANNELS)))
     rec0 = _initial_record(pk, st)
     rec[0] = rec0
-    status, rows = pk.run(st, cmd, rec, every, 1)
+    if record_nodes:
+        nodes_a = np.zeros((n_rec + 1, model.n_nodes))
+        nodes_t = np.zeros((n_rec + 1, model.n_nodes))
+        rows = 0
+        status = 0
+        for j in range(n_rec):
+            status, r_ = pk.run(st, cmd[j * every:(j + 1) * every], rec, every, j + 1)
+            if status != 0:
+                break
+            rows += r_
+            nodes_a[j + 1] = st["state"][1]
+            nodes_t[j + 1] = st["state"][4]
+    else:
+        status, rows = pk.run(st, cmd, rec, every, 1)
     if status != 0:
         raise SimulationDiverged(float(st["misc"][0]), "bit_angular_velocity")
     time = np.concatenate([[0.0], (np.arange(1, rows + 1)) * every * dt])
@@ -792,11 +809,17 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
         [[top_drive.command(np.array([0.0]))[0]], channels["reference_angular_velocity"][1:]])
     if top_drive.mode == "torque":
         del channels["reference_angular_velocity"]
-    return Result(time, channels, units=EXTRA_UNITS,
+    units = dict(EXTRA_UNITS)
+    if record_nodes:
+        channels["node_axial_velocity"] = nodes_a[:rows + 1]
+        channels["node_angular_velocity"] = nodes_t[:rows + 1]
+        units.update(node_axial_velocity="m/s", node_angular_velocity="rad/s")
+    return Result(time, channels, units=units,
                   attrs={"bit_radius": model.bit.radius, "model": model.name,
                          "model_kind": model.kind, "n_states": model.n_states, "dt": dt,
                          "depth_of_cut": depth_of_cut, "top_drive_mode": top_drive.mode,
-                         "hook_mode": hook.mode, "scenario": scenario})
+                         "hook_mode": hook.mode, "scenario": scenario,
+                         "node_md": model.node_md.tolist()})
 
 
 def _initial_record(pk: _Packed, st) -> np.ndarray:
