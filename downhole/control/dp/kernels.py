@@ -145,30 +145,37 @@ def regions_step(pred_ptr, pred, stage, g2, g4, dt, w1, w3, r1_lo, n_r1, r3_lo, 
     bx1 = np.empty(size)
     bx3 = np.empty(size)
     n4 = g4.size
+    # per predecessor node: x1/x3 shift in region units, plus the offset that turns floor()
+    # into a truncation of a positive number (regions are indexed from r_lo)
+    s1 = np.empty(nn)
+    s3 = np.empty(nn)
+    for n in range(nn):
+        s1[n] = g2[n // n4] * dt / w1 - 0.5 + r1_lo
+        s3[n] = g4[n % n4] * dt / w3 - 0.5 + r3_lo
+    top1 = n_r1 - 1
+    top3 = n_r3 - 1
     for q in range(node_n.size):
         m = node_n[q]
         jm = node_j[q]
+        y1 = node_x1[q] / w1
+        y3 = node_x3[q] / w3
         for t in range(pred_ptr[m], pred_ptr[m + 1]):
             n = pred[t]
-            x1 = node_x1[q] - g2[n // n4] * dt
-            x3 = node_x3[q] - g4[n % n4] * dt
-            r1 = int(math.floor(x1 / w1 + 0.5)) - r1_lo
-            r3 = int(math.floor(x3 / w3 + 0.5)) - r3_lo
-            if r1 < 0:
-                r1 = 0
-            elif r1 >= n_r1:
-                r1 = n_r1 - 1
-            if r3 < 0:
-                r3 = 0
-            elif r3 >= n_r3:
-                r3 = n_r3 - 1
+            z1 = y1 - s1[n]
+            z3 = y3 - s3[n]
+            r1 = int(z1) if z1 >= 0.0 else 0
+            r3 = int(z3) if z3 >= 0.0 else 0
+            if r1 > top1:
+                r1 = top1
+            if r3 > top3:
+                r3 = top3
             key = (r1 * n_r3 + r3) * nn + n
             c = stage[n] + jm
             if c < best[key]:
                 best[key] = c
                 parent[key] = q
-                bx1[key] = x1
-                bx3[key] = x3
+                bx1[key] = node_x1[q] - g2[n // n4] * dt
+                bx3[key] = node_x3[q] - g4[n % n4] * dt
     count = 0
     for key in range(size):
         if parent[key] >= 0:
