@@ -18,7 +18,7 @@ from downhole.bit import approx_depth_of_cut, bit_forces
 __all__ = [
     "steady_loads", "node_bit_loads", "transition_lists", "backward_plain", "regions_step",
     "advance", "project_table", "standard_backward", "standard_choose", "robust_forward_step",
-    "robust_forward_step_parallel",
+    "robust_forward_step_parallel", "path_load_table",
     "path_replay", "path_inputs", "discrete_replay",
 ]
 
@@ -215,11 +215,14 @@ def _slopes(v, w, p):
     else:
         wf_load = full
     cv *= 2.0 * math.pi / wf
+    arg = p[_A2] * w + p[_B2]
+    if abs(arg) > 20.0:  # tanh saturated: the friction torque does not depend on w here
+        return cv, 0.0
     if p[_STRIB] > 0.5:
         mugam = (p[_MUC] + (p[_MUS] - p[_MUC]) * math.exp(-p[_GAMB] / p[_VF] * abs(w))) * p[_GAM]
     else:
         mugam = p[_MUGAM]
-    g = math.tanh(p[_A2] * w + p[_B2])
+    g = math.tanh(arg)
     cw = 0.5 * mugam * a * wf_load * p[_A2] * (1.0 - g * g)
     return cv, cw
 
@@ -369,7 +372,7 @@ def _path_loads(x2a, x4a, a, b, tau, lumped, p):
 
 
 def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens, nominal_mask,
-                         weights_ens, lam, targets, last, cost, states, alive):
+                         weights_ens, lam, targets, last, cost, states, alive, load_table):
     """One forward step of the robust DP (Eq. 2.25) over (x2, x4) nodes.
 
     Each alive node n carries its accumulated ensemble cost and, for every ensemble model e, the
@@ -390,6 +393,7 @@ def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens,
     parent = np.full(nn, -1, dtype=np.int32)
     l1, l2, l3, l4 = lam[0], lam[1], lam[2], lam[3]
     vm, wm, vd, wd = targets[0], targets[1], targets[2], targets[3]
+    use_table = load_table.shape[0] == pred.size
     for m in prange(nn):
         tmp = np.empty((ne, 4))
         best = np.empty((ne, 4))
@@ -410,7 +414,11 @@ def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens,
                     tmp[e, c] = states[n, e, c]
             for s in range(nsub):
                 tau = s * h
-                fn, tn = _path_loads(x2a, x4a, a, b, tau, lumped, p_nom)
+                if use_table:
+                    fn = load_table[qq, s, 0]
+                    tn = load_table[qq, s, 1]
+                else:
+                    fn, tn = _path_loads(x2a, x4a, a, b, tau, lumped, p_nom)
                 vn_mid = x2a + a * (tau + 0.5 * h)
                 wn_mid = x4a + b * (tau + 0.5 * h)
                 for e in range(ne):
@@ -449,6 +457,25 @@ def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens,
                 for cc in range(4):
                     new_states[m, e, cc] = best[e, cc]
     return new_cost, new_states, new_alive, parent
+
+
+@njit(cache=True)
+def path_load_table(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom):
+    """Nominal string force/torque of the path inversion for every transition (in ``pred``
+    order) at the start of every substep: shape (transitions, nsub, 2). Time-invariant."""
+    n4 = g4.size
+    out = np.empty((pred.size, nsub, 2))
+    h = dt / nsub
+    for m in range(pred_ptr.size - 1):
+        for qq in range(pred_ptr[m], pred_ptr[m + 1]):
+            n = pred[qq]
+            x2a = g2[n // n4]
+            x4a = g4[n % n4]
+            a = (g2[m // n4] - x2a) / dt
+            b = (g4[m % n4] - x4a) / dt
+            for s in range(nsub):
+                out[qq, s, 0], out[qq, s, 1] = _path_loads(x2a, x4a, a, b, s * h, lumped, p_nom)
+    return out
 
 
 robust_forward_step = njit(cache=True)(_robust_forward_step)

@@ -16,11 +16,15 @@ import numpy as np
 from downhole.control.dp._progress import progress_bar
 from downhole.control.dp.customized import check_reachable, path_solution, transitions
 from downhole.control.dp.problem import DPProblem
-from downhole.control.dp.kernels import robust_forward_step, robust_forward_step_parallel
+from downhole.control.dp.kernels import (path_load_table, robust_forward_step,
+                                         robust_forward_step_parallel)
 from downhole.control.dp.solution import DPSolution
 from downhole.errors import DownholeInputError
 
 __all__ = ["solve_robust"]
+
+#: Largest precomputed table of nominal path loads (transitions x substeps x 2 floats), bytes.
+_TABLE_BYTES = 256 * 2**20
 
 
 def solve_robust(problem: DPProblem, *, epsilon_scales=None, progress: bool = False,
@@ -72,11 +76,15 @@ def solve_robust(problem: DPProblem, *, epsilon_scales=None, progress: bool = Fa
     states[start, :, :] = 0.0
     parents = []
     kernel = robust_forward_step_parallel if parallel else robust_forward_step
+    if pred.size * nsub * 16 <= _TABLE_BYTES:
+        table = path_load_table(pred_ptr, pred, g2, g4, dt, nsub, lumped, a.bit)
+    else:
+        table = np.empty((0, 1, 2))
     with progress_bar(n_steps, "robust DP", progress) as advance:
         for k in range(n_steps):
             cost, states, alive, parent = kernel(
                 pred_ptr, pred, g2, g4, dt, nsub, lumped, a.bit, p_ens, nominal, weights, lam,
-                targets, k == n_steps - 1, cost, states, alive)
+                targets, k == n_steps - 1, cost, states, alive, table)
             parents.append(parent)
             advance()
     end = int(np.argmin(cost))
