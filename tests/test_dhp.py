@@ -150,3 +150,24 @@ def test_quadratic_basis_reference_path_runs_and_matches_linear_plant():
                                    threshold=1e-10, n_iterations=200))
     K = finite_horizon_lqr(A, B, Q, R, S, 20)
     np.testing.assert_allclose(tr.kd, K, rtol=1e-5, atol=1e-8)
+
+
+def test_directional_design_model_matches_fem_export():
+    """The compiled structured design model equals the FEM engineer's control_affine export."""
+    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
+
+    fem24, _ = table_5_1_models()
+    fast = directional_affine_model(fem24)
+    ref = fem24.control_affine(1e-3)
+    Z = np.random.default_rng(0).uniform(-1.0, 1.0, (40, 24))
+    np.testing.assert_allclose(fast.f(Z), ref.f(Z), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(fast.g, ref.g)
+    assert fast.n_states == 24
+
+
+def test_resampling_every_k_steps_matches_fresh_samples_on_linear_plant():
+    model, A, B, Q, R, S = _linear_plant()
+    pb = DHPProblem(model, Q, R, S, np.zeros((60, 6)))
+    a = train_dhp(pb, DHPSettings(resample_every=1))
+    b = train_dhp(pb, DHPSettings(resample_every=25, chunk=16))
+    np.testing.assert_allclose(a.kd, b.kd, rtol=1e-9, atol=1e-12)

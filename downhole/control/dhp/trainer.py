@@ -127,6 +127,10 @@ class DHPSettings:
         Keep the full weights W_k every ``weight_stride`` steps (None: about 400 snapshots).
     chunk : int
         Steps per vectorized model evaluation (memory vs. Python overhead).
+    resample_every : int
+        Draw a fresh set of N_S sample offsets every ``resample_every`` steps (1: every step,
+        the seed's Algorithm 1). The samples are always centred on the step's own reference;
+        re-using the offsets lets the Riccati form factor the least-squares fit once per set.
     max_weight : float
         Weights larger than this (or non-finite) count as divergence.
     """
@@ -145,6 +149,7 @@ class DHPSettings:
     weight_stride: int | None = None
     chunk: int = 256
     max_weight: float = 1e12
+    resample_every: int = 1
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -171,6 +176,9 @@ class DHPSettings:
             raise DownholeInputError(f"sample_radius must be positive, got {self.sample_radius!r}")
         if self.chunk < 1:
             raise DownholeInputError(f"chunk must be >= 1, got {self.chunk!r}")
+        if not (isinstance(self.resample_every, int) and self.resample_every >= 1):
+            raise DownholeInputError(f"resample_every must be an integer >= 1, got "
+                                     f"{self.resample_every!r}")
 
 
 def _psd(name, M, n, definite=False):
@@ -306,6 +314,17 @@ class DHPTraining:
 @njit(cache=True)
 def _mu(g, M, Rinv):
     X = g.T @ (M @ g) @ Rinv
+    m = X.shape[0]
+    if m == 1:
+        return abs(X[0, 0])
+    if m == 2:
+        tr = 0.5 * (X[0, 0] + X[1, 1])
+        det = X[0, 0] * X[1, 1] - X[0, 1] * X[1, 0]
+        disc = tr * tr - det
+        if disc >= 0.0:
+            sq = np.sqrt(disc)
+            return max(abs(tr + sq), abs(tr - sq))
+        return np.sqrt(abs(det))  # complex pair: |lambda|^2 = det
     ev = np.linalg.eigvals(X.astype(np.complex128))
     r = 0.0
     for e in ev:
@@ -313,6 +332,17 @@ def _mu(g, M, Rinv):
         if a > r:
             r = a
     return r
+
+
+@njit(cache=True)
+def _projector(delta):
+    """(p, N) least-squares projector onto phi = [1, delta]: fit = proj @ Y."""
+    N, n = delta.shape
+    Phi = np.empty((N, n + 1))
+    Phi[:, 0] = 1.0
+    Phi[:, 1:] = delta
+    Gm = Phi.T @ Phi
+    return np.linalg.solve(Gm, Phi.T.copy())
 
 
 @njit(cache=True)
@@ -330,27 +360,39 @@ def _centered_fit(delta, Y):
 
 
 @njit(cache=True)
-def _riccati_chunk(k_hi, deltas, fr, hsamp, cols_map, A, g, Q, S, Rinv, R, ref, uff, n_total,
-                   M, c_next, kc, kd, mu_out, err_out, keep_every, w_steps, w_store, w_count,
-                   mu_max_ok, max_weight):
+def _riccati_chunk(k_hi, sets, set_id, fr, hsamp, cols_map, A, g, Q, S, Rinv, R, ref, uff,
+                   n_total, M, c_next, kc, kd, mu_out, err_out, keep_every, w_steps, w_store,
+                   w_count, mu_max_ok, max_weight):
     """Backward Riccati-form pass over steps k_hi, k_hi-1, ..., k_hi-K+1 of a chunk.
 
-    deltas (K, N, n): samples minus reference; fr (K, n): f at the reference (A r + h(r) fit is
-    recomputed here); hsamp (K, N, q): nonlinear columns at the samples; cols_map (n, q): the map
+    sets (S, N, n): sample sets (samples minus reference), set_id (K,): the set of each step;
+    fr (K, n): the linear part A r_k at the reference; hsamp (K, N, q): nonlinear columns at the samples; cols_map (n, q): the map
     from the fitted columns to the state rows (identity columns or the force map).
     M (n, n) and c_next (n,) carry the co-state model of step k+1 between chunks.
     Returns status (0 ok, 1 mu >= 1, 2 non-finite/too large) and the failing step.
     """
-    K = deltas.shape[0]
+    K = set_id.shape[0]
     n = A.shape[0]
+    q = hsamp.shape[2]
+    last = -1
+    reuse = K > 1 and set_id[K - 1] < K - 1
+    proj = np.zeros((n + 1, sets.shape[1]))
     for j in range(K):
         k = k_hi - j
-        delta = deltas[j]
-        q = hsamp.shape[2]
         if q > 0:
-            c0, Ct = _centered_fit(delta, hsamp[j])
-            H = cols_map @ Ct.T          # (n, n): dh/dz of the fit
-            h0 = cols_map @ c0           # (n,): fitted h at the reference
+            if reuse:
+                if set_id[j] != last:
+                    proj = _projector(sets[set_id[j]])
+                    last = set_id[j]
+                sol = proj @ np.ascontiguousarray(hsamp[j])   # (p, q)
+            else:
+                c0f, Ctf = _centered_fit(sets[set_id[j]], np.ascontiguousarray(hsamp[j]))
+                sol = np.empty((n + 1, q))
+                sol[0] = c0f
+                sol[1:] = Ctf
+            Ct = sol[1:]                        # (n, q)
+            H = cols_map @ Ct.T                 # (n, n): dh/dz of the fit
+            h0 = cols_map @ sol[0]              # (n,): fitted h at the reference
         else:
             H = np.zeros((n, n))
             h0 = np.zeros(n)
@@ -641,13 +683,17 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
             while k_hi >= 0:
                 K = min(settings.chunk, k_hi + 1)
                 ks = np.arange(k_hi, k_hi - K, -1)
-                deltas = rng.uniform(-1.0, 1.0, size=(K, ns, n)) * radius
+                set_id = ((n_steps - 1 - ks) // settings.resample_every).astype(np.int64)
+                set_id -= set_id[0]
+                n_sets = int(set_id[-1]) + 1
+                sets = rng.uniform(-1.0, 1.0, size=(n_sets, ns, n)) * radius
+                deltas = sets[set_id]
                 Z = deltas + ref[ks][:, None, :]
                 if method == "riccati":
                     fr = ref[ks] @ A.T  # linear part at the reference; h enters via the fit
                     hs, cmap = _nonlinear_samples(model, Z)
                     status, kf = _riccati_chunk(
-                        k_hi, deltas, fr, hs, cmap, A, g, problem.Q, problem.S, Rinv, problem.R,
+                        k_hi, sets, set_id, fr, hs, cmap, A, g, problem.Q, problem.S, Rinv, problem.R,
                         ref, uff, n_steps, M, c_next, kc, kd, mu, err, stride, w_steps, w_store,
                         w_count, mu_ok, settings.max_weight)
                     it_f = None
