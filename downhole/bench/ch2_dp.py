@@ -7,9 +7,9 @@ step: Table 4.2's DP rows are exactly twice Table 2.2's 20 s rows) and the bound
 that every grid transition is a candidate, as in the seed. The robust rows run the forward
 ensemble search over (x2, x4) nodes with the three models of Eq. 2.25 (epsilon +/-10 %),
 perturbed models integrated with 12.5 ms linearly implicit substeps (~1 % of v_m against a fine
-integration); the index grid does not enter it (x1/x3 regions leave the optimum unchanged). A separate case times
-the customized DP against the standard DP (forward projection + interpolation) on the same grid
-in the same run.
+integration); the index grid does not enter it (x1/x3 regions leave the optimum unchanged).
+A separate case times the customized DP against the standard DP (forward projection +
+interpolation) on the same grid in the same run.
 """
 
 from __future__ import annotations

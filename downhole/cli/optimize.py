@@ -15,7 +15,8 @@ from downhole.cli import app
 
 __all__ = ["optimize_app"]
 
-optimize_app = typer.Typer(no_args_is_help=True, help="Optimize drilling inputs (dynamic programming).")
+optimize_app = typer.Typer(no_args_is_help=True,
+                           help="Optimize drilling inputs (dynamic programming).")
 app.add_typer(optimize_app, name="optimize")
 
 

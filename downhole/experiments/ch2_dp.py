@@ -40,10 +40,8 @@ def _reference_run(duration: float):
 
     ramp = 5.0
     t = np.arange(int(round(duration / 5e-4)) + 1) * 5e-4
-    s = np.minimum(t / ramp, 1.0)
     pos = np.where(t < ramp, 0.5 * t ** 2 / ramp, t - 0.5 * ramp)  # integral of the ramp
     u1, u2 = 0.01 * pos, 10.0 * pos
-    del s
     res = simulate(lumped_model("table_2_1", order=4),
                    SurfaceInputs.displacement(time=t, axial=u1, angular=u2), duration=duration,
                    dt=5e-4, depth_of_cut="approximate", record_dt=0.005)

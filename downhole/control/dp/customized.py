@@ -21,7 +21,8 @@ import time
 import numpy as np
 
 from downhole.control.dp._progress import chunks, progress_bar
-from downhole.control.dp.kernels import backward_plain, node_bit_loads, regions_step, transition_lists
+from downhole.control.dp.kernels import (backward_plain, node_bit_loads, regions_step,
+                                         transition_lists)
 from downhole.control.dp.problem import DPProblem
 from downhole.control.dp.solution import DPSolution
 from downhole.errors import DownholeInputError

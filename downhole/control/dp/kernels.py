@@ -438,7 +438,8 @@ def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens,
                     tmp[e, 2] = 0.0
                     tmp[e, 3] = x4m
                 if last:
-                    add += weights_ens[e] * (l3 * (tmp[e, 1] - vd) ** 2 + l4 * (tmp[e, 3] - wd) ** 2)
+                    add += weights_ens[e] * (l3 * (tmp[e, 1] - vd) ** 2
+                                             + l4 * (tmp[e, 3] - wd) ** 2)
                 else:
                     add += weights_ens[e] * (l1 * (tmp[e, 1] - vm) ** 2
                                              + l2 * (tmp[e, 3] - wm) ** 2) * dt

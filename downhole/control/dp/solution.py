@@ -160,7 +160,8 @@ def load_solution(directory: str | os.PathLike) -> DPSolution:
             raise DownholeInputError(f"DP solution file {pth} not found")
     meta = json.loads(meta_path.read_text())
     if meta.get("format") != _FORMAT:
-        raise DownholeInputError(f"{meta_path}: format {meta.get('format')!r}, expected {_FORMAT!r}")
+        raise DownholeInputError(f"{meta_path}: format {meta.get('format')!r}, "
+                                 f"expected {_FORMAT!r}")
     with np.load(arr_path, allow_pickle=False) as z:
         missing = [k for k in _ARRAYS if k not in z.files]
         if missing:
