@@ -232,7 +232,9 @@ def robust_pair(quick: bool):
     The robust ensemble is the seed's Fig. 2.13/2.14 set (50, 150, 200 % of epsilon)."""
     from downhole.control.dp import DPProblem, solve_customized, solve_robust
 
-    weights = {"lambda1": 1e4, "lambda2": 1e-3, "lambda3": 1e5, "lambda4": 1e-2}
+    # terminal weights = one stage step (lambda3 = lambda1 * dt): with a heavier terminal term the
+    # robust search spends the last steps steering the perturbed models onto v_d at t = T
+    weights = {"lambda1": 1e4, "lambda2": 1e-3, "lambda3": 2.5e3, "lambda4": 2.5e-4}
     if quick:
         p = DPProblem(horizon=10.0, step=0.25, weights=weights,
                       x2={"min": 0.0, "max": 0.03, "points": 16},
