@@ -251,11 +251,11 @@ class PenaltyWeights:
     top_position: tuple = (0.0, 0.0)
     node_position: tuple = (0.0, 0.0)
     nodes: tuple = ()
-    bit_position: tuple = (1.0, 1.0)
-    bit_velocity: tuple = (1000.0, 1000.0)
+    bit_position: tuple = (0.1, 0.1)
+    bit_velocity: tuple = (100.0, 100.0)
     final_scale: float = 1.0
     final: dict | None = None
-    r: tuple = (1.0, 0.1)
+    r: tuple = (1.0, 1.0)
 
     def to_dict(self) -> dict:
         d = asdict(self)

@@ -584,6 +584,14 @@ def _alg1_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, ref, n_total, Dn, c_next, 
     return 0, -1, 0
 
 
+def _uniform_sets(rng, n_sets, ns, radius):
+    """(n_sets, ns, n) offsets uniform in [-radius, radius]."""
+    out = rng.random((n_sets, ns, radius.shape[0]))
+    out *= 2.0 * radius
+    out -= radius
+    return out
+
+
 # ---------------------------------------------------------------------------------------- driver
 def _progress(total, enabled, label):
     if not enabled:
@@ -672,6 +680,11 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
     method = settings.method
     t0 = time.perf_counter()
     bar = _progress(n_steps, progress, f"DHP {method}")
+    from threadpoolctl import threadpool_limits
+
+    # the kernels multiply many small matrices: threaded BLAS only adds overhead (10-30x slower
+    # on a shared 2-core machine)
+    limiter = threadpool_limits(limits=1, user_api="blas")
     try:
         if method == "algorithm1_numpy":
             _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, err, iters,
@@ -686,8 +699,8 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
                 set_id = ((n_steps - 1 - ks) // settings.resample_every).astype(np.int64)
                 set_id -= set_id[0]
                 n_sets = int(set_id[-1]) + 1
-                sets = rng.uniform(-1.0, 1.0, size=(n_sets, ns, n)) * radius
-                deltas = sets[set_id]
+                sets = _uniform_sets(rng, n_sets, ns, radius)
+                deltas = sets if n_sets == K else sets[set_id]
                 Z = deltas + ref[ks][:, None, :]
                 if method == "riccati":
                     fr = ref[ks] @ A.T  # linear part at the reference; h enters via the fit
@@ -727,6 +740,7 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
                     bar[0].update(bar[1], advance=K)
                 k_hi -= K
     finally:
+        limiter.restore_original_limits()
         if bar:
             bar[0].stop()
     order = np.argsort(w_steps[:w_count[0]])
@@ -769,7 +783,7 @@ def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, er
     n_steps = problem.n_steps
     W_next = None
     for k in range(n_steps - 1, -1, -1):
-        delta = rng.uniform(-1.0, 1.0, size=(ns, n)) * radius
+        delta = _uniform_sets(rng, 1, ns, radius)[0]
         Z = ref[k] + delta
         Phi = basis(Z)
         base = model.f(Z) + g @ uff[k]
