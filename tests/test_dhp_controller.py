@@ -5,11 +5,16 @@ import math
 import numpy as np
 import pytest
 
-from downhole.control.dhp import (BitReference, DHPSettings, design_dhp, load_controller,
+from downhole.control.dhp import (BitReference, DHPSettings, PenaltyWeights, design_dhp,
+                                  load_controller,
                                   lumped_affine_model, lumped_true_plant, run_design_model,
                                   run_on_plant)
 from downhole.errors import DownholeInputError
 from downhole.sim.result import REQUIRED_CHANNELS
+
+
+#: weights that suit the 4-state lumped model (Table 2.1's slow string driven by top displacements)
+LUMPED = PenaltyWeights(bit_velocity=(1000.0, 1000.0), bit_position=(1.0, 1.0), r=(1.0, 0.1))
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +24,7 @@ def model():
 
 @pytest.fixture(scope="module")
 def ctrl(model):
-    return design_dhp(model, BitReference.step(0.01, 20.0), horizon=8.0)
+    return design_dhp(model, BitReference.step(0.01, 20.0), horizon=8.0, weights=LUMPED)
 
 
 def test_ramp_and_sine_references_follow_the_seed_equations():
