@@ -51,7 +51,7 @@ class _Strict(BaseModel):
 class SimulationSettings(_Strict):
     """``[simulation]``: duration, step, depth-of-cut model, integrator, output sampling."""
 
-    duration: Q["time"] = Field(60.0, gt=0)
+    duration: Q["time"] = Field(..., gt=0)
     dt: Q["time"] = Field(5e-4, gt=0)
     depth_of_cut: Literal["delayed", "approximate"] = "delayed"
     integrator: Literal["euler", "newmark"] = "euler"
@@ -105,7 +105,7 @@ class ReferenceSettings(_Strict):
 class LumpedModelSettings(_Strict):
     """``[model]`` for ``type = "lumped4" | "lumped12"``."""
 
-    type: Literal["lumped4", "lumped12"] = "lumped4"
+    type: Literal["lumped4", "lumped12"]
     preset: str = "table_2_1"
     string: dict[str, Any] = Field(default_factory=dict)
     bit: dict[str, Any] = Field(default_factory=dict)
@@ -116,10 +116,10 @@ class LumpedScenario(_Strict):
 
     title: str = ""
     description: str = ""
-    model: LumpedModelSettings = LumpedModelSettings()
+    model: LumpedModelSettings
     surface: SurfaceSettings = SurfaceSettings()
     reference: ReferenceSettings | None = None
-    simulation: SimulationSettings = SimulationSettings()
+    simulation: SimulationSettings
 
 
 def _loc(loc) -> str:
@@ -232,8 +232,11 @@ def _model_type(data: dict, source: str) -> str:
     model = data.get("model", {})
     if not isinstance(model, dict):
         raise ScenarioError(source, "model", "expected a table [model]")
-    mtype = model.get("type", "lumped4")
     _load_plugins()
+    if "type" not in model:
+        raise ScenarioError(source, "model.type", "required field is missing "
+                            f"(one of {sorted(MODEL_TYPES)})")
+    mtype = model["type"]
     if mtype not in MODEL_TYPES:
         raise ScenarioError(source, "model.type",
                             f"unknown model type {mtype!r}; expected one of {sorted(MODEL_TYPES)}")

@@ -22,7 +22,7 @@ _MUC, _MUS, _GAM, _GAMB, _VF, _MUGAM, _A1, _B1, _A2, _B2 = 8, 9, 10, 11, 12, 13,
 _CONT, _STRIB, _OMREG, _OMFLOOR = 18, 19, 20, 21
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def bit_forces(d, v, omega, p):
     """Weight and torque on bit for total depth of cut ``d`` (m), axial velocity ``v`` (m/s,
     positive into the rock) and angular velocity ``omega`` (rad/s). Returns ``(wob, tob)``."""
@@ -66,7 +66,7 @@ def bit_forces(d, v, omega, p):
     return wob_c + wob_f, tob_c + tob_f
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def approx_depth_of_cut(v, omega, p):
     """Approximated total depth of cut d = 2 pi v / max(omega, omega*) (Eqs. 2.11, 4.16), m."""
     w = omega

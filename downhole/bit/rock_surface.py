@@ -42,7 +42,8 @@ class RockSurfaceSpec:
             raise ValueError(f"points_per_pitch must be >= 4, got {points_per_pitch}")
         self.n_blades = int(n_blades)
         self.nb = int(points_per_pitch)
-        self.cap = 4 * self.nb
+        # ring capacity: a power of two >= 4 pitches, so indices wrap with a bit mask
+        self.cap = 1 << int(math.ceil(math.log2(4 * self.nb)))
         self.h = 2.0 * math.pi / n_blades / self.nb
         self.memory = bool(memory)
 
@@ -64,11 +65,11 @@ def rock_init(spec: RockSurfaceSpec, x0: float, theta0: float):
 @njit(cache=True)
 def _surf_at(surf, rp, jf):
     """Surface interpolated at fractional grid index jf (must be recorded)."""
-    cap = int(rp[3])
+    mask = int(rp[3]) - 1
     j0 = int(math.floor(jf))
     f = jf - j0
-    s0 = surf[j0 % cap]
-    s1 = surf[(j0 + 1) % cap]
+    s0 = surf[j0 & mask]
+    s1 = surf[(j0 + 1) & mask]
     return s0 + f * (s1 - s0)
 
 
@@ -98,26 +99,32 @@ def rock_depth(surf, istate, rp, x, theta):
 @njit(cache=True)
 def rock_advance(surf, istate, rp, theta_prev, x_prev, theta_new, x_new):
     """Record the blade's path from (theta_prev, x_prev) to (theta_new, x_new)."""
-    if theta_new <= theta_prev:
-        return  # backward or stuck: nothing is cut
+    if not (theta_new > theta_prev) or not math.isfinite(theta_new + x_new):
+        return  # backward, stuck (or a diverging run): nothing is cut
     theta_ref, h, nb, cap, memory = rp[0], rp[1], int(rp[2]), int(rp[3]), rp[5]
+    mask = cap - 1
     j_next = istate[0]
+    if abs(theta_new - theta_ref) / h > 1e15 or abs(theta_prev - theta_ref) / h > 1e15:
+        return  # runaway angle (diverging run): grid indices would overflow
     j_lo = int(math.floor((theta_prev - theta_ref) / h)) + 1
     j_hi = int(math.floor((theta_new - theta_ref) / h))
     if j_lo < j_next - cap + nb + 1:
         j_lo = j_next - cap + nb + 1
+    if j_hi - j_lo >= cap - nb:
+        # more than the ring in one step (a runaway): only the last points can be kept
+        j_lo = j_hi - cap + nb + 1
     dth = theta_new - theta_prev
     for j in range(j_lo, j_hi + 1):
         th = theta_ref + j * h
         xj = x_prev + (x_new - x_prev) * (th - theta_prev) / dth
         if j >= j_next:
             if memory > 0.5:
-                below = surf[(j - nb) % cap]
-                surf[j % cap] = xj if xj > below else below
+                below = surf[(j - nb) & mask]
+                surf[j & mask] = xj if xj > below else below
             else:
-                surf[j % cap] = xj
+                surf[j & mask] = xj
         elif memory > 0.5:
-            if xj > surf[j % cap]:
-                surf[j % cap] = xj
+            if xj > surf[j & mask]:
+                surf[j & mask] = xj
     if j_hi + 1 > j_next:
         istate[0] = j_hi + 1

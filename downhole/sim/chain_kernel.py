@@ -23,7 +23,7 @@ CHANNELS = ("time", "bit_axial_position", "bit_axial_velocity", "bit_angle",
 NCH = len(CHANNELS)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _forces(mass, k_link, c_link, c_abs, k_top, c_top, gravity, q, v, f, n, in_pos, in_vel,
             force_mode, out):
     """Linear + top forces on field f: out = gravity - K q - C v + top terms."""
@@ -83,6 +83,12 @@ def run_chain(mass, k_link, c_link, c_abs, k_top, c_top, gravity, bitp, q, v, fo
         vb = v[0, nb]
         thb = q[1, nb]
         wb = v[1, nb]
+        # runaway guard: a diverging run stops here, before the grid-indexed rock memory sees
+        # angles it cannot index (reported like a non-finite value)
+        if not (abs(xb) < 1e9 and abs(vb) < 1e9):
+            return 1, k0 + k, 1 if abs(xb) >= 1e9 or not math.isfinite(xb) else 2
+        if not (abs(thb) < 1e12 and abs(wb) < 1e12):
+            return 1, k0 + k, 3 if abs(thb) >= 1e12 or not math.isfinite(thb) else 4
         if approx:
             d = approx_depth_of_cut(vb, wb, bitp)
         else:

@@ -101,6 +101,8 @@ def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration
         every = max(1, int(round(record_dt / dt)))
     t = np.arange(nsteps + 1) * dt
     pos, vel = inputs.sample(t)
+    if inputs.mode == "force":
+        pos[0] = model.weight - pos[0]  # net axial force on the top DOF (weight pre-balanced)
     state = _initial_state(model)
     spec = RockSurfaceSpec(model.bit.n_blades, rock_points_per_pitch, rock_memory)
     surf, istate, rp = rock_init(spec, 0.0, 0.0)
