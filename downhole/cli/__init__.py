@@ -46,7 +46,10 @@ def main(argv: list[str] | None = None) -> int:
 
     _load_commands()
     try:
-        app(args=argv, standalone_mode=False)
+        rc = app(args=argv, standalone_mode=False)
+        # with standalone_mode=False click returns the code of a typer.Exit instead of raising
+        if isinstance(rc, int):
+            return rc
     except typer.Exit as exc:
         return exc.exit_code
     except SystemExit as exc:  # click usage errors
