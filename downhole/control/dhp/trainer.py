@@ -862,6 +862,63 @@ def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, er
             bar[0].update(bar[1], advance=1)
 
 
+def riccati_numpy(problem: DHPProblem, settings: DHPSettings | None = None):
+    """Plain-NumPy Riccati form of the trainer (benchmark baseline, same samples and result).
+
+    Same mathematics, random stream and samples as ``method="riccati"`` (fresh samples every
+    step), written as a Python loop over steps with NumPy calls. Returns ``(kc, kd, mu)``."""
+    settings = settings or DHPSettings()
+    model = problem.model
+    n, m = model.n_states, model.n_inputs
+    ns = settings.n_samples if settings.n_samples is not None else max(2 * (n + 1), 20)
+    radius = np.broadcast_to(np.asarray(settings.sample_radius, dtype=float), (n,)).copy()
+    rng = np.random.default_rng(settings.seed)
+    A, g, Q, S, R = model.linear, model.g, problem.Q, problem.S, problem.R
+    Rinv = np.linalg.inv(R)
+    ref, uff = problem.reference, problem.u_ff
+    n_steps = problem.n_steps
+    kc = np.zeros((n_steps, m))
+    kd = np.zeros((n_steps, m, n))
+    mu = np.zeros(n_steps)
+    M = S.copy()
+    c_next = np.zeros(n)
+    chunk = settings.chunk
+    k_hi = n_steps - 1
+    while k_hi >= 0:
+        K = min(chunk, k_hi + 1)
+        ks = np.arange(k_hi, k_hi - K, -1)
+        sets = _uniform_sets(rng, K, ns, radius)
+        Z = sets + ref[ks][:, None, :]
+        hs, cmap = _nonlinear_samples(model, Z)
+        for j, k in enumerate(ks):
+            last = k == n_steps - 1
+            Mk = S if last else M
+            a = np.zeros(n) if last else A.T @ c_next
+            mu[k] = float(np.max(np.abs(np.linalg.eigvals(g.T @ Mk @ g @ Rinv))))
+            if cmap.shape[1]:
+                Phi = np.hstack([np.ones((ns, 1)), sets[j]])
+                sol = np.linalg.solve(Phi.T @ Phi, Phi.T @ hs[j])
+                H = cmap @ sol[1:].T
+                h0 = cmap @ sol[0]
+            else:
+                H = np.zeros((n, n))
+                h0 = np.zeros(n)
+            F = A + H
+            Mg = Mk @ g
+            Sginv = np.linalg.inv(R + g.T @ Mg)
+            NM = Mk - Mg @ (Sginv @ (g.T @ Mk))
+            e_r = A @ ref[k] + h0 + g @ uff[k] - ref[k + 1]
+            v = Mk @ e_r + a
+            c = v - Mg @ (Sginv @ (g.T @ v))
+            Dt = NM @ F
+            kc[k] = Rinv @ (g.T @ c)
+            kd[k] = Rinv @ (g.T @ Dt)
+            M = Q + A.T @ Dt
+            c_next = c
+        k_hi -= K
+    return kc, kd, mu
+
+
 # ---------------------------------------------------------------------------------------- LQR
 def finite_horizon_lqr(A, B, Q, R, S, n_steps):
     """Time-varying LQR gains of the textbook backward Riccati recursion (independent check).
