@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-$(shell cksum pyproject.toml | cut -d' ' -f1)
 
-.PHONY: run test test-slow bench clean
+.PHONY: run test test-slow bench clean chromium
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -17,7 +17,11 @@ venv: $(STAMP)
 run: $(STAMP)
 	$(VENV)/bin/downhole demo --out out
 
-test: $(STAMP)
+# Browser tests (tests/test_dashboard*.py) drive Debian's chromium through Playwright.
+chromium:
+	@test -x /usr/bin/chromium || (apt-get update && apt-get install -y --no-install-recommends chromium)
+
+test: $(STAMP) chromium
 	$(PY) -m pytest -q -n 2 --durations=15
 
 test-slow: $(STAMP)
