@@ -42,7 +42,7 @@ def _click_exception_types() -> tuple:
 
 def main(argv: list[str] | None = None) -> int:
     """Console-script entry point."""
-    from downhole.errors import DownholeInputError
+    from downhole.errors import DownholeError, DownholeInputError
 
     _load_commands()
     try:
@@ -57,6 +57,9 @@ def main(argv: list[str] | None = None) -> int:
     except DownholeInputError as exc:
         typer.echo(f"error: {exc}", err=True)
         return 2
+    except DownholeError as exc:  # a run that failed (e.g. went non-finite): exit code 1
+        typer.echo(f"error: {exc}", err=True)
+        return 1
     except KeyError as exc:  # unknown preset / experiment ids carry their message
         typer.echo(f"error: {exc.args[0] if exc.args else exc}", err=True)
         return 2
