@@ -1,0 +1,323 @@
+"""``downhole design dhp SCENARIO.toml --out DIR``: train a DHP (SNAC) tracking controller.
+
+Writes ``DIR/dhp_controller.npz`` + ``DIR/dhp_controller.json`` (load with
+:func:`downhole.control.dhp.load_controller`), ``DIR/report.json`` (training diagnostics and, with
+a ``[simulation]`` table, the closed-loop summary) and, when simulated, ``DIR/closed_loop.nc`` and
+``DIR/closed_loop.png``.
+
+Scenario schema (every table and key optional; numbers are SI, strings with units accepted
+where a unit is shown)::
+
+    [model]
+    kind = "fem24"              # "fem24": Table 5.1 well, 24-state FEM (6 nodes, the seed's
+                                #   design model); "fem": Table 5.1 FEM with n_elements;
+                                #   "lumped": 4th-order lumped model (Eq. 2.1)
+    n_elements = 5              # kind = "fem": elements (4 (n_elements + 1) states)
+    preset = "table_2_1"        # kind = "lumped": a lumped preset
+    dt = 0.001                  # s
+    epsilon = "45 MPa"          # optional: any BitParams field overrides the bit
+    input_limits = [[-50e3, 300e3], [-60e3, 60e3]]   # slack-off N, torque N m (FEM kinds)
+    friction = true             # FEM kinds: wellbore friction in the design model
+
+    [reference]
+    type = "step"               # "step" | "ramp" (Eqs. 4.48-4.49) | "sine" (Eq. 4.47) | "user"
+    axial = "10 mm/s"           # step value; ramp low level; sine mean
+    angular = "20 rad/s"        # idem
+    t_final = 40.0              # ramp: its t_f, s (default: the training horizon)
+    frequency = 0.314159        # sine: rad/s
+    time = [0.0, 10.0]          # user: s
+    axial_values = [0.01, 0.02]     # user: m/s
+    angular_values = [20.0, 30.0]   # user: rad/s
+
+    [weights]                   # Eq. 4.45 layout, non-dimensional (PenaltyWeights)
+    bit_velocity = [100.0, 100.0]
+    bit_position = [0.1, 0.1]
+    top_position = [0.0, 0.0]
+    node_position = [0.0, 0.0]
+    nodes = []
+    final_scale = 1.0
+    r = [1.0, 1.0]
+
+    [training]                  # DHPSettings + horizon
+    horizon = 40.0              # s
+    method = "riccati"          # "riccati" | "closed_form" | "algorithm1" | "algorithm1_numpy"
+    n_samples = 200             # N_S (>= 2 (n + 1) advised)
+    n_iterations = 20           # N_I (Algorithm 1)
+    threshold = 1e-6
+    sample_radius = 0.02
+    warm_start = true
+    seed = 0
+    resample_every = 1
+    use_feed_forward = true
+    past_horizon = "stationary" # or "error"
+
+    [simulation]                # optional closed-loop check after training
+    duration = 20.0             # s
+    plant = "fem24"             # "design" (the control-affine model itself), "fem24",
+                                #   "hybrid68" (Ch. 6 plant), "lumped" (lumped models only)
+    depth_of_cut = "approximate"    # or "delayed" (the true plant)
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import typer
+
+from downhole.cli.design import design_app
+from downhole.errors import DownholeInputError, ScenarioError
+
+__all__ = ["load_dhp_scenario", "design_dhp_cmd"]
+
+_TABLES = {"model", "reference", "weights", "training", "simulation"}
+_MODEL_KEYS = {"kind", "n_elements", "preset", "dt", "input_limits", "friction"}
+_TRAIN_KEYS = {"horizon", "method", "n_samples", "n_iterations", "threshold", "sample_radius",
+               "warm_start", "seed", "resample_every", "use_feed_forward", "past_horizon"}
+_SIM_KEYS = {"duration", "plant", "depth_of_cut"}
+_REF_UNITS = {"axial": "velocity", "angular": "angular_velocity", "t_final": "time",
+              "frequency": "angular_velocity"}
+
+
+def _si(src, field, value, dim):
+    from downhole.units import to_si
+
+    try:
+        return float(to_si(value, dim))
+    except Exception as exc:  # UnitError or bad type
+        raise ScenarioError(src, field, f"{value!r} is not a valid {dim.replace('_', ' ')}: "
+                                        f"{exc}") from None
+
+
+def _check_keys(src, table, data, allowed):
+    bad = set(data) - allowed
+    if bad:
+        raise ScenarioError(src, f"{table}.{sorted(bad)[0]}",
+                            f"unknown key; expected one of {sorted(allowed)}")
+
+
+def load_dhp_scenario(path) -> dict:
+    """Parse and validate a DHP design scenario file.
+
+    Returns a dict with ``model`` (:class:`~downhole.control.affine.ControlAffineModel`),
+    ``plant_source`` (what the simulation plants are built from), ``reference``, ``weights``,
+    ``settings``, ``horizon``, ``design`` (extra design kwargs) and ``simulation`` (dict or None).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, the field and what was expected.
+    """
+    from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights
+
+    src = str(path)
+    try:
+        data = tomllib.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise ScenarioError(src, "", "file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(src, "", f"invalid TOML: {exc}") from None
+    bad = set(data) - _TABLES
+    if bad:
+        raise ScenarioError(src, sorted(bad)[0], f"unknown table; expected {sorted(_TABLES)}")
+
+    # --------------------------------------------------------------------- training
+    tt = dict(data.get("training", {}))
+    _check_keys(src, "training", tt, _TRAIN_KEYS)
+    horizon = _si(src, "training.horizon", tt.pop("horizon", 40.0), "time")
+    use_ff = bool(tt.pop("use_feed_forward", True))
+    past = tt.pop("past_horizon", "stationary")
+    if past not in ("stationary", "error"):
+        raise ScenarioError(src, "training.past_horizon", f"expected 'stationary' or 'error', "
+                                                          f"got {past!r}")
+    if "sample_radius" in tt and isinstance(tt["sample_radius"], list):
+        tt["sample_radius"] = tuple(tt["sample_radius"])
+    try:
+        settings = DHPSettings(**tt)
+    except (DownholeInputError, TypeError) as exc:
+        raise ScenarioError(src, "training", str(exc)) from None
+
+    # --------------------------------------------------------------------- model
+    mt = dict(data.get("model", {}))
+    kind = mt.pop("kind", "fem24")
+    dt = _si(src, "model.dt", mt.pop("dt", 1e-3), "time")
+    bit_over = {k: mt.pop(k) for k in list(mt) if k not in _MODEL_KEYS}
+    limits = mt.pop("input_limits", [[-50e3, 300e3], [-60e3, 60e3]])
+    friction = bool(mt.pop("friction", True))
+    model, plant_source = _build_model(src, kind, mt, dt, bit_over, limits, friction)
+
+    # --------------------------------------------------------------------- reference
+    rt = dict(data.get("reference", {}))
+    rtype = rt.pop("type", "step")
+    allowed = {"axial", "angular", "t_final", "frequency", "time", "axial_values",
+               "angular_values"}
+    _check_keys(src, "reference", rt, allowed)
+    for k, dim in _REF_UNITS.items():
+        if k in rt:
+            rt[k] = _si(src, f"reference.{k}", rt[k], dim)
+    try:
+        if rtype == "step":
+            ref = BitReference.step(rt.get("axial", 0.01), rt.get("angular", 20.0))
+        elif rtype == "ramp":
+            ref = BitReference.ramp(rt.get("t_final", horizon), rt.get("axial", 0.01),
+                                    rt.get("angular", 20.0))
+        elif rtype == "sine":
+            ref = BitReference.sine(rt.get("axial", 0.02), rt.get("angular", 40.0),
+                                    rt.get("frequency", 0.1 * 3.141592653589793))
+        elif rtype == "user":
+            ref = BitReference.user(rt.get("time", []), rt.get("axial_values", []),
+                                    rt.get("angular_values", []))
+        else:
+            raise ScenarioError(src, "reference.type", f"expected step, ramp, sine or user, "
+                                                       f"got {rtype!r}")
+    except DownholeInputError as exc:
+        if isinstance(exc, ScenarioError):
+            raise
+        raise ScenarioError(src, "reference", str(exc)) from None
+
+    # --------------------------------------------------------------------- weights
+    wt = dict(data.get("weights", {}))
+    try:
+        weights = PenaltyWeights.from_dict(wt) if wt else PenaltyWeights()
+    except (DownholeInputError, TypeError) as exc:
+        raise ScenarioError(src, "weights", str(exc)) from None
+
+    # --------------------------------------------------------------------- simulation
+    sim = data.get("simulation")
+    if sim is not None:
+        sim = dict(sim)
+        _check_keys(src, "simulation", sim, _SIM_KEYS)
+        sim["duration"] = _si(src, "simulation.duration", sim.get("duration", horizon), "time")
+        plants = ("design", "fem24", "hybrid68", "lumped")
+        sim.setdefault("plant", "design" if kind == "lumped" else "fem24")
+        if sim["plant"] not in plants:
+            raise ScenarioError(src, "simulation.plant", f"expected one of {plants}, got "
+                                                         f"{sim['plant']!r}")
+        if (sim["plant"] == "lumped") != (kind == "lumped") and sim["plant"] != "design":
+            raise ScenarioError(src, "simulation.plant", f"plant {sim['plant']!r} does not fit "
+                                                         f"a model of kind {kind!r}")
+        sim.setdefault("depth_of_cut", "approximate")
+        if sim["depth_of_cut"] not in ("approximate", "delayed"):
+            raise ScenarioError(src, "simulation.depth_of_cut", "expected 'approximate' or "
+                                                                "'delayed'")
+    return {"model": model, "plant_source": plant_source, "reference": ref, "weights": weights,
+            "settings": settings, "horizon": horizon,
+            "design": {"use_feed_forward": use_ff, "past_horizon": past},
+            "simulation": sim, "text": Path(path).read_text()}
+
+
+def _build_model(src, kind, mt, dt, bit_over, limits, friction):
+    from downhole.control.dhp import lumped_affine_model
+    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
+    from downhole.params import BitParams, get_preset
+
+    def bit_with(base):
+        if not bit_over:
+            return base
+        try:
+            return BitParams(**{**base.model_dump(), **bit_over})
+        except ValueError as exc:
+            raise ScenarioError(src, "model", f"bad bit override {sorted(bit_over)}: "
+                                              f"{str(exc).splitlines()[0]}") from None
+
+    try:
+        if kind == "lumped":
+            preset = mt.pop("preset", "table_2_1")
+            _check_keys(src, "model", mt, set())
+            try:
+                pre = get_preset(preset)
+            except KeyError as exc:
+                raise ScenarioError(src, "model.preset", str(exc.args[0])) from None
+            if pre.kind != "lumped":
+                raise ScenarioError(src, "model.preset", f"{preset!r} is a {pre.kind} preset; "
+                                                         "kind = 'lumped' needs a lumped one")
+            bit = bit_with(pre.bit)
+            return lumped_affine_model(pre.string, bit, dt=dt), ("lumped", pre.string, bit)
+        if kind in ("fem24", "fem"):
+            import dataclasses
+
+            fem24, hyb68 = table_5_1_models()
+            if kind == "fem":
+                from downhole.string.fem import fem_model
+
+                ne = mt.pop("n_elements", 5)
+                if not isinstance(ne, int) or ne < 3:
+                    raise ScenarioError(src, "model.n_elements", f"expected an integer >= 3, "
+                                                                 f"got {ne!r}")
+                dm = fem_model(n_elements=ne)
+            else:
+                dm = fem24
+            _check_keys(src, "model", mt, set())
+            if bit_over:
+                dm = dataclasses.replace(dm, bit=bit_with(dm.bit))
+                hyb68 = dataclasses.replace(hyb68, bit=bit_with(hyb68.bit))
+            model = directional_affine_model(dm, dt, input_limits=limits, friction=friction)
+            return model, ("directional", dm, hyb68)
+    except DownholeInputError as exc:
+        if isinstance(exc, ScenarioError):
+            raise
+        raise ScenarioError(src, "model", str(exc)) from None
+    raise ScenarioError(src, "model.kind", f"expected 'fem24', 'fem' or 'lumped', got {kind!r}")
+
+
+def run_scenario_simulation(sc: dict, ctrl):
+    """Closed-loop run of a trained controller as the scenario's ``[simulation]`` says."""
+    from downhole.control.dhp import lumped_true_plant, run_design_model, run_on_plant
+    from downhole.control.dhp.directional import DirectionalStatePlant
+
+    sim = sc["simulation"]
+    model = sc["model"]
+    src = sc["plant_source"]
+    attrs = {"scenario": sc["text"]}
+    if sim["plant"] == "design":
+        return run_design_model(ctrl, model, sim["duration"], record_every=10, attrs=attrs)
+    if sim["plant"] == "lumped":
+        plant, adapter = lumped_true_plant(src[1], src[2], dt=model.dt,
+                                           depth_of_cut=sim["depth_of_cut"])
+        attrs["bit_radius"] = src[2].radius
+        return run_on_plant(ctrl, plant, sim["duration"], adapter=adapter, record_every=10,
+                            attrs=attrs)
+    dm = src[1] if sim["plant"] == "fem24" else src[2]
+    plant = DirectionalStatePlant(dm, model, model.dt, depth_of_cut=sim["depth_of_cut"])
+    attrs["bit_radius"] = dm.bit.radius
+    return run_on_plant(ctrl, plant, sim["duration"], record_every=10, attrs=attrs)
+
+
+@design_app.command("dhp")
+def design_dhp_cmd(scenario: Path = typer.Argument(..., help="DHP design scenario (TOML)"),
+                   out: Path = typer.Option(Path("out/dhp"), "--out", help="output directory"),
+                   progress: bool = typer.Option(True, "--progress/--no-progress",
+                                                 help="progress bar while training")):
+    """Train a DHP (single-network adaptive critic) controller; optionally simulate it."""
+    from downhole.control.dhp import design_dhp
+
+    sc = load_dhp_scenario(scenario)
+    out.mkdir(parents=True, exist_ok=True)
+    ctrl = design_dhp(sc["model"], sc["reference"], horizon=sc["horizon"],
+                      weights=sc["weights"], settings=sc["settings"], progress=progress,
+                      **sc["design"])
+    npz, js = ctrl.save(out / "dhp_controller")
+    tr = ctrl.training
+    report = {"scenario": str(scenario), "model": sc["model"].name,
+              "n_states": sc["model"].n_states, "horizon_s": ctrl.horizon,
+              "method": tr.method, "training_seconds": tr.seconds,
+              "max_iterations": int(tr.iterations.max()),
+              "median_iterations": float(sorted(tr.iterations)[len(tr.iterations) // 2]),
+              "max_mu": ctrl.meta["max_mu"], "controller": [str(npz), str(js)]}
+    if sc["simulation"] is not None:
+        res = run_scenario_simulation(sc, ctrl)
+        res.save(out / "closed_loop.nc")
+        res.plot(out / "closed_loop.png", title=f"DHP closed loop ({sc['simulation']['plant']}, "
+                                                f"{sc['simulation']['depth_of_cut']})")
+        window = (min(5.0, 0.5 * sc["simulation"]["duration"]), sc["simulation"]["duration"])
+        report["simulation"] = {**sc["simulation"], "window": list(window),
+                                "summary": res.summary(window)}
+    (out / "report.json").write_text(json.dumps(report, indent=2, default=float))
+    typer.echo(f"trained {sc['model'].name} over {ctrl.horizon:g} s in {tr.seconds:.2f} s "
+               f"({tr.method}); controller: {npz}")
+    if "simulation" in report:
+        s = report["simulation"]["summary"]
+        typer.echo(f"closed loop: mean ROP {s['mean_rop'] * 1e3:.2f} mm/s, mean bit speed "
+                   f"{s['mean_bit_angular_velocity']:.2f} rad/s, stuck fraction "
+                   f"{s['stuck_fraction']:.3f}")

@@ -1,0 +1,60 @@
+"""`downhole design dhp`: scenario parsing, outputs and one-line errors."""
+
+import json
+
+import numpy as np
+import pytest
+
+from downhole.cli import main
+from downhole.control.dhp import load_controller
+
+SCEN = """
+[model]
+kind = "fem24"
+[reference]
+type = "step"
+axial = "10 mm/s"
+angular = 20.0
+[training]
+horizon = 8.0
+n_samples = 50
+[simulation]
+duration = 8.0
+plant = "fem24"
+depth_of_cut = "approximate"
+"""
+
+
+def test_design_dhp_writes_controller_report_and_result(tmp_path, capsys):
+    sc = tmp_path / "s.toml"
+    sc.write_text(SCEN)
+    rc = main(["design", "dhp", str(sc), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert rc == 0
+    rep = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert rep["n_states"] == 24 and rep["max_mu"] < 1
+    s = rep["simulation"]["summary"]
+    assert s["stuck_fraction"] == 0.0
+    assert abs(s["mean_rop"] - 0.01) < 0.05 * 0.01
+    ctrl = load_controller(tmp_path / "o" / "dhp_controller")
+    assert ctrl.kd.shape == (8000, 2, 24)
+    assert (tmp_path / "o" / "closed_loop.nc").exists()
+    assert np.isfinite(ctrl.kc).all()
+
+
+@pytest.mark.parametrize("text, msg", [
+    ('[model]\nkind = "fem25"\n', "model.kind: expected 'fem24', 'fem' or 'lumped'"),
+    ('[training]\nhorizon = "0.1 ms"\n', "shorter than one step"),
+    ('[training]\nn_samples = 10\nhorizon = 0.01\n', "n_samples = 10 is fewer than"),
+    ('[reference]\ntype = "square"\n', "reference.type"),
+    ('[weights]\nq_bit = [1, 1]\n', "unknown penalty weight keys"),
+    ('[simulation]\nplant = "rig"\n', "simulation.plant"),
+    ('[nonsense]\n', "unknown table"),
+    ('[model]\nkind = "lumped"\npreset = "table_3_1"\n', "needs a lumped one"),
+])
+def test_bad_scenarios_exit_2_with_one_line(tmp_path, capsys, text, msg):
+    sc = tmp_path / "bad.toml"
+    sc.write_text(text)
+    rc = main(["design", "dhp", str(sc), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert msg in err and err.count("\n") == 1
