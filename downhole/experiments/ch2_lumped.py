@@ -7,19 +7,53 @@ import numpy as np
 
 from downhole.analysis.plots import save_figure
 from downhole.experiments import experiment
-from downhole.sim import SurfaceInputs, simulate
-from downhole.string.lumped import lumped_model
 
 import matplotlib.pyplot as plt  # noqa: E402  (Agg set by analysis.plots)
 
+import copy
 
-def _doc_comparison(out_dir, quick, v0, w0, title):
-    model = lumped_model("table_2_1", order=4)
-    inputs = SurfaceInputs.velocity(v0, w0)
-    duration = 40.0 if quick else 60.0
+from downhole.scenario import run_scenario
+
+
+def _scenario(title, order, v0, w0, duration):
+    return {"title": title,
+            "model": {"type": f"lumped{order}", "preset": "table_2_1"},
+            "surface": {"mode": "velocity", "axial_velocity": f"{v0 * 1e3:g} mm/s",
+                        "angular_velocity": f"{w0:g} rad/s"},
+            "simulation": {"duration": f"{duration:g} s", "dt": "0.5 ms", "record_dt": "10 ms",
+                           "depth_of_cut": "delayed", "integrator": "euler"}}
+
+
+#: The scenario of each experiment (``examples/<id>.toml`` holds the same, checked by a test).
+SCENARIOS = {
+    "fig2.3": _scenario("Fig. 2.3: Table 2.1, 10 mm/s, 10 rad/s", 4, 0.01, 10.0, 60.0),
+    "fig2.4": _scenario("Fig. 2.4: Table 2.1, 20 mm/s, 20 rad/s", 4, 0.02, 20.0, 60.0),
+    "stickslip-lumped": _scenario("Stick-slip: Table 2.1, 10 mm/s, 2 rad/s", 4, 0.01, 2.0, 100.0),
+    "models-4th-vs-12th": _scenario("12th-order model, Table 2.1, 10 mm/s, 10 rad/s", 12, 0.01,
+                                    10.0, 60.0),
+}
+
+
+def _run(eid, out_dir, duration=None, **simulation):
+    """Run the experiment's scenario with overrides; the scenario used is written next to it."""
+    import tomli_w
+
+    data = copy.deepcopy(SCENARIOS[eid])
+    if duration is not None:
+        data["simulation"]["duration"] = f"{duration:g} s"
+    model = simulation.pop("model", {})
+    data["model"].update(model)
+    data["simulation"].update(simulation)
+    tag = "-".join(str(v) for v in (*model.values(), *simulation.values())) or "base"
+    (out_dir / f"scenario-{tag}.toml").write_text(tomli_w.dumps(data))
+    return run_scenario(data, source=f"<experiment {eid}>")
+
+
+def _doc_comparison(out_dir, quick, eid, title):
+    duration = 40.0 if quick else None
     t_eval = 20.0 if quick else 30.0
-    runs = {mode: simulate(model, inputs, duration=duration, dt=5e-4, record_dt=0.01,
-                           depth_of_cut=mode) for mode in ("delayed", "approximate")}
+    runs = {mode: _run(eid, out_dir, duration, depth_of_cut=mode)
+            for mode in ("delayed", "approximate")}
     a, b = runs["delayed"], runs["approximate"]
     sel = a.time >= t_eval
     rel = {}
@@ -57,7 +91,7 @@ def _doc_comparison(out_dir, quick, v0, w0, title):
             caption="Case 1: comparison between model using time-delay based depth of cut and "
                     "that with the approximated depth of cut")
 def fig2_3(out_dir, quick):
-    return _doc_comparison(out_dir, quick, 0.01, 10.0, "Fig. 2.3: 10 mm/s, 10 rad/s")
+    return _doc_comparison(out_dir, quick, "fig2.3", "Fig. 2.3: 10 mm/s, 10 rad/s")
 
 
 @experiment("fig2.4", chapter=2, title="Delayed vs approximated depth of cut, 20 mm/s, 20 rad/s",
@@ -66,7 +100,7 @@ def fig2_3(out_dir, quick):
             caption="Case 2: comparison between model using time-delay based depth of cut and "
                     "that with the approximated depth of cut")
 def fig2_4(out_dir, quick):
-    return _doc_comparison(out_dir, quick, 0.02, 20.0, "Fig. 2.4: 20 mm/s, 20 rad/s")
+    return _doc_comparison(out_dir, quick, "fig2.4", "Fig. 2.4: 20 mm/s, 20 rad/s")
 
 
 @experiment("stickslip-lumped", chapter=2,
@@ -74,12 +108,9 @@ def fig2_4(out_dir, quick):
             claim="at 2 rad/s the delayed depth of cut gives stick-slip (stuck_fraction > 0.1) "
                   "while the approximated one converges (severity < 0.2)")
 def stickslip_lumped(out_dir, quick):
-    model = lumped_model("table_2_1", order=4)
-    inputs = SurfaceInputs.velocity(0.01, 2.0)
-    duration = 80.0 if quick else 100.0
-    a = simulate(model, inputs, duration=duration, dt=5e-4, record_dt=0.01)
-    b = simulate(model, inputs, duration=duration, dt=5e-4, record_dt=0.01,
-                 depth_of_cut="approximate")
+    duration = 80.0 if quick else None
+    a = _run("stickslip-lumped", out_dir, duration, depth_of_cut="delayed")
+    b = _run("stickslip-lumped", out_dir, duration, depth_of_cut="approximate")
     sa, sb = a.summary(), b.summary()
     fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     axes[0].plot(a.time, a["bit_angular_velocity"], label="delayed depth of cut")
@@ -107,12 +138,9 @@ def stickslip_lumped(out_dir, quick):
             claim="after 20 s the 12th-order bit velocities follow the 4th-order ones within 5% "
                   "(RMS over mean), nominal 10 mm/s, 10 rad/s")
 def models_4th_vs_12th(out_dir, quick):
-    inputs = SurfaceInputs.velocity(0.01, 10.0)
-    duration = 40.0 if quick else 60.0
-    r4 = simulate(lumped_model("table_2_1", order=4), inputs, duration=duration, dt=5e-4,
-                  record_dt=0.01)
-    r12 = simulate(lumped_model("table_2_1", order=12), inputs, duration=duration, dt=5e-4,
-                   record_dt=0.01)
+    duration = 40.0 if quick else None
+    r12 = _run("models-4th-vs-12th", out_dir, duration)
+    r4 = _run("models-4th-vs-12th", out_dir, duration, model={"type": "lumped4"})
     sel = r4.time >= 20.0
     rel = {}
     for ch in ("bit_axial_velocity", "bit_angular_velocity"):
