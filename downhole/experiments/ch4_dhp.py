@@ -88,9 +88,11 @@ def _plot_velocities(res_list, labels, path, title):
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    for res, lab in zip(res_list, labels):
-        ax[0].plot(res.time, res["bit_axial_velocity"] * 1e3, label=lab)
-        ax[1].plot(res.time, res["bit_angular_velocity"], label=lab)
+    for i, (res, lab) in enumerate(zip(res_list, labels)):
+        style = dict(label=lab, zorder=5 if i == 0 else 2, lw=1.8 if i == 0 else 1.0,
+                     alpha=1.0 if i == 0 else 0.7)
+        ax[0].plot(res.time, res["bit_axial_velocity"] * 1e3, **style)
+        ax[1].plot(res.time, res["bit_angular_velocity"], **style)
     r0 = res_list[0]
     ax[0].plot(r0.time, r0["reference_axial_velocity"] * 1e3, "k--", label="reference")
     ax[1].plot(r0.time, r0["reference_angular_velocity"], "k--", label="reference")
