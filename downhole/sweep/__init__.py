@@ -1,0 +1,19 @@
+"""Parameter sweeps and Monte Carlo over scenario parameters, locally or on a Dask cluster.
+
+>>> from downhole.sweep import run_sweep                                   # doctest: +SKIP
+>>> ds = run_sweep("examples/sweep_stability_map.toml",
+...                ["surface.angular_velocity=1:12:12", "surface.axial_velocity=2:20:10 mm/s"],
+...                ["stick_slip_severity", "bit_bounce_fraction"], processes=2)
+>>> stability_map(ds, "map.png")
+
+See ``docs/sweeps.md``.
+"""
+
+from downhole.sweep.plots import REGIMES, classify_regimes, plot_sweep, stability_map
+from downhole.sweep.runner import (failed_cases, load_sweep, load_sweep_file, run_cases,
+                                   run_sweep, save_sweep)
+from downhole.sweep.spec import METRICS, ParamSpec, parse_param
+
+__all__ = ["run_sweep", "run_cases", "load_sweep_file", "save_sweep", "load_sweep",
+           "failed_cases", "plot_sweep", "stability_map", "classify_regimes", "REGIMES",
+           "METRICS", "ParamSpec", "parse_param"]

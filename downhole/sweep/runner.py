@@ -1,0 +1,425 @@
+"""Run a grid or Monte Carlo sweep of a scenario on a process pool or a Dask cluster.
+
+:func:`run_sweep` validates everything first (paths, ranges, metrics, window, the base scenario),
+then runs the cases in batches (one task per batch, so the per-task overhead of a pool or a Dask
+scheduler is paid once per batch, not per case) and assembles one :class:`xarray.Dataset`:
+metrics over the swept parameters as dimensions (grid) or over ``case`` (random), with an
+``error`` string per case (empty when it ran) and NaN metrics where a case failed.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import json
+import math
+import os
+import time
+import traceback
+from pathlib import Path
+from typing import Callable, Iterable, Sequence
+
+import numpy as np
+
+from downhole.errors import DownholeInputError
+from downhole.sweep.spec import (METRICS, ParamSpec, compute_metrics, metric_names, parse_param,
+                                 parse_window, set_path, validate_path)
+
+__all__ = ["run_sweep", "load_sweep_file", "run_cases", "save_sweep", "load_sweep", "failed_cases"]
+
+
+def load_sweep_file(path: str | Path) -> tuple[dict, str, dict]:
+    """Read a scenario TOML; returns ``(scenario_data, source, sweep_settings)``.
+
+    An optional ``[sweep]`` table (``params``, ``metrics``, ``window``, ``random``, ``seed``,
+    ``batch_size``) is split off: it configures the sweep and is not part of the scenario.
+    """
+    from downhole.scenario import load_scenario
+
+    data, source, _ = load_scenario(path)
+    settings = data.pop("sweep", {}) or {}
+    if not isinstance(settings, dict):
+        raise DownholeInputError(f"{source}: sweep: expected a table [sweep]")
+    known = {"params", "metrics", "window", "random", "seed", "batch_size", "stability_map"}
+    extra = set(settings) - known
+    if extra:
+        raise DownholeInputError(f"{source}: sweep.{sorted(extra)[0]}: unknown key; expected "
+                                 f"one of {sorted(known)}")
+    return data, source, settings
+
+
+def _param_texts(params) -> list[str]:
+    if params is None:
+        return []
+    if isinstance(params, str):
+        return [params]
+    if isinstance(params, dict):
+        out = []
+        for name, spec in params.items():
+            if isinstance(spec, (list, tuple)) and len(spec) == 3 and isinstance(spec, tuple):
+                spec = f"{spec[0]}:{spec[1]}:{spec[2]}"
+            elif isinstance(spec, (list, tuple)):
+                spec = ",".join(str(v) for v in spec)
+            out.append(f"{name}={spec}")
+        return out
+    return [str(p) for p in params]
+
+
+def run_cases(base: dict, source: str, paths: Sequence[str], cases: Sequence[Sequence[float]],
+              metrics: Sequence[str], window: tuple[float, float] | None):
+    """Run ``cases`` (values for ``paths``) one after the other; the task a worker executes.
+
+    Returns a list of ``(metric_values, error_text, seconds)``; a case that raises gives NaN
+    metrics and ``"ExceptionType: message"``.
+    """
+    from downhole.scenario import run_scenario
+
+    out = []
+    for values in cases:
+        t0 = time.perf_counter()
+        try:
+            data = copy.deepcopy(base)
+            for p, v in zip(paths, values):
+                set_path(data, p, float(v))
+            res = run_scenario(data, source)
+            vals = compute_metrics(res, list(metrics), window)
+            err = ""
+        except Exception as exc:  # noqa: BLE001 - a failing case must not stop the sweep
+            vals = [math.nan] * len(metrics)
+            err = f"{type(exc).__name__}: {exc}"
+        out.append((vals, err, time.perf_counter() - t0))
+    return out
+
+
+def _batches(n: int, size: int) -> list[range]:
+    return [range(i, min(i + size, n)) for i in range(0, n, size)]
+
+
+def _limit_threads_env() -> dict:
+    """Environment for worker processes: one BLAS/OpenMP thread each (the pool is the parallelism)."""
+    saved = {}
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        saved[var] = os.environ.get(var)
+        os.environ.setdefault(var, "1")
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    return saved
+
+
+def _restore_env(saved: dict) -> None:
+    for var, val in saved.items():
+        if val is None:
+            os.environ.pop(var, None)
+        else:
+            os.environ[var] = val
+
+
+def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random: int | None = None,
+              seed: int | None = None, window=None, scheduler=None, processes: int | None = None,
+              batch_size: int | None = None, progress: Callable[[int, int], None] | None = None,
+              source: str = "<dict>"):
+    """Run a parameter sweep and return its results as an :class:`xarray.Dataset`.
+
+    Parameters
+    ----------
+    scenario : path or dict
+        A scenario TOML file (its optional ``[sweep]`` table supplies defaults for the other
+        arguments) or an already-parsed scenario dict.
+    params : list of str or dict
+        ``["surface.angular_velocity=2:12:11", "model.bit.epsilon=60 MPa:90 MPa:4"]`` or
+        ``{"surface.angular_velocity": "2:12:11"}``; see :mod:`downhole.sweep.spec`.
+    metrics : list of str
+        Names from :data:`downhole.sweep.spec.METRICS`.
+    random : int, optional
+        Monte Carlo: draw this many cases uniformly within the parameter ranges (``START:STOP``)
+        instead of a grid. ``seed`` makes the draw reproducible.
+    window : (float, float) or "START:END", optional
+        Time window of the metrics, s; default the second half of each run.
+    scheduler : None, "local-cluster", "tcp://HOST:PORT" or distributed.Client
+        None: a local process pool (``processes`` workers; 1 runs in this process).
+        "local-cluster": a :class:`dask.distributed.LocalCluster` of ``processes`` workers.
+        An address or a Client: that Dask cluster (its workers must have downhole installed).
+    processes : int, optional
+        Worker count for the pool or the local cluster; default the number of cores.
+    batch_size : int, optional
+        Cases per task; default about four tasks per worker, at most 64 cases per task.
+    progress : callable(done, total), optional
+        Called as cases complete.
+
+    Returns
+    -------
+    xarray.Dataset
+        Grid: one dimension per swept parameter (named by its dotted path, SI values); random:
+        dimension ``case`` with the parameters as coordinates. Variables: each metric, ``error``
+        (empty string where the case ran) and ``case_seconds``.
+
+    Raises
+    ------
+    DownholeInputError
+        Unknown parameter path, empty or malformed range, unknown metric, bad window, an invalid
+        base scenario -- all before any case runs.
+    """
+    settings: dict = {}
+    if isinstance(scenario, dict):
+        base = copy.deepcopy(scenario)
+        settings = base.pop("sweep", {}) or {}
+    else:
+        base, source, settings = load_sweep_file(scenario)
+    params = params if params else settings.get("params")
+    metrics = metrics if metrics else settings.get("metrics")
+    random = random if random is not None else settings.get("random")
+    seed = seed if seed is not None else settings.get("seed")
+    window = window if window is not None else settings.get("window")
+    batch_size = batch_size if batch_size is not None else settings.get("batch_size")
+
+    # ---- validation: nothing runs before all of this passed ---------------------------------
+    if random is not None and (not isinstance(random, int) or isinstance(random, bool)
+                               or random < 1):
+        raise DownholeInputError(f"--random must be a positive whole number of cases, got "
+                                 f"{random!r}")
+    texts = _param_texts(params)
+    if not texts:
+        raise DownholeInputError("no parameter to sweep; give --param NAME=START:STOP:COUNT")
+    specs = [parse_param(t, random=random is not None) for t in texts]
+    names = [s.path for s in specs]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise DownholeInputError(f"--param {sorted(dup)[0]} given more than once")
+    metrics = metric_names(metrics)
+    window = parse_window(window)
+    _validate_base(base, source)
+    for s in specs:
+        validate_path(base, source, s)
+    if processes is not None and (not isinstance(processes, int) or processes < 1):
+        raise DownholeInputError(f"processes must be a positive whole number, got {processes!r}")
+    if batch_size is not None and (not isinstance(batch_size, int) or batch_size < 1):
+        raise DownholeInputError(f"batch_size must be a positive whole number, got {batch_size!r}")
+
+    # ---- cases --------------------------------------------------------------------------------
+    if random is None:
+        grid = [s.values for s in specs]
+        cases = np.array(list(itertools.product(*grid)), dtype=float).reshape(-1, len(specs))
+    else:
+        rng = np.random.default_rng(seed)
+        cases = np.column_stack([rng.uniform(s.low, s.high, size=random) for s in specs])
+    n = len(cases)
+    workers = processes or os.cpu_count() or 1
+    if batch_size is None:
+        batch_size = max(1, min(64, math.ceil(n / (4 * workers))))
+    batches = _batches(n, batch_size)
+
+    t0 = time.perf_counter()
+    results: list = [None] * n
+    done = 0
+
+    def _store(batch: range, out):
+        nonlocal done
+        for i, r in zip(batch, out):
+            results[i] = r
+        done += len(batch)
+        if progress:
+            progress(done, n)
+
+    def _fail_batch(batch: range, exc: BaseException):
+        err = f"{type(exc).__name__}: {exc}"
+        _store(batch, [([math.nan] * len(metrics), err, math.nan)] * len(batch))
+
+    args = (base, source, names)
+    executor_desc = _execute(args, cases, batches, metrics, window, scheduler, processes,
+                             workers, _store, _fail_batch)
+    wall = time.perf_counter() - t0
+    return _assemble(specs, cases, results, metrics, window, base, source, random, seed,
+                     executor_desc, wall, batch_size)
+
+
+def _validate_base(base: dict, source: str) -> None:
+    """Validate the unswept scenario (lumped types fully; others by their model type only)."""
+    from downhole.scenario import MODEL_TYPES, _model_type, _run_lumped
+
+    mtype = _model_type(base, source)
+    if MODEL_TYPES[mtype] is _run_lumped:
+        from downhole.scenario import LumpedScenario, _build_lumped, parse_scenario
+
+        _build_lumped(parse_scenario(base, source, LumpedScenario), source)
+
+
+def _execute(args, cases, batches, metrics, window, scheduler, processes, workers, store,
+             fail_batch) -> str:
+    base, source, names = args
+    if scheduler is None and workers == 1:
+        for b in batches:
+            store(b, run_cases(base, source, names, cases[b.start:b.stop], metrics, window))
+        return "serial (this process)"
+    if scheduler is None:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        saved = _limit_threads_env()
+        try:
+            with ProcessPoolExecutor(max_workers=min(workers, len(batches)),
+                                     mp_context=mp.get_context("spawn")) as pool:
+                futs = {pool.submit(run_cases, base, source, names, cases[b.start:b.stop],
+                                    metrics, window): b for b in batches}
+                for f in as_completed(futs):
+                    try:
+                        store(futs[f], f.result())
+                    except Exception as exc:  # a worker died: its batch is reported failed
+                        fail_batch(futs[f], exc)
+        finally:
+            _restore_env(saved)
+        return f"process pool ({min(workers, len(batches))} processes)"
+    return _execute_dask(args, cases, batches, metrics, window, scheduler, workers, store,
+                         fail_batch)
+
+
+def _execute_dask(args, cases, batches, metrics, window, scheduler, workers, store,
+                  fail_batch) -> str:
+    import logging
+
+    from distributed import Client, LocalCluster, as_completed
+
+    base, source, names = args
+    cluster = None
+    own_client = True
+    saved = _limit_threads_env()
+    try:
+        if isinstance(scheduler, Client):
+            client, own_client = scheduler, False
+            desc = f"dask cluster {client.scheduler.address}"
+        elif scheduler in ("local", "local-cluster"):
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR)
+            client = Client(cluster)
+            desc = f"dask LocalCluster ({workers} workers)"
+        elif isinstance(scheduler, str) and "://" in scheduler:
+            try:
+                client = Client(scheduler, timeout="20s")
+            except OSError as exc:
+                raise DownholeInputError(f"--scheduler {scheduler}: cannot reach the Dask "
+                                         f"scheduler ({exc})") from None
+            desc = f"dask cluster {scheduler}"
+        else:
+            raise DownholeInputError(f"scheduler must be None, 'local-cluster', an address "
+                                     f"tcp://HOST:PORT or a distributed.Client, got {scheduler!r}")
+        try:
+            futs = [client.submit(run_cases, base, source, names, cases[b.start:b.stop],
+                                  metrics, window, pure=False) for b in batches]
+            index = {f.key: b for f, b in zip(futs, batches)}
+            for f in as_completed(futs):
+                try:
+                    store(index[f.key], f.result())
+                except Exception as exc:  # a worker died or the task was lost
+                    fail_batch(index[f.key], exc)
+        finally:
+            if own_client:
+                client.close()
+            if cluster is not None:
+                cluster.close()
+    finally:
+        _restore_env(saved)
+    return desc
+
+
+def _assemble(specs: list[ParamSpec], cases, results, metrics, window, base, source, random,
+              seed, executor_desc, wall, batch_size):
+    import tomli_w
+    import xarray as xr
+
+    from downhole import __version__
+
+    n = len(cases)
+    vals = np.array([r[0] for r in results], dtype=float).reshape(n, len(metrics))
+    errs = np.array([r[1] for r in results], dtype=object)
+    secs = np.array([r[2] for r in results], dtype=float)
+    data_vars = {}
+    if random is None:
+        shape = tuple(len(s.values) for s in specs)
+        dims = tuple(s.path for s in specs)
+        coords = {s.path: (s.path, s.values, {"units": s.units, "spec": s.text}) for s in specs}
+
+        def reshape(a):
+            return a.reshape(shape)
+    else:
+        dims = ("case",)
+        coords = {"case": ("case", np.arange(n))}
+        for j, s in enumerate(specs):
+            coords[s.path] = ("case", cases[:, j], {"units": s.units, "spec": s.text,
+                                                    "low": s.low, "high": s.high})
+
+        def reshape(a):
+            return a
+    for j, m in enumerate(metrics):
+        data_vars[m] = (dims, reshape(vals[:, j]), {"units": METRICS[m].units,
+                                                    "description": METRICS[m].description})
+    data_vars["error"] = (dims, reshape(errs.astype(str)),
+                          {"description": "exception of a failed case ('' if it ran)"})
+    data_vars["case_seconds"] = (dims, reshape(secs), {"units": "s",
+                                                      "description": "wall time of the case"})
+    try:
+        scenario_text = tomli_w.dumps(base)
+    except Exception:  # noqa: BLE001
+        scenario_text = json.dumps(base, default=str)
+    n_failed = int(np.sum(errs != ""))
+    attrs = {
+        "title": "downhole sweep",
+        "sweep_mode": "grid" if random is None else "random",
+        "source": source,
+        "scenario": scenario_text,
+        "params": json.dumps({s.path: s.text for s in specs}),
+        "metrics": json.dumps(list(metrics)),
+        "window": json.dumps(list(window) if window else "second half of each run"),
+        "n_cases": n,
+        "n_failed": n_failed,
+        "executor": executor_desc,
+        "batch_size": batch_size,
+        "wall_seconds": wall,
+        "downhole_version": __version__,
+    }
+    if random is not None:
+        attrs["random_cases"] = int(random)
+        attrs["seed"] = -1 if seed is None else int(seed)
+    return xr.Dataset(data_vars, coords=coords, attrs=attrs)
+
+
+def save_sweep(ds, path: str | Path) -> Path:
+    """Write a sweep dataset as NetCDF (h5netcdf), atomically."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".part")
+    try:
+        ds.to_netcdf(tmp, engine="h5netcdf")
+        tmp.replace(path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def load_sweep(path: str | Path):
+    """Load a sweep dataset written by :func:`save_sweep`."""
+    import xarray as xr
+
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        return ds.load()
+
+
+def failed_cases(ds) -> list[dict]:
+    """The failed cases of a sweep: ``[{"params": {path: value}, "error": text}, ...]``."""
+    err = ds["error"]
+    out = []
+    flat = err.stack(_c=err.dims) if err.ndim > 1 else err
+    for item in flat:
+        text = str(item.values)
+        if text:
+            params = {}
+            for c in ds.coords:
+                if c in ("case", "_c") or c not in item.coords:
+                    continue
+                v = item.coords[c].values
+                if np.ndim(v) == 0 and c != "case":
+                    params[c] = float(v)
+            out.append({"params": params, "error": text})
+    return out
+
+
+def iter_param_names(ds) -> Iterable[str]:
+    """Swept parameter names of a sweep dataset."""
+    return list(json.loads(ds.attrs["params"]))
