@@ -95,3 +95,12 @@ def test_cli_design_eid(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[eid]\nobserver_gain = [1.0]\n")
     assert main(["design", "eid", str(bad), "--out", str(tmp_path / "x")]) == 2
+
+
+def test_python_loop_eid_equals_compiled(model, ctrl):
+    # the controller stepped from Python over a NeutralPlant gives the compiled loop's numbers
+    kw = dict(duration=2.0, dt=2e-4, controller=ctrl, noise={"axial": 1e-3, "angular": 1.0})
+    a = simulate_neutral(model, **kw)
+    b = simulate_neutral(model, python_loop=True, **kw)
+    for ch in ("bit_axial_velocity", "bit_angular_velocity", "command_axial", "hook_load"):
+        assert np.array_equal(a[ch], b[ch]), ch

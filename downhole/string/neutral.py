@@ -33,7 +33,7 @@ from downhole.sim.result import Result
 from downhole.string.wave import (WaveSegment, segments_from_pipe, wave_incoming, wave_push,
                                   wave_state)
 
-__all__ = ["NeutralModel", "NDDEMatrices", "neutral_model", "simulate_neutral",
+__all__ = ["NeutralModel", "NDDEMatrices", "NeutralPlant", "neutral_model", "simulate_neutral",
            "NEUTRAL_CHANNELS", "NOMINAL_U_A", "NOMINAL_U_T"]
 
 #: SPEC.md: open-loop commands giving 10 mm/s and 20 rad/s with Table 3.1.
@@ -211,12 +211,15 @@ def neutral_model(string: NeutralStringParams | str = "table_3_1",
 def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, approx,
                  ha, pa, wpa, ht, pt, wpt, surf, istate, rp,
                  u_in, use_eid, cp, cs, ch, cpos, ref, noise, fnoise,
-                 nsteps, dt, every, out, sigout):
-    """Advance the wave model ``nsteps`` steps; returns (status, step, channel)."""
-    v = 0.0
-    w = 0.0
-    x = 0.0
-    th = 0.0
+                 nsteps, dt, every, out, sigout, bstate, t0):
+    """Advance the wave model ``nsteps`` steps from the bit state ``bstate`` = [x, v, theta,
+    omega] at time ``t0`` (updated in place; the wave buffers and rock surface carry the rest of
+    the state). Records t0 + k dt for k = 0, every, ..., nsteps; returns (status, step, channel).
+    The outgoing waves of the last time are not pushed, so a later call continues the run."""
+    x = bstate[0]
+    v = bstate[1]
+    th = bstate[2]
+    w = bstate[3]
     # incoming waves at t0 and the top node at t0
     a_in, _b = wave_incoming(ha, pa, wpa)
     _a, b_in = wave_incoming(ha, pa, wpa)
@@ -252,7 +255,7 @@ def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, a
         wob += fnoise[0, k]
         tob += fnoise[1, k]
         if k % every == 0 or k == nsteps:
-            out[rec, 0] = k * dt
+            out[rec, 0] = t0 + k * dt
             out[rec, 1] = x
             out[rec, 2] = v
             out[rec, 3] = th
@@ -277,11 +280,11 @@ def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, a
                 if not math.isfinite(out[rec, c]):
                     return 1, k, c
             rec += 1
+        if k == nsteps:
+            break
         # outgoing waves of t_k, then incoming at t_{k+1}
         wave_push(ha, pa, wpa, vtop - b_in, v - a_in)
         wave_push(ht, pt, wpt, wtop - b_in_t, w - a_in_t)
-        if k == nsteps:
-            break
         a1, _b = wave_incoming(ha, pa, wpa)
         _a, b1 = wave_incoming(ha, pa, wpa)
         a1t, _b = wave_incoming(ht, pt, wpt)
@@ -301,6 +304,10 @@ def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, a
         a_in, b_in, a_in_t, b_in_t = a1, b1, a1t, b1t
         if not approx:
             rock_advance(surf, istate, rp, thprev, xprev, th, x)
+    bstate[0] = x
+    bstate[1] = v
+    bstate[2] = th
+    bstate[3] = w
     return 0, nsteps, 0
 
 
@@ -320,13 +327,127 @@ def _sample(sig, t, name):
     return sample_signal(sig, t, name)
 
 
+class NeutralPlant:
+    """Step-by-step neutral-type plant: ``reset() -> observation``, ``step(command) ->
+    observation`` over named signals (the same compiled kernel as :func:`simulate_neutral`).
+
+    Commands (named, held over the step): ``command_axial`` (U_A, m/s, the seed's convention
+    including M_S g / alpha_A) and ``command_angular`` (U_T, rad/s) -- exactly what
+    :meth:`EIDController.command <downhole.control.eid.controller.EIDController.command>` returns.
+    Observations: ``time`` and the channels of :data:`NEUTRAL_CHANNELS` (``bit_axial_velocity``,
+    ``bit_angular_velocity``, ``wob``, ``tob``, ``hook_load``, ``surface_torque``, ...).
+
+    Parameters
+    ----------
+    model : NeutralModel or str
+        The string (a preset name such as ``"table_3_1"`` works).
+    dt : float
+        Plant step, s (<= tau1).
+    depth_of_cut : {"delayed", "approximate"}
+    rock_points_per_pitch : int
+        Resolution of the rock-surface memory.
+
+    Examples
+    --------
+    >>> plant = NeutralPlant("table_3_1", dt=1e-4)
+    >>> obs = plant.reset()                       # hanging at rest, bit on bottom, zero WOB
+    >>> obs = plant.step({"command_axial": 1.147224, "command_angular": 22.5196})
+    """
+
+    command_names = ("command_axial", "command_angular")
+
+    def __init__(self, model: "NeutralModel | str" = "table_3_1", dt: float = 1e-4,
+                 depth_of_cut: str = "delayed", rock_points_per_pitch: int = 512):
+        if not isinstance(model, NeutralModel):
+            model = neutral_model(model)
+        self.model = model
+        self.dt = _check_positive("dt", dt)
+        if self.dt > model.tau1:
+            raise DownholeInputError(f"dt = {dt} s exceeds the axial wave delay tau1 = "
+                                     f"{model.tau1:.6g} s")
+        if depth_of_cut not in ("delayed", "approximate"):
+            raise DownholeInputError(f"depth_of_cut must be 'delayed' or 'approximate', got "
+                                     f"{depth_of_cut!r}")
+        self.depth_of_cut = depth_of_cut
+        self._rpp = int(rock_points_per_pitch)
+        p = model.params
+        self._consts = (model.axial.impedance, model.torsional.impedance, p.bit_mass,
+                        p.bit_inertia, p.alpha_axial, p.alpha_torsional,
+                        (p.string_mass + p.bit_mass) * p.g, p.string_mass * p.g,
+                        p.bit_mass * p.g, model.bit.to_array(), depth_of_cut == "approximate")
+        self._cp = np.zeros((2, 17))
+        self._cs, self._ch = np.zeros((2, 4)), np.zeros((2, 6, 4))
+        self._cpos = np.zeros(1, dtype=np.int64)
+        self._sig = np.zeros((2, 6))
+        self._out = np.empty((2, len(NEUTRAL_CHANNELS)))
+        self.reset()
+
+    @property
+    def time(self) -> float:
+        """Current time, s."""
+        return self._k * self.dt
+
+    def reset(self) -> dict:
+        """Hanging at rest (U_A = M_S g/alpha_A, U_T = 0), bit touching the rock; t = 0."""
+        m, p = self.model, self.model.params
+        self._waves = (wave_state(m.axial, self.dt, 0.0, p.bit_mass * p.g)
+                       + wave_state(m.torsional, self.dt, 0.0, 0.0))
+        spec = RockSurfaceSpec(m.bit.n_blades, self._rpp, True)
+        self._rock = rock_init(spec, 0.0, 0.0)
+        self._bstate = np.zeros(4)
+        self._k = 0
+        self._u = np.array([m.hang_command, 0.0])
+        return self._advance(self._u, 0, None)
+
+    def _advance(self, u, steps, fnoise):
+        n = max(steps, 1)
+        u_in = np.empty((2, n + 1))
+        u_in[0], u_in[1] = u[0], u[1]
+        fn = np.zeros((2, n + 1)) if fnoise is None else fnoise
+        bstate = self._bstate if steps > 0 else self._bstate.copy()
+        ha, pa, wpa, ht, pt, wpt = self._waves
+        if steps == 0:  # observe only: run on copies
+            ha, pa, ht, pt = ha.copy(), pa.copy(), ht.copy(), pt.copy()
+        surf, ist, rp = self._rock
+        if steps == 0:
+            surf, ist = surf.copy(), ist.copy()
+        status, kfail, cfail = _run_neutral(
+            *self._consts, ha, pa, wpa, ht, pt, wpt, surf, ist, rp, u_in, False, self._cp,
+            self._cs, self._ch, self._cpos, u_in, u_in * 0.0, fn, steps, self.dt,
+            max(steps, 1), self._out, self._sig, bstate, self._k * self.dt)
+        if status != 0:
+            raise SimulationDiverged((self._k + kfail) * self.dt, NEUTRAL_CHANNELS[cfail])
+        self._k += steps
+        row = self._out[1 if steps > 0 else 0]
+        return {name: float(row[i]) for i, name in enumerate(NEUTRAL_CHANNELS)}
+
+    def step(self, command: dict, steps: int = 1) -> dict:
+        """Hold ``command`` for ``steps`` steps of ``dt``; return the observation at the end."""
+        try:
+            u = np.array([float(command[n]) for n in self.command_names])
+        except KeyError as exc:
+            raise DownholeInputError(f"command lacks {exc.args[0]!r}; expected "
+                                     f"{self.command_names}") from None
+        if not np.all(np.isfinite(u)):
+            raise DownholeInputError(f"command must be finite, got {command!r}")
+        if int(steps) < 1:
+            raise DownholeInputError(f"steps must be >= 1, got {steps!r}")
+        self._u = u
+        return self._advance(u, int(steps), None)
+
+    def _step_noisy(self, u, steps, fnoise):
+        self._u = u
+        return self._advance(u, steps, fnoise)
+
+
 def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_1",
                      bit: BitParams | None = None, *, duration: float = 10.0, dt: float = 1e-4,
                      controller=None, inputs=None, reference=None, noise=None,
                      depth_of_cut: str = "delayed", record_dt: float | None = None,
                      seed: int = 0, rock_points_per_pitch: int = 512,
+                     control_dt: float | None = None, python_loop: bool = False,
                      attrs: dict | None = None) -> Result:
-    """Simulate the neutral-type (wave) model, open loop or with an EID controller.
+    """Simulate the neutral-type (wave) model, open loop or closed loop.
 
     Parameters
     ----------
@@ -336,8 +457,12 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         Overrides the model's bit (e.g. a perturbed epsilon for a sensitivity study).
     duration, dt : float
         Simulated time and step, s (dt <= tau1; default 1e-4).
-    controller : EIDController, optional
-        Closed loop. The controller's compiled step runs inside the plant kernel.
+    controller : object, optional
+        Closed loop. An :class:`~downhole.control.eid.controller.EIDController` runs compiled
+        inside the plant kernel. Any other object with ``reset()`` and
+        ``command(t, observation, reference) -> {"command_axial": U_A, "command_angular": U_T}``
+        runs in a Python loop over a :class:`NeutralPlant` (observation: the named channels,
+        velocities with the measurement noise; reference: array [axial m/s, angular rad/s]).
     inputs : SurfaceInputs or tuple, optional
         Open-loop commands (U_A, U_T) in the seed's convention (U_A includes M_S g/alpha_A):
         ``SurfaceInputs.velocity(axial=U_A, angular=U_T)`` or a pair of signals (constant,
@@ -345,23 +470,30 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         gives 10 mm/s and 20 rad/s. Ignored with a controller.
     reference : Reference or pair of signals, optional
         Closed-loop reference (bit axial velocity m/s, bit angular velocity rad/s); default the
-        controller's constant reference. See :mod:`downhole.control.eid.references`.
+        controller's ``reference`` attribute if it has one, else 10 mm/s and 20 rad/s. See
+        :mod:`downhole.control.eid.references`.
     noise : dict, optional
         White noise: ``{"axial": sigma_v, "angular": sigma_w}`` measurement noise (standard
         deviation per controller sample, m/s and rad/s) and optionally ``"wob"``, ``"tob"``
-        (N, N m) as bit-force noise.
+        (N, N m) as bit-force noise (per plant step).
     depth_of_cut : {"delayed", "approximate"}
     record_dt : float, optional
         Output interval, s; default: every step up to 20 000 samples, then thinned.
     seed : int
         Noise seed.
+    control_dt : float, optional
+        Python-loop controllers only: controller sample time (a multiple of dt; default dt).
+        The command is held between samples.
+    python_loop : bool
+        Run an EIDController through the Python loop too (same numbers as the compiled path;
+        for checking controllers stepped from Python, e.g. in the SIL loop).
 
     Returns
     -------
     Result
         Standard channels plus ``command_axial``/``command_angular`` (U_A, U_T); with a controller
-        also the measured velocities and the EID's disturbance estimates and predictions. The
-        attribute ``bit_radius`` is set (for MSE).
+        also the reference and measured velocities, and for the EID its disturbance estimates and
+        predictions. The attribute ``bit_radius`` is set (for MSE).
 
     Raises
     ------
@@ -401,16 +533,20 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
     fnoise = np.zeros((2, nsteps + 1))
     for i, key in enumerate(("axial", "angular")):
         s = float(noise.get(key, 0.0))
-        if s < 0:
+        if not s >= 0:
             raise DownholeInputError(f"noise.{key} must be >= 0, got {s}")
         if s > 0:
             mnoise[i] = rng.normal(0.0, s, nsteps + 1)
     for i, key in enumerate(("wob", "tob")):
         s = float(noise.get(key, 0.0))
-        if s < 0:
+        if not s >= 0:
             raise DownholeInputError(f"noise.{key} must be >= 0, got {s}")
         if s > 0:
             fnoise[i] = rng.normal(0.0, s, nsteps + 1)
+    meta = {"model": model.name, "dt": dt, "depth_of_cut": depth_of_cut,
+            "bit_radius": model.bit.radius, "n_blades": model.bit.n_blades,
+            "controller": "open-loop", "tau1": model.tau1, "tau2": model.tau2,
+            "epsilon": model.bit.epsilon}
 
     use_eid = controller is not None
     u_in = np.zeros((2, nsteps + 1))
@@ -419,13 +555,24 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         from downhole.control.eid.controller import EIDController
         from downhole.control.eid.references import as_reference
 
-        if not isinstance(controller, EIDController):
-            raise DownholeInputError("controller must be an EIDController (other controllers: "
-                                     "step a NeutralPlant from Python)")
+        if not (hasattr(controller, "command") and hasattr(controller, "reset")):
+            raise DownholeInputError("controller must have reset() and command(t, observation, "
+                                     f"reference); got {type(controller).__name__}")
+        if reference is None:
+            reference = getattr(controller, "reference", None)
+        reference = as_reference(reference)
+        ref[:] = reference.sample(t)
+        meta["reference"] = reference.name
+        if python_loop or not isinstance(controller, EIDController):
+            meta["controller"] = ("eid" if isinstance(controller, EIDController)
+                                  else type(controller).__name__)
+            meta.update(attrs or {})
+            return _simulate_python_loop(model, controller, dt, nsteps, every, ref, mnoise,
+                                         fnoise, depth_of_cut, rock_points_per_pitch,
+                                         control_dt, meta)
+        meta["controller"] = "eid"
         cp = controller.compiled_params(dt)
         cs, ch, cpos = eid_arrays(cp)
-        reference = as_reference(reference if reference is not None else controller.reference)
-        ref[:] = reference.sample(t)
     else:
         cp = np.zeros((2, 17))
         cs, ch, cpos = np.zeros((2, 4)), np.zeros((2, 6, 4)), np.zeros(1, dtype=np.int64)
@@ -459,7 +606,7 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         p.alpha_axial, p.alpha_torsional, (p.string_mass + p.bit_mass) * g,
         p.string_mass * g, p.bit_mass * g, model.bit.to_array(), depth_of_cut == "approximate",
         ha, pa, wpa, ht, pt, wpt, surf, istate, rp, u_in, use_eid, cp, cs, ch, cpos, ref,
-        mnoise, fnoise, nsteps, dt, every, out, sigout)
+        mnoise, fnoise, nsteps, dt, every, out, sigout, np.zeros(4), 0.0)
     if status != 0:
         raise SimulationDiverged(kfail * dt, NEUTRAL_CHANNELS[cfail])
     channels = {name: out[:, i] for i, name in enumerate(NEUTRAL_CHANNELS) if name != "time"}
@@ -472,9 +619,62 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
                                   "eid_disturbance_axial", "eid_disturbance_angular",
                                   "eid_prediction_axial", "eid_prediction_angular")):
             channels[name] = sigout[:, j]
-    meta = {"model": model.name, "dt": dt, "depth_of_cut": depth_of_cut,
-            "bit_radius": model.bit.radius, "n_blades": model.bit.n_blades,
-            "controller": "eid" if use_eid else "open-loop", "tau1": model.tau1,
-            "tau2": model.tau2}
     meta.update(attrs or {})
+    return Result(out[:, 0], channels, units=_EXTRA_UNITS, attrs=meta)
+
+
+def _simulate_python_loop(model, controller, dt, nsteps, every, ref, mnoise, fnoise,
+                          depth_of_cut, rock_points_per_pitch, control_dt, meta) -> Result:
+    """Closed loop with a controller stepped from Python over a :class:`NeutralPlant`."""
+    import inspect
+
+    if control_dt is None:
+        sub = 1
+    else:
+        sub = int(round(_check_positive("control_dt", control_dt) / dt))
+        if sub < 1 or abs(sub * dt - control_dt) > 1e-9 * control_dt:
+            raise DownholeInputError(f"control_dt = {control_dt} s must be a multiple of dt = "
+                                     f"{dt} s")
+    if nsteps % sub:
+        raise DownholeInputError(f"duration must be a multiple of control_dt = {sub * dt} s")
+    plant = NeutralPlant(model, dt, depth_of_cut, rock_points_per_pitch)
+    try:
+        has_dt = "dt" in inspect.signature(controller.reset).parameters
+    except (TypeError, ValueError):
+        has_dt = False
+    if has_dt:
+        controller.reset(dt=sub * dt)
+    else:
+        controller.reset()
+    rec_every = max(1, int(round(every / sub))) * sub
+    names = NEUTRAL_CHANNELS
+    rows, meas = [], []
+    obs = plant.reset()
+    for k in range(0, nsteps + 1, sub):
+        o = dict(obs)
+        o["bit_axial_velocity"] += mnoise[0, k]
+        o["bit_angular_velocity"] += mnoise[1, k]
+        cmd = controller.command(k * dt, o, ref[:, k].copy())
+        try:
+            u = np.array([float(cmd[n]) for n in NeutralPlant.command_names])
+        except (KeyError, TypeError):
+            raise DownholeInputError(f"{type(controller).__name__}.command must return a dict "
+                                     f"with {NeutralPlant.command_names}, got {cmd!r}") from None
+        if k % rec_every == 0 or k == nsteps:
+            # the record at t_k shows the top nodes under the new command (as the compiled path)
+            rec = plant._advance(u, 0, fnoise[:, k:k + 1])
+            rows.append([rec[n] for n in names])
+            meas.append((o["bit_axial_velocity"], o["bit_angular_velocity"], k))
+        if k == nsteps:
+            break
+        obs = plant._step_noisy(u, sub, fnoise[:, k:k + sub + 1])
+    out = np.array(rows)
+    mk = np.array(meas)
+    idx = mk[:, 2].astype(int)
+    channels = {name: out[:, i] for i, name in enumerate(names) if name != "time"}
+    channels["reference_axial_velocity"] = ref[0, idx]
+    channels["reference_angular_velocity"] = ref[1, idx]
+    channels["measured_axial_velocity"] = mk[:, 0]
+    channels["measured_angular_velocity"] = mk[:, 1]
+    meta["control_dt"] = sub * dt
     return Result(out[:, 0], channels, units=_EXTRA_UNITS, attrs=meta)
