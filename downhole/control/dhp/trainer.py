@@ -382,7 +382,7 @@ def _riccati_chunk(k_hi, sets, set_id, fr, hsamp, cols_map, A, g, Q, S, Rinv, R,
         if q > 0:
             if reuse:
                 if set_id[j] != last:
-                    proj = _projector(sets[set_id[j]])
+                    proj = np.ascontiguousarray(_projector(sets[set_id[j]]))
                     last = set_id[j]
                 sol = proj @ np.ascontiguousarray(hsamp[j])   # (p, q)
             else:
