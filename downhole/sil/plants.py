@@ -1,0 +1,239 @@
+"""SIL plant adapters: any downhole plant as a fixed list of named scalar signals.
+
+The real-time runtime, the UDP link, the FMU and the Gymnasium environment all need a plant
+whose observations and commands are a *fixed*, ordered list of named floats.
+:class:`SilPlant` wraps a step-by-step plant (``reset() -> obs``, ``step(command) -> obs``:
+:class:`~downhole.sim.LumpedPlant`, :class:`~downhole.string.fem.DirectionalPlant`,
+:class:`~downhole.control.dhp.directional.DirectionalStatePlant` or the HIL string) and adds:
+
+- ``observation_names`` / ``command_names`` / ``units`` (the layout announced on the link);
+- a vector ``"state"`` observation (the DHP design state) flattened into its state names
+  (``x_1``, ``alpha_1``, ..., ``omega_6``), so a DHP controller reads them by name;
+- ``default_command()`` (the open-loop command when the controller is off) and
+  ``safe_command()`` (the safe state of the controller-timeout action).
+
+Interfaces (``interface`` of :func:`build_plant`):
+
+``"surface"``
+    PI top drive and force-driven hook: commands ``hook_load`` (N) and
+    ``top_drive_angular_velocity`` (set-point, rad/s). Safe state: hook load = buoyed string
+    weight (no weight on bit), set-point 0.
+``"state"``
+    The DHP set-up of Ch. 6: torque-driven top drive and slack-off force, observations add the
+    24-state design model's state. Commands ``slack_off_force`` (N) and ``surface_torque``
+    (N m). Safe state: slack-off 0 (hook carries the whole string), torque 0.
+``"lumped"``
+    The lumped chain (velocity-driven top): ``top_drive_axial_velocity`` (m/s) and
+    ``top_drive_angular_velocity`` (rad/s). Safe state: both 0.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from downhole.errors import DownholeInputError
+
+__all__ = ["SilPlant", "build_plant", "SIGNAL_UNITS"]
+
+#: Units of the signals the adapters expose (others: "").
+SIGNAL_UNITS = {
+    "time": "s", "bit_axial_position": "m", "bit_axial_velocity": "m/s", "bit_angle": "rad",
+    "bit_angular_velocity": "rad/s", "depth_of_cut": "m", "wob": "N", "tob": "N*m",
+    "hook_load": "N", "surface_torque": "N*m", "top_drive_axial_velocity": "m/s",
+    "top_drive_angular_velocity": "rad/s", "force_b": "N", "torque_b": "N*m", "force_c": "N",
+    "torque_c": "N*m", "top_drive_angle": "rad", "reference_angular_velocity": "rad/s",
+    "last_node_axial_velocity": "m/s", "last_node_angular_velocity": "rad/s",
+    "slack_off_force": "N", "reference_axial_velocity": "m/s", "top_drive_set_point": "rad/s",
+}
+
+
+#: Plant signals renamed in the layout: the directional plants call their top-drive speed
+#: set-point ``reference_angular_velocity``, which in the SIL layout is the *bit* reference.
+_RENAME = {"reference_angular_velocity": "top_drive_set_point"}
+
+
+class SilPlant:
+    """A plant with a fixed, named scalar layout (see the module docstring).
+
+    Parameters
+    ----------
+    plant : object
+        ``reset() -> dict`` and ``step(command: dict) -> dict``, attribute ``dt``.
+    command_names : sequence of str
+    default_command, safe_command : dict
+        Open-loop command and the safe state (same keys as ``command_names``).
+    name : str
+        Description (for Result metadata).
+    state_names : sequence of str, optional
+        Names of the entries of a vector observation ``"state"`` (flattened into the layout).
+    """
+
+    def __init__(self, plant, command_names, default_command: dict, safe_command: dict,
+                 name: str = "", state_names=None, info: dict | None = None):
+        self.plant = plant
+        self.dt = float(plant.dt)
+        self.command_names = tuple(command_names)
+        for d, what in ((default_command, "default_command"), (safe_command, "safe_command")):
+            if set(d) != set(self.command_names):
+                raise DownholeInputError(f"{what} keys {sorted(d)} differ from the commands "
+                                         f"{self.command_names}")
+        self._default = {k: float(default_command[k]) for k in self.command_names}
+        self._safe = {k: float(safe_command[k]) for k in self.command_names}
+        self.name = name
+        self.state_names = tuple(state_names or ())
+        self.info = dict(info or {})
+        #: extra command names handed to the plant when present (HIL: the rig's bit velocities)
+        self.passthrough: tuple = ()
+        obs = plant.reset()
+        self.observation_names = self._names(obs)
+        self.units = {n: SIGNAL_UNITS.get(n, "") for n in
+                      (*self.observation_names, *self.command_names)}
+        self._last = self._flatten(obs)
+
+    def _names(self, obs) -> tuple:
+        names = []
+        for k, v in obs.items():
+            if k == "state":
+                if len(self.state_names) != np.size(v):
+                    raise DownholeInputError("state_names do not match the plant's state size")
+                names.extend(self.state_names)
+            elif np.ndim(v) == 0:
+                names.append(_RENAME.get(k, k))
+        if "time" in names:
+            names.remove("time")
+            names.insert(0, "time")
+        return tuple(names)
+
+    def _flatten(self, obs: dict) -> dict:
+        out = {_RENAME.get(k, k): float(v) for k, v in obs.items()
+               if k != "state" and np.ndim(v) == 0}
+        if "state" in obs:
+            out.update(zip(self.state_names, np.asarray(obs["state"], float).tolist()))
+        out.setdefault("time", 0.0)
+        return out
+
+    def default_command(self) -> dict:
+        """The open-loop command (used while the controller is off)."""
+        return dict(self._default)
+
+    def safe_command(self) -> dict:
+        """The safe state the controller-timeout action ramps to."""
+        return dict(self._safe)
+
+    @property
+    def last_observation(self) -> dict:
+        return self._last
+
+    def reset(self) -> dict:
+        self._last = self._flatten(self.plant.reset())
+        return dict(self._last)
+
+    def step(self, command: dict) -> dict:
+        """Advance one ``dt`` holding ``command`` (every command name required)."""
+        try:
+            cmd = {k: float(command[k]) for k in self.command_names}
+        except KeyError as exc:
+            raise DownholeInputError(f"command lacks {exc.args[0]!r}; expected "
+                                     f"{self.command_names}") from None
+        for k in self.passthrough:
+            if k in command:
+                cmd[k] = float(command[k])
+        self._last = self._flatten(self.plant.step(cmd))
+        return self._last
+
+    def vector(self, obs: dict | None = None, out: np.ndarray | None = None) -> np.ndarray:
+        """Observation values in layout order."""
+        obs = self._last if obs is None else obs
+        if out is None:
+            out = np.empty(len(self.observation_names))
+        for i, n in enumerate(self.observation_names):
+            out[i] = obs.get(n, np.nan)
+        return out
+
+
+def _design_model(design: str):
+    from downhole.control.dhp.directional import directional_affine_model
+    from downhole.string.hybrid import hybrid_model
+
+    return directional_affine_model(hybrid_model(design).design_model())
+
+
+def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: float = 1e-3,
+                depth_of_cut: str = "delayed", wob: float = 120e3,
+                top_drive_speed: float = 10.0, design: str = "hybrid24", n_elements: int = 23,
+                lumped_preset: str = "table_2_1", order: int = 4,
+                axial_velocity: float = 0.01, surface_torque: float = 0.0,
+                design_model=None) -> SilPlant:
+    """Build a :class:`SilPlant`.
+
+    Parameters
+    ----------
+    model : {"hybrid24", "hybrid68", "hybrid108", "fem", "lumped"}
+        The plant (``fem``: Table 5.1 FEM with ``n_elements`` elements).
+    interface : {"surface", "state"}
+        See the module docstring (``lumped`` models always use the lumped interface).
+    dt : float
+        Step, s.
+    depth_of_cut : {"delayed", "approximate"}
+    wob : float
+        ``surface``: initial (static) weight on bit, N; the default hook load is the buoyed
+        weight minus this.
+    top_drive_speed : float
+        ``surface`` / ``lumped``: default top-drive speed set-point, rad/s.
+    design : str
+        ``state``: the hybrid preset whose design FEM the DHP controller was trained on.
+    axial_velocity : float
+        ``lumped``: default top-drive axial velocity, m/s.
+    surface_torque : float
+        ``state``: default (open-loop) surface torque, N m (the default slack-off is ``wob``).
+    design_model : ControlAffineModel, optional
+        ``state``: use this design model instead of building it from ``design``.
+
+    Raises
+    ------
+    DownholeInputError
+        Unknown model or interface.
+    """
+    if model == "lumped":
+        from downhole.sim import LumpedPlant
+        from downhole.string.lumped import lumped_model
+
+        lm = lumped_model(lumped_preset, order=order)
+        p = LumpedPlant(lm, dt=dt, mode="velocity", depth_of_cut=depth_of_cut)
+        names = p.command_names
+        return SilPlant(p, names, {names[0]: axial_velocity, names[1]: top_drive_speed},
+                        {names[0]: 0.0, names[1]: 0.0}, name=f"lumped {lumped_preset} order "
+                        f"{order}", info={"model": "lumped", "interface": "lumped"})
+    from downhole.string.fem import fem_model
+    from downhole.string.hybrid import HYBRID_PRESETS, hybrid_model
+
+    if model in HYBRID_PRESETS:
+        dmodel = hybrid_model(model)
+    elif model == "fem":
+        dmodel = fem_model(n_elements=n_elements)
+    else:
+        raise DownholeInputError(f"unknown plant model {model!r}; expected one of "
+                                 f"{(*HYBRID_PRESETS, 'fem', 'lumped')}")
+    info = {"model": model, "interface": interface, "n_states": dmodel.n_states}
+    if interface == "surface":
+        from downhole.control.topdrive import Hook, TopDrive
+        from downhole.string.fem import DirectionalPlant
+
+        p = DirectionalPlant(dmodel, dt, top_drive=TopDrive(speed=top_drive_speed),
+                             hook=Hook(wob=wob), depth_of_cut=depth_of_cut)
+        hl0 = dmodel.buoyed_weight - wob
+        return SilPlant(p, ("hook_load", "top_drive_angular_velocity"),
+                        {"hook_load": hl0, "top_drive_angular_velocity": top_drive_speed},
+                        {"hook_load": dmodel.buoyed_weight, "top_drive_angular_velocity": 0.0},
+                        name=dmodel.name, info=info)
+    if interface == "state":
+        from downhole.control.dhp.directional import DirectionalStatePlant
+
+        dm = design_model if design_model is not None else _design_model(design)
+        p = DirectionalStatePlant(dmodel, dm, dt, depth_of_cut=depth_of_cut)
+        info["design"] = design
+        return SilPlant(p, ("slack_off_force", "surface_torque"),
+                        {"slack_off_force": wob, "surface_torque": surface_torque},
+                        {"slack_off_force": 0.0, "surface_torque": 0.0},
+                        name=dmodel.name, state_names=dm.state_names, info=info)
+    raise DownholeInputError(f"interface must be 'surface' or 'state', got {interface!r}")

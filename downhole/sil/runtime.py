@@ -1,0 +1,538 @@
+"""The real-time runtime: steps a plant at a fixed step paced to ``time.monotonic()``.
+
+:class:`RealTimeRunner` advances a :class:`~downhole.sil.plants.SilPlant` one ``dt`` per
+period with the command of an in-process controller, of a remote controller over the UDP link
+(:class:`~downhole.sil.link.PlantLink`), or the open-loop (manual) command when the controller
+is off. Step ``k`` is scheduled to start at ``t0 + k dt`` and must finish by its deadline
+``t0 + (k + 1) dt``.
+
+Timing counters (``stats``):
+
+- ``deadline_misses``: steps that finished after their deadline;
+- ``overruns``: steps whose own execution took longer than ``dt`` (the cause of a miss, as
+  opposed to a miss inherited from a late start);
+- ``late_commands``: remote commands that did not arrive within the wait budget
+  (``wait_fraction * dt`` after the observation was sent); the last command is held;
+- ``resyncs``: times the runner fell more than ``max_lag`` behind and re-anchored its clock.
+
+Simulated time is always ``k dt``: steps are never skipped or stretched. When the runner is
+behind by less than ``max_lag`` it runs the next steps back to back (catch up); beyond it, it
+re-anchors ``t0`` (wall clock and simulated time keep a new constant offset) and records a
+``resync`` event. The recorded ``wall_lag`` channel shows how late each step finished.
+
+Safety (:class:`SafetyPolicy`): when a remote controller goes silent (no valid command for
+``timeout`` s) the runner records ``controller_timeout`` and applies the safe action: hold the
+last command for ``hold`` s, then ramp every command linearly over ``ramp`` s to the plant's
+safe state (:meth:`~downhole.sil.plants.SilPlant.safe_command`: no weight on bit, top drive
+stopped), records ``safe_state_reached`` and keeps running. With ``resume="manual"`` (default)
+a returning controller is ignored until :meth:`RealTimeRunner.arm` (the dashboard's
+"controller on"); with ``"auto"`` the next valid command ends the safe action.
+
+Memory: the recording is a preallocated ring (:class:`~downhole.sil.recorder.RingRecorder`,
+optionally chunked to disk), events are a bounded deque: a run of hours does not grow.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import os
+import threading
+import time
+from collections import deque
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from downhole.errors import DownholeInputError
+from downhole.sil.link import PlantLink
+from downhole.sil.plants import SilPlant
+from downhole.sil.protocol import Layout
+from downhole.sil.recorder import RingRecorder
+from downhole.sim.result import Result
+
+__all__ = ["RealTimeRunner", "SafetyPolicy", "STATS_KEYS", "elevate_priority"]
+
+STATS_KEYS = ("steps", "deadline_misses", "overruns", "late_commands", "resyncs",
+              "max_lag_s", "max_exec_s", "mean_exec_s", "wall_s", "sim_s", "real_time_factor",
+              "deadline_miss_fraction", "safe_actions")
+
+REFERENCE_NAMES = ("reference_axial_velocity", "reference_angular_velocity")
+HIL_NAMES = ("bit_axial_velocity", "bit_angular_velocity")
+
+
+@dataclass(frozen=True)
+class SafetyPolicy:
+    """Controller-timeout action (see the module docstring).
+
+    Parameters
+    ----------
+    timeout : float
+        Seconds (wall clock) without a valid command before the safe action, s.
+    hold : float
+        Seconds (simulated) holding the last command, s.
+    ramp : float
+        Seconds (simulated) of the linear ramp to the safe state, s.
+    resume : {"manual", "auto"}
+        What a returning controller does (see the module docstring).
+    """
+
+    timeout: float = 0.1
+    hold: float = 0.2
+    ramp: float = 2.0
+    resume: str = "manual"
+
+    def __post_init__(self):
+        for name in ("timeout", "hold", "ramp"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise DownholeInputError(f"safety {name} must be a number >= 0 s, got {v!r}")
+        if self.resume not in ("manual", "auto"):
+            raise DownholeInputError(f"safety resume must be 'manual' or 'auto', got "
+                                     f"{self.resume!r}")
+
+
+def elevate_priority(priority: int = 50):
+    """Try SCHED_FIFO for the calling thread (Linux, needs CAP_SYS_NICE / root).
+
+    Returns a callable that restores the previous policy, and the policy name obtained
+    (``"fifo"`` or ``"normal"``). Never raises: without the privilege the loop runs at normal
+    priority (and misses more deadlines on a loaded machine)."""
+    try:
+        old = os.sched_getscheduler(0)
+        old_param = os.sched_getparam(0)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (AttributeError, OSError, PermissionError):
+        return (lambda: None), "normal"
+
+    def restore():
+        try:
+            os.sched_setscheduler(0, old, old_param)
+        except OSError:
+            pass
+
+    return restore, "fifo"
+
+
+def _sleep_until(t: float, spin: float) -> None:
+    remaining = t - time.monotonic()
+    if remaining > spin:
+        time.sleep(remaining - spin)
+    while time.monotonic() < t:
+        pass
+
+
+class RealTimeRunner:
+    """Run a plant in real time with a controller in-process, over UDP, or none.
+
+    Parameters
+    ----------
+    plant : SilPlant
+    controller : object, optional
+        In-process controller: ``reset()`` and ``command(t, observation, reference) -> dict``
+        naming the plant's commands. In HIL mode it gives the surface commands.
+    link : PlantLink or (host, port), optional
+        Remote controller (SIL) or rig (HIL) over UDP. Mutually exclusive with ``controller``
+        in SIL mode.
+    hil : bool
+        Hardware-in-the-loop: the link's peer receives the observations (among them
+        ``last_node_axial_velocity``, ``last_node_angular_velocity``) and returns the bit
+        velocities ``bit_axial_velocity``, ``bit_angular_velocity``, which the plant (a
+        :class:`~downhole.sil.hil.HILStringPlant`) takes as its bit motion.
+    reference : dict, optional
+        ``{"axial": m/s, "angular": rad/s}`` passed to the controller (default 0.01, 20).
+    paced : bool
+        Pace to the wall clock (False: as fast as possible, for benchmarks).
+    record_every : int
+        Record every n-th step.
+    ring_rows : int
+        Rows kept in memory.
+    chunk_dir : path, optional
+        Also write every recorded row to chunk files there.
+    max_lag : float
+        Re-anchor the clock when more than this far behind, s.
+    wait_fraction : float
+        Fraction of ``dt`` to wait for a remote command after sending the observation.
+    safety : SafetyPolicy
+    controller_enabled : bool
+        Start with the controller on (False: open-loop command).
+    spin : float
+        Busy-wait this long before each period start for accuracy, s.
+    realtime : bool
+        When paced, try to run the loop thread under SCHED_FIFO (:func:`elevate_priority`);
+        the policy obtained is in ``stats["scheduler"]``.
+    """
+
+    def __init__(self, plant: SilPlant, controller=None, *, link=None, hil: bool = False,
+                 reference: dict | None = None, paced: bool = True, record_every: int = 10,
+                 ring_rows: int = 200_000, chunk_dir=None, max_lag: float = 0.05,
+                 wait_fraction: float = 0.7, safety: SafetyPolicy | None = None,
+                 controller_enabled: bool = True, spin: float = 2e-4, realtime: bool = True):
+        if not isinstance(plant, SilPlant):
+            raise DownholeInputError(f"plant must be a SilPlant (downhole.sil.build_plant), got "
+                                     f"{type(plant).__name__}")
+        if controller is not None and not (hasattr(controller, "command")
+                                           and hasattr(controller, "reset")):
+            raise DownholeInputError("controller must have reset() and command(t, observation, "
+                                     "reference)")
+        if link is not None and controller is not None and not hil:
+            raise DownholeInputError("give either an in-process controller or a link, not both")
+        if not 0 < wait_fraction < 1:
+            raise DownholeInputError(f"wait_fraction must be in (0, 1), got {wait_fraction}")
+        if record_every < 1:
+            raise DownholeInputError(f"record_every must be >= 1, got {record_every}")
+        self.plant = plant
+        self.dt = plant.dt
+        self.controller = controller
+        self.hil = bool(hil)
+        self.paced = bool(paced)
+        self.record_every = int(record_every)
+        self.max_lag = float(max_lag)
+        self.wait_fraction = float(wait_fraction)
+        self.safety = safety or SafetyPolicy()
+        self.spin = float(spin)
+        self.realtime = bool(realtime)
+        self.scheduler = "normal"
+        ref = reference or {}
+        self.reference = {"axial": float(ref.get("axial", 0.01)),
+                          "angular": float(ref.get("angular", 20.0))}
+        self.controller_enabled = bool(controller_enabled)
+        self.manual_command = plant.default_command()
+        obs_names = tuple(n for n in plant.observation_names if n not in REFERENCE_NAMES)
+        self.obs_names = obs_names + REFERENCE_NAMES
+        self.link = None
+        if link is not None:
+            if isinstance(link, PlantLink):
+                self.link = link
+            else:
+                host, port = link
+                cmds = HIL_NAMES if self.hil else plant.command_names
+                units = dict(plant.units)
+                units.update({"reference_axial_velocity": "m/s",
+                              "reference_angular_velocity": "rad/s"})
+                self.link = PlantLink(Layout(self.dt, "hil" if self.hil else "sil",
+                                             self.obs_names, cmds, units), host, port)
+        elif self.hil:
+            raise DownholeInputError("HIL mode needs a link to the rig")
+        cmd_cols = tuple(f"command_{c}" for c in plant.command_names)
+        self.channels = (("time",) + tuple(n for n in obs_names if n != "time")
+                         + REFERENCE_NAMES + cmd_cols
+                         + ("wall_lag", "exec_time", "controller_on", "safe_action"))
+        self.recorder = RingRecorder(self.channels, ring_rows, chunk_dir)
+        self._row = np.zeros(len(self.channels))
+        self.events: deque = deque(maxlen=1000)
+        self.event_count = 0
+        self._stop = threading.Event()
+        self.running = False
+        self._reset_state()
+
+    # ---------------------------------------------------------------- controls (thread-safe)
+    def stop(self) -> None:
+        """Ask the loop to end after the current step."""
+        self._stop.set()
+
+    def set_reference(self, axial: float | None = None, angular: float | None = None) -> None:
+        """Change the bit-velocity reference (m/s, rad/s) seen by the controller."""
+        new = dict(self.reference)
+        if axial is not None:
+            new["axial"] = float(axial)
+        if angular is not None:
+            new["angular"] = float(angular)
+        self.reference = new
+        self._event("reference_change", f"axial={new['axial']:g} angular={new['angular']:g}")
+
+    def set_controller_enabled(self, on: bool) -> None:
+        """Controller on (and re-armed after a safe action) or off (open-loop command)."""
+        self.controller_enabled = bool(on)
+        if on:
+            self.arm()
+        self._event("controller_on" if on else "controller_off", "")
+
+    def arm(self) -> None:
+        """End a safe action so that a returning controller takes over again."""
+        if self._safe_since is not None:
+            self._event("safe_action_cleared", "")
+        self._safe_since = None
+        self._safe_reached = False
+        self._last_valid = time.monotonic()
+
+    def set_manual_command(self, **values) -> None:
+        """Change the open-loop command (used while the controller is off)."""
+        for k, v in values.items():
+            if k not in self.manual_command:
+                raise DownholeInputError(f"unknown command {k!r}; expected "
+                                         f"{tuple(self.manual_command)}")
+            self.manual_command[k] = float(v)
+
+    # ---------------------------------------------------------------- state
+    def _reset_state(self):
+        self.stats = {k: 0 for k in STATS_KEYS}
+        self.stats.update(max_lag_s=0.0, max_exec_s=0.0, mean_exec_s=0.0)
+        self._k = 0
+        self._safe_since = None
+        self._safe_reached = False
+        self._held = None
+        self._last_cmd = self.plant.default_command()
+        self._hil_vals = None
+        self._last_valid = None
+        self._exec_sum = 0.0
+
+    def _event(self, kind: str, detail: str) -> None:
+        self.events.append({"time": self._k * self.dt, "wall": time.monotonic(), "kind": kind,
+                            "detail": detail})
+        self.event_count += 1
+
+    def latest(self) -> dict:
+        """Newest recorded row plus the counters (for the dashboard)."""
+        out = self.recorder.latest()
+        out.update({f"stat_{k}": v for k, v in self.stats.items()})
+        return out
+
+    def _controller_obs(self, obs: dict) -> dict:
+        o = dict(obs)
+        o["reference_axial_velocity"] = self.reference["axial"]
+        o["reference_angular_velocity"] = self.reference["angular"]
+        return o
+
+    # ---------------------------------------------------------------- safety
+    def _safe_command(self, t: float) -> dict:
+        s = self.safety
+        tau = t - self._safe_since
+        safe = self.plant.safe_command()
+        if tau <= s.hold:
+            return dict(self._held)
+        if s.ramp > 0 and tau < s.hold + s.ramp:
+            a = (tau - s.hold) / s.ramp
+            return {k: (1 - a) * self._held[k] + a * safe[k] for k in safe}
+        if not self._safe_reached:
+            self._safe_reached = True
+            self._event("safe_state_reached", ", ".join(f"{k}={v:g}" for k, v in safe.items()))
+        return safe
+
+    def _enter_safe(self, t: float, why: str) -> None:
+        self._safe_since = t
+        self._safe_reached = False
+        self._held = dict(self._last_cmd)
+        self.stats["safe_actions"] += 1
+        self._event("controller_timeout", why)
+
+    # ---------------------------------------------------------------- one step
+    def _command(self, t: float, obs: dict, start: float) -> dict:
+        """The command for the step starting now (also talks to the link)."""
+        link = self.link
+        remote = None
+        if link is not None:
+            for kind, detail in link.events:
+                self._event(kind, detail)
+            if any(k == "controller_bye" for k, _ in link.events) and self._safe_since is None:
+                self._enter_safe(t, "controller said bye")
+            link.events.clear()
+            if link.connected:
+                o = self._controller_obs(obs)
+                vec = np.array([o[n] for n in self.obs_names])
+                seq = link.send_obs(t, vec)
+                remote = link.wait_command(seq, start + self.wait_fraction * self.dt)
+            else:
+                link.poll()
+            if remote is None:
+                self.stats["late_commands"] += link.connected
+            else:
+                if self._last_valid is None:
+                    self._event("controller_first_command", "")
+                self._last_valid = time.monotonic()
+                if self._safe_since is not None and self.safety.resume == "auto":
+                    self._event("controller_resumed", "")
+                    self._safe_since = None
+            if (self._safe_since is None and self._last_valid is not None
+                    and time.monotonic() - self._last_valid > self.safety.timeout):
+                self._enter_safe(t, f"no valid command for {self.safety.timeout:g} s")
+        if self.hil:
+            if remote is not None:
+                self._hil_vals = remote
+            cmd = self._surface_command(t, obs, None)
+            hv = self._hil_vals if self._hil_vals is not None else (
+                obs["last_node_axial_velocity"], obs["last_node_angular_velocity"])
+            cmd = dict(cmd)
+            cmd["bit_axial_velocity"], cmd["bit_angular_velocity"] = float(hv[0]), float(hv[1])
+            return cmd
+        return self._surface_command(t, obs, remote)
+
+    def _surface_command(self, t, obs, remote):
+        if not self.controller_enabled:
+            cmd = dict(self.manual_command)
+        elif self._safe_since is not None:
+            cmd = self._safe_command(t)
+        elif self.controller is not None:
+            cmd = self.controller.command(t, self._controller_obs(obs), dict(self.reference))
+            cmd = {k: float(cmd[k]) for k in self.plant.command_names}
+        elif self.link is not None and not self.hil:
+            if remote is not None:
+                cmd = dict(zip(self.plant.command_names, remote.tolist()))
+            elif self._last_valid is None:
+                cmd = dict(self.manual_command)  # no controller yet: open loop
+            else:
+                cmd = dict(self._last_cmd)  # late: hold
+        else:
+            cmd = dict(self.manual_command)
+        self._last_cmd = cmd
+        return cmd
+
+    def _record(self, obs, cmd, lag, exec_time):
+        r = self._row
+        ch = self.channels
+        i = 0
+        r[0] = self._k * self.dt
+        for i, n in enumerate(ch[1:], start=1):
+            if n in obs:
+                r[i] = obs[n]
+            elif n.startswith("command_"):
+                r[i] = cmd.get(n[8:], np.nan)
+            elif n == "reference_axial_velocity":
+                r[i] = self.reference["axial"]
+            elif n == "reference_angular_velocity":
+                r[i] = self.reference["angular"]
+            elif n == "wall_lag":
+                r[i] = lag
+            elif n == "exec_time":
+                r[i] = exec_time
+            elif n == "controller_on":
+                r[i] = float(self.controller_enabled and self._safe_since is None)
+            elif n == "safe_action":
+                r[i] = float(self._safe_since is not None)
+            else:
+                r[i] = np.nan
+        self.recorder.append(r)
+
+    # ---------------------------------------------------------------- the loop
+    def wait_for_controller(self, timeout: float) -> bool:
+        """Block until a remote peer has connected and answered a readiness probe (an
+        observation of the initial state with sim_time = -1) - True - or ``timeout`` s pass
+        (False). The clock starts only after this, so a slow-starting controller does not
+        make the first steps run open loop."""
+        if self.link is None:
+            return True
+        obs = self._controller_obs(self.plant.reset())
+        vec = np.array([obs[n] for n in self.obs_names])
+        ok = self.link.probe(vec, timeout)
+        for kind, detail in self.link.events:
+            self._event(kind, detail)
+        self.link.events.clear()
+        if ok:
+            self._event("controller_ready", "")
+        return ok
+
+    def _warm_up(self) -> None:
+        """One throw-away step of plant and controller before the clock starts (compiles the
+        kernels, fills caches) so that step 0 does not miss its deadline."""
+        obs = self.plant.reset()
+        cmd = self.plant.default_command()
+        if self.controller is not None:
+            c = self.controller.command(0.0, self._controller_obs(obs), dict(self.reference))
+            cmd = {k: float(c.get(k, cmd[k])) for k in cmd}
+        self.plant.step(cmd)
+
+    def run(self, duration: float | None = None, *, reset: bool = True) -> Result:
+        """Run for ``duration`` s of simulated time (None: until :meth:`stop`).
+
+        Returns
+        -------
+        Result
+            Recorded channels (the plant's, the commands as ``command_<name>``, the references,
+            ``wall_lag``, ``exec_time``, ``controller_on``, ``safe_action``); attrs ``stats``,
+            ``events`` (JSON) and ``link_counters``.
+        """
+        if duration is not None and not (isinstance(duration, (int, float))
+                                         and math.isfinite(duration) and duration > 0):
+            raise DownholeInputError(f"duration must be a positive number of seconds, got "
+                                     f"{duration!r}")
+        n_steps = None if duration is None else int(round(duration / self.dt))
+        if reset:
+            self._warm_up()
+            obs = self.plant.reset()
+            self._reset_state()
+            if self.controller is not None:
+                self.controller.reset()
+            self._record(obs, self._last_cmd, 0.0, 0.0)
+        else:
+            obs = dict(self.plant.last_observation)
+        self._stop.clear()
+        self.running = True
+        self._event("start", f"dt={self.dt:g} paced={self.paced}")
+        dt = self.dt
+        k0 = self._k
+        t0 = time.monotonic() - k0 * dt if self.paced else time.monotonic()
+        wall0 = time.monotonic()
+        restore = lambda: None  # noqa: E731
+        if self.paced and self.realtime:
+            restore, self.scheduler = elevate_priority()
+        gc_was = gc.isenabled()
+        gc.disable()  # no collector pauses inside the loop (per-step objects hold no cycles)
+        try:
+            while not self._stop.is_set() and (n_steps is None or self._k - k0 < n_steps):
+                k = self._k
+                if self.paced:
+                    _sleep_until(t0 + k * dt, self.spin)
+                start = time.monotonic()
+                t = k * dt
+                cmd = self._command(t, obs, start)
+                obs = self.plant.step(cmd)
+                self._k = k + 1
+                end = time.monotonic()
+                ex = end - start
+                st = self.stats
+                st["steps"] += 1
+                self._exec_sum += ex
+                if ex > dt:
+                    st["overruns"] += 1
+                if ex > st["max_exec_s"]:
+                    st["max_exec_s"] = ex
+                lag = end - (t0 + (k + 1) * dt) if self.paced else 0.0
+                if lag > 0:
+                    st["deadline_misses"] += 1
+                    if lag > st["max_lag_s"]:
+                        st["max_lag_s"] = lag
+                    if lag > self.max_lag:
+                        t0 += lag
+                        st["resyncs"] += 1
+                        self._event("resync", f"{lag * 1e3:.1f} ms behind")
+                if self._k % self.record_every == 0:
+                    self._record(obs, cmd, lag, ex)
+        finally:
+            if gc_was:
+                gc.enable()
+            restore()
+            self.running = False
+            wall = time.monotonic() - wall0
+            st = self.stats
+            st["wall_s"] = wall
+            st["sim_s"] = (self._k - k0) * dt
+            st["real_time_factor"] = st["sim_s"] / wall if wall > 0 else float("inf")
+            st["mean_exec_s"] = self._exec_sum / max(st["steps"], 1)
+            st["deadline_miss_fraction"] = st["deadline_misses"] / max(st["steps"], 1)
+            self._event("stop", f"{st['steps']} steps")
+            self.recorder.flush()
+        return self.result()
+
+    def result(self) -> Result:
+        """The recording in memory as a Result."""
+        import json
+
+        units = {f"command_{c}": self.plant.units.get(c, "") for c in self.plant.command_names}
+        units.update({n: u for n, u in self.plant.units.items() if n in self.channels})
+        units.update(wall_lag="s", exec_time="s")
+        attrs = {"model": self.plant.name, "dt": self.dt, "scheduler": self.scheduler, "runtime": "real-time" if self.paced
+                 else "unpaced", "stats": json.dumps(self.stats),
+                 "events": json.dumps(list(self.events)),
+                 "safety": json.dumps(asdict(self.safety)), "hil": int(self.hil),
+                 "controller": type(self.controller).__name__ if self.controller is not None
+                 else ("remote" if self.link is not None else "none")}
+        if self.link is not None:
+            attrs["link_counters"] = json.dumps(self.link.counters)
+        attrs.update({k: v for k, v in self.plant.info.items() if isinstance(v, (str, int,
+                                                                                  float))})
+        return self.recorder.to_result(units, attrs)
+
+    def close(self) -> None:
+        """Close the link (sends BYE to the peer)."""
+        if self.link is not None:
+            self.link.close()

@@ -1,0 +1,218 @@
+"""SIL scenario files (TOML): plant, runtime, controller, reference, link, safety, dashboard.
+
+Every section is optional; numbers may carry units ("1 ms", "10 rad/s", "120 kN"). Unknown keys
+are errors naming the file and the dotted field. Example (``examples/sil_dhp_hybrid68.toml``)::
+
+    [plant]
+    model = "hybrid68"          # hybrid24 | hybrid68 | hybrid108 | fem | lumped
+    interface = "state"         # surface (PI top drive + hook load) | state (DHP)
+    depth_of_cut = "delayed"
+
+    [runtime]
+    dt = "1 ms"
+    duration = "20 s"
+
+    [controller]
+    kind = "dhp"                # none | pi | dhp | file
+    reference = "step"          # dhp training reference: step | sine | ramp
+
+    [link]
+    port = 47600
+
+See ``docs/sil.md`` for every field.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from downhole.errors import ScenarioError
+from downhole.params.quantity import Q
+
+__all__ = ["SilScenario", "load_sil_scenario", "parse_sil_scenario", "build_from_scenario"]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class PlantSection(_Strict):
+    """``[plant]``."""
+
+    model: Literal["hybrid24", "hybrid68", "hybrid108", "fem", "lumped"] = "hybrid68"
+    interface: Literal["surface", "state"] = "surface"
+    depth_of_cut: Literal["delayed", "approximate"] = "delayed"
+    wob: Q["force"] = Field(120e3, ge=0)
+    top_drive_speed: Q["angular_velocity"] = 10.0
+    surface_torque: Q["torque"] = 0.0
+    design: Literal["hybrid24", "hybrid68"] = "hybrid24"
+    n_elements: int = Field(23, ge=1)
+    lumped_preset: str = "table_2_1"
+    order: Literal[4, 12] = 4
+    axial_velocity: Q["velocity"] = 0.01
+
+
+class RuntimeSection(_Strict):
+    """``[runtime]``."""
+
+    dt: Q["time"] = Field(1e-3, gt=0)
+    duration: Q["time"] = Field(20.0, gt=0)
+    paced: bool = True
+    record_dt: Q["time"] = Field(0.01, gt=0)
+    ring_seconds: Q["time"] = Field(3600.0, gt=0)
+    chunk_dir: str | None = None
+    max_lag: Q["time"] = Field(0.05, gt=0)
+    wait_fraction: float = Field(0.7, gt=0, lt=1)
+    realtime: bool = True
+
+
+class DHPSection(_Strict):
+    """``[controller]`` DHP design settings (used when ``kind = "dhp"`` and no ``file``)."""
+
+    reference: Literal["step", "sine", "ramp"] = "step"
+    horizon: Q["time"] = Field(8.0, gt=0)
+    samples: int = Field(50, ge=2)
+    weights: Literal["robust", "design"] = "robust"
+
+
+class ControllerSection(_Strict):
+    """``[controller]``."""
+
+    kind: Literal["none", "pi", "dhp", "file"] = "pi"
+    file: str | None = None
+    enabled: bool = True
+    remote: bool = False
+    dhp: DHPSection = DHPSection()
+
+
+class ReferenceSection(_Strict):
+    """``[reference]``: bit-velocity reference passed to the controller."""
+
+    axial: Q["velocity"] = 0.01
+    angular: Q["angular_velocity"] = 20.0
+
+
+class LinkSection(_Strict):
+    """``[link]``: the UDP address the plant binds."""
+
+    host: str = "127.0.0.1"
+    port: int = Field(47600, ge=0, le=65535)
+    connect_timeout: Q["time"] = Field(30.0, gt=0)
+    mode: Literal["sil", "hil"] = "sil"
+
+
+class SafetySection(_Strict):
+    """``[safety]``: controller-timeout action."""
+
+    timeout: Q["time"] = Field(0.1, ge=0)
+    hold: Q["time"] = Field(0.2, ge=0)
+    ramp: Q["time"] = Field(2.0, ge=0)
+    resume: Literal["manual", "auto"] = "manual"
+
+
+class DashboardSection(_Strict):
+    """``[dashboard]``."""
+
+    host: str = "127.0.0.1"
+    port: int = Field(8765, ge=0, le=65535)
+    token: str | None = None
+    publish_hz: float = Field(20.0, gt=0, le=100)
+
+
+class SilScenario(_Strict):
+    """A whole SIL scenario."""
+
+    name: str = "sil"
+    plant: PlantSection = PlantSection()
+    runtime: RuntimeSection = RuntimeSection()
+    controller: ControllerSection = ControllerSection()
+    reference: ReferenceSection = ReferenceSection()
+    link: LinkSection = LinkSection()
+    safety: SafetySection = SafetySection()
+    dashboard: DashboardSection = DashboardSection()
+
+
+def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
+    """Validate a scenario dict; raises :class:`~downhole.errors.ScenarioError`."""
+    try:
+        sc = SilScenario.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = ".".join(str(p) for p in err["loc"])
+        raise ScenarioError(source, field, err["msg"]) from None
+    if sc.controller.kind == "file" and not sc.controller.file:
+        raise ScenarioError(source, "controller.file", "kind = 'file' needs a file path")
+    if sc.controller.kind == "dhp" and sc.plant.interface != "state":
+        raise ScenarioError(source, "plant.interface",
+                            "a DHP controller needs interface = 'state'")
+    if sc.controller.kind == "pi" and sc.plant.interface == "state" \
+            and sc.plant.model != "lumped":
+        raise ScenarioError(source, "controller.kind",
+                            "the PI needs interface = 'surface' (speed-controlled top drive)")
+    return sc
+
+
+def load_sil_scenario(path) -> SilScenario:
+    """Read and validate a SIL scenario TOML file."""
+    path = Path(path)
+    if not path.exists():
+        raise ScenarioError(str(path), "", "file does not exist")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(str(path), "", f"not valid TOML: {exc}") from None
+    sc = parse_sil_scenario(data, str(path))
+    if sc.controller.file and not Path(sc.controller.file).is_absolute():
+        sc.controller.file = str(path.parent / sc.controller.file)
+    return sc
+
+
+def _dhp(sc: SilScenario, plant):
+    from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
+
+    d = sc.controller.dhp
+    if d.weights == "robust":
+        w = dict(bit_velocity=(10.0, 10.0), bit_position=(1.0, 10.0), r=(1.0, 1.0))
+    else:
+        w = dict(bit_velocity=(100.0, 100.0), bit_position=(0.1, 0.1), r=(1.0, 1.0))
+    ref = {"step": BitReference.step(sc.reference.axial, sc.reference.angular),
+           "sine": BitReference.sine(), "ramp": BitReference.ramp(t_final=d.horizon)}[d.reference]
+    return design_dhp(plant.plant.design, ref, horizon=d.horizon,
+                      weights=PenaltyWeights(**w), settings=DHPSettings(n_samples=d.samples))
+
+
+def build_from_scenario(sc: SilScenario, *, controller_file: str | None = None,
+                        with_controller: bool = True):
+    """``(plant, controller)`` for a scenario (controller None for ``kind = "none"``, for
+    ``remote = true`` or when ``with_controller`` is False)."""
+    from downhole.sil.controllers import load_controller_file, pi_controller_for
+    from downhole.sil.plants import build_plant
+
+    p = sc.plant
+    if sc.link.mode == "hil":
+        from downhole.sil.hil import build_hil_plant
+
+        plant = build_hil_plant(p.model, dt=sc.runtime.dt, wob=p.wob,
+                                surface_torque=p.surface_torque)
+    else:
+        plant = build_plant(p.model, interface=p.interface, dt=sc.runtime.dt,
+                            depth_of_cut=p.depth_of_cut, wob=p.wob,
+                            top_drive_speed=p.top_drive_speed, surface_torque=p.surface_torque,
+                            design=p.design, n_elements=p.n_elements,
+                            lumped_preset=p.lumped_preset, order=p.order,
+                            axial_velocity=p.axial_velocity)
+    ctrl = None
+    kind = sc.controller.kind
+    file = controller_file or sc.controller.file
+    if with_controller and not sc.controller.remote:
+        if file:
+            ctrl = load_controller_file(file, plant)
+        elif kind == "pi":
+            ctrl = pi_controller_for(plant)
+        elif kind == "dhp":
+            ctrl = _dhp(sc, plant)
+    return plant, ctrl

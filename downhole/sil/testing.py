@@ -1,0 +1,92 @@
+"""Helpers shared by the SIL tests, experiments and benchmarks: a trained Ch. 6 DHP controller
+and a controller process started with ``downhole sil-controller``."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["ch6_dhp", "ControllerProcess", "free_port"]
+
+#: Softer penalty weights that keep the 24-state design stable on the 68-state hybrid
+#: (the Ch. 4 experiments' "robust" weights).
+ROBUST_WEIGHTS = dict(bit_velocity=(10.0, 10.0), bit_position=(1.0, 10.0), r=(1.0, 1.0))
+
+_CACHE: dict = {}
+
+
+def ch6_dhp(reference: str = "step", horizon: float = 8.0, samples: int = 50, dt: float = 1e-3):
+    """``(design, controller)``: DHP trained on the 24-state FEM (hybrid24's design FEM) for a
+    step / sine / ramp bit reference (Table 4.1 set-up, robust weights), cached per process."""
+    key = (reference, horizon, samples, dt)
+    if key not in _CACHE:
+        from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
+        from downhole.control.dhp.directional import directional_affine_model
+        from downhole.string.hybrid import hybrid_model
+
+        design = _CACHE.get(("design", dt))
+        if design is None:
+            design = directional_affine_model(hybrid_model("hybrid24").design_model(), dt)
+            _CACHE[("design", dt)] = design
+        ref = {"step": BitReference.step(), "sine": BitReference.sine(),
+               "ramp": BitReference.ramp(t_final=horizon)}[reference]
+        ctrl = design_dhp(design, ref, horizon=horizon, weights=PenaltyWeights(**ROBUST_WEIGHTS),
+                          settings=DHPSettings(n_samples=samples))
+        _CACHE[key] = (design, ctrl)
+    return _CACHE[key]
+
+
+def free_port() -> int:
+    """A free UDP port on 127.0.0.1."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class ControllerProcess:
+    """``downhole sil-controller`` in its own process (context manager; killed on exit).
+
+    Parameters
+    ----------
+    port : int
+        The plant's UDP port on 127.0.0.1.
+    args : list of str
+        Extra arguments (``["--controller", path]`` or ``["--rig"]``).
+    """
+
+    def __init__(self, port: int, args, idle_timeout: float = 3.0, log: Path | None = None):
+        cmd = [sys.executable, "-c", "import sys; from downhole.cli import main; "
+               "sys.exit(main(sys.argv[1:]))", "sil-controller", "--port", str(port),
+               "--idle-timeout", str(idle_timeout), *map(str, args)]
+        env = dict(os.environ)
+        env.setdefault("OMP_NUM_THREADS", "1")
+        env.setdefault("OPENBLAS_NUM_THREADS", "1")
+        self._log = open(log, "w") if log else subprocess.DEVNULL
+        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, env=env)
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait(timeout=10)
+
+    def wait(self, timeout: float = 30.0) -> int:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if self.proc.poll() is not None:
+                return self.proc.returncode
+            time.sleep(0.05)
+        self.kill()
+        return -9
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.kill()
+        if self._log is not subprocess.DEVNULL:
+            self._log.close()
