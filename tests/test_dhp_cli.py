@@ -20,8 +20,7 @@ horizon = 8.0
 n_samples = 50
 [simulation]
 duration = 8.0
-plant = "fem24"
-depth_of_cut = "approximate"
+plant = "design"
 """
 
 

@@ -5,7 +5,7 @@ import pytest
 from downhole.experiments import run_experiment
 
 IDS = ["fig4.5", "fig4.6", "fig4.7", "fig4.8", "fig4.9", "fig4.10", "fig4.11", "fig4.12",
-       "fig4.13", "dhp.hybrid68"]
+       "fig4.13", pytest.param("dhp.hybrid68", marks=pytest.mark.slow)]
 
 
 @pytest.mark.parametrize("eid", IDS)
