@@ -85,18 +85,6 @@ def test_infeasible_lmi_names_the_family(model):
         synthesize_channel(bad, "axial", br=1.0, bf=2.0, observer_gain=4.0)
 
 
-def test_cli_design_eid(tmp_path):
-    from downhole.cli import main
-
-    rc = main(["design", "eid", "examples/eid_nominal.toml", "--out", str(tmp_path)])
-    assert rc == 0
-    assert (tmp_path / "eid_gains.npz").exists() and (tmp_path / "roots.png").exists()
-    assert "stable\": true" in (tmp_path / "report.md").read_text()
-    bad = tmp_path / "bad.toml"
-    bad.write_text("[eid]\nobserver_gain = [1.0]\n")
-    assert main(["design", "eid", str(bad), "--out", str(tmp_path / "x")]) == 2
-
-
 def test_python_loop_eid_equals_compiled(model, ctrl):
     # the controller stepped from Python over a NeutralPlant gives the compiled loop's numbers
     kw = dict(duration=2.0, dt=2e-4, controller=ctrl, noise={"axial": 1e-3, "angular": 1.0})
