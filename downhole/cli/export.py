@@ -1,0 +1,63 @@
+"""``downhole export``: a Result (NetCDF) to CSV and/or LAS 2.0; a sweep dataset to CSV."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from rich.console import Console
+
+from downhole.cli import app, fail
+
+console = Console()
+
+
+@app.command()
+def export(
+    result: Path = typer.Argument(..., help="result.nc written by `downhole simulate` (or a "
+                                            "sweep.nc for --csv)"),
+    csv: Optional[Path] = typer.Option(None, "--csv", help="write the channels as CSV"),
+    las: Optional[Path] = typer.Option(None, "--las", help="write a time-indexed LAS 2.0 file"),
+    channel: Optional[List[str]] = typer.Option(None, "--channel", help="only these channels "
+                                                "(repeat; LAS only)"),
+    well: str = typer.Option("downhole simulation", "--well", help="LAS ~Well WELL entry"),
+):
+    """Export a simulation result to CSV (time column + channels) and/or LAS 2.0 with units."""
+    import xarray as xr
+
+    from downhole.errors import DownholeInputError
+
+    if csv is None and las is None:
+        fail("nothing to do: give --csv FILE and/or --las FILE")
+    if not result.is_file():
+        raise DownholeInputError(f"{result}: file not found")
+    try:
+        with xr.open_dataset(result, engine="h5netcdf") as ds:
+            ds = ds.load()
+    except (OSError, ValueError) as exc:
+        raise DownholeInputError(f"{result}: not a NetCDF file written by downhole ({exc})"
+                                 ) from None
+    if "time" not in ds.dims:
+        if "sweep_mode" not in ds.attrs:
+            raise DownholeInputError(f"{result}: neither a simulation result (no time "
+                                     "dimension) nor a sweep dataset")
+        if las is not None:
+            raise DownholeInputError("a sweep dataset has no time axis: export it with --csv")
+        tmp = csv.with_name(csv.name + ".part")
+        ds.to_dataframe().to_csv(tmp)
+        tmp.replace(csv)
+        console.print(f"written {csv} ({ds.attrs.get('n_cases', '?')} cases)")
+        return
+    from downhole.io import write_las
+    from downhole.sim.result import Result
+
+    res = Result.from_dataset(ds)
+    if csv is not None:
+        tmp = csv.with_name(csv.name + ".part")
+        res.to_csv(tmp)
+        tmp.replace(csv)
+        console.print(f"written {csv}")
+    if las is not None:
+        write_las(res, las, well=well, channels=channel or None)
+        console.print(f"written {las}")

@@ -1,0 +1,215 @@
+"""Run registered experiments in parallel, isolating failures, and record what happened.
+
+:func:`reproduce` runs experiments on a process pool (spawned workers, one BLAS thread each).
+An experiment that raises does not stop the others: its ``claim.json`` gets ``passed: false`` and
+an ``error`` line, and the traceback goes to ``ID/error.log``. Each experiment's standard output
+and error go to ``ID/run.log``. ``OUT/reproduce.json`` summarizes the run and ``OUT/index.html``
+(see :mod:`downhole.report.html`) shows it. Experiments whose claim is about speed
+(:func:`is_timing`) run after the pool, one at a time, so that parallel jobs do not distort
+their timings.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import platform
+import re
+import time
+import traceback
+from pathlib import Path
+from typing import Callable
+
+__all__ = ["reproduce", "run_one", "is_timing", "machine_description"]
+
+
+def _write_json(path: Path, data: dict) -> None:
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(json.dumps(data, indent=2))
+    tmp.replace(path)
+
+
+def run_one(eid: str, out_dir: str | Path, quick: bool) -> dict:
+    """Run experiment ``eid`` into ``out_dir/eid``; never raises for the experiment's own errors.
+
+    Returns the claim dict (as written to ``claim.json``) plus ``seconds``.
+    """
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    from downhole.experiments import get_experiment, run_experiment
+
+    out_dir = Path(out_dir)
+    target = out_dir / eid
+    target.mkdir(parents=True, exist_ok=True)
+    for stale in ("error.log",):
+        if (target / stale).exists():
+            (target / stale).unlink()
+    t0 = time.perf_counter()
+    with open(target / "run.log", "w") as log, contextlib.redirect_stdout(log), \
+            contextlib.redirect_stderr(log):
+        try:
+            claim = run_experiment(eid, out_dir, quick=quick)
+            error = None
+        except BaseException as exc:  # noqa: BLE001 - recorded, and the others go on
+            if isinstance(exc, KeyboardInterrupt):
+                raise
+            error = f"{type(exc).__name__}: {exc}"
+            (target / "error.log").write_text(traceback.format_exc())
+            try:
+                claim_text = get_experiment(eid).claim
+            except KeyError:
+                claim_text = ""
+            claim = {"id": eid, "claim": claim_text, "measured": {}, "passed": False}
+    seconds = time.perf_counter() - t0
+    claim = dict(claim)
+    claim["seconds"] = round(seconds, 3)
+    claim["quick"] = bool(quick)
+    if error:
+        claim["error"] = error
+        claim["log"] = "error.log"
+    _write_json(target / "claim.json", claim)
+    return claim
+
+
+def _previous_seconds(out_dir: Path, eid: str) -> float:
+    try:
+        return float(json.loads((out_dir / eid / "claim.json").read_text()).get("seconds", 1e9))
+    except (OSError, ValueError, TypeError):
+        return 1e9  # unknown: schedule first
+
+
+def reproduce(ids: list[str], out_dir: str | Path, quick: bool = False, jobs: int | None = None,
+              progress: Callable[[str, dict], None] | None = None,
+              on_start: Callable[[str], None] | None = None) -> dict:
+    """Run ``ids`` into ``out_dir`` with ``jobs`` worker processes and write ``index.html``.
+
+    Experiments known to be long (from an earlier run's ``claim.json``) start first. Returns the
+    run summary (also written to ``out_dir/reproduce.json``).
+    """
+    from downhole.experiments import get_experiment
+    from downhole.report.html import build_index
+
+    out_dir = Path(out_dir)
+    for eid in ids:
+        get_experiment(eid)  # unknown ids fail before anything runs
+    out_dir.mkdir(parents=True, exist_ok=True)
+    jobs = max(1, int(jobs or os.cpu_count() or 1))
+    order = sorted(ids, key=lambda e: -_previous_seconds(out_dir, e))
+    t0 = time.perf_counter()
+    claims: dict[str, dict] = {}
+
+    def _done(eid, claim):
+        claims[eid] = claim
+        if progress:
+            progress(eid, claim)
+
+    timing = [e for e in order if is_timing(get_experiment(e))]
+    others = [e for e in order if e not in timing]
+    if jobs == 1:
+        for eid in others + timing:
+            if on_start:
+                on_start(eid)
+            _done(eid, run_one(eid, out_dir, quick))
+    else:
+        _run_pool(others, out_dir, quick, jobs, _done)
+        # speed claims are measured alone, after the pool, so parallel jobs do not distort them
+        _run_pool(timing, out_dir, quick, 1, _done)
+    wall = time.perf_counter() - t0
+    summary = {
+        "quick": bool(quick), "jobs": jobs, "wall_seconds": round(wall, 2),
+        "passed": sorted(e for e, c in claims.items() if c.get("passed")),
+        "failed": sorted(e for e, c in claims.items() if not c.get("passed")),
+        "errors": {e: c["error"] for e, c in claims.items() if c.get("error")},
+        "seconds": {e: c.get("seconds") for e, c in claims.items()},
+        "machine": machine_description(),
+        "finished": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+    }
+    _write_json(out_dir / "reproduce.json", summary)
+    build_index(out_dir)
+    return summary
+
+
+def _run_pool(ids: list[str], out_dir: Path, quick: bool, jobs: int, done) -> None:
+    """Run ``ids`` on ``jobs`` spawned worker processes (one BLAS thread each)."""
+    if not ids:
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    saved = {v: os.environ.get(v) for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
+                                             "MKL_NUM_THREADS", "MPLBACKEND")}
+    for v in saved:
+        os.environ.setdefault(v, "Agg" if v == "MPLBACKEND" else "1")
+    try:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(ids)),
+                                 mp_context=mp.get_context("spawn")) as pool:
+            futs = {pool.submit(run_one, eid, str(out_dir), quick): eid for eid in ids}
+            for f in as_completed(futs):
+                eid = futs[f]
+                try:
+                    claim = f.result()
+                except BaseException as exc:  # noqa: BLE001 - the worker process died
+                    claim = _crashed(out_dir, eid, exc, quick)
+                done(eid, claim)
+    finally:
+        for v, val in saved.items():
+            if val is None:
+                os.environ.pop(v, None)
+            else:
+                os.environ[v] = val
+
+
+_TIMING = re.compile(r"computation(al)? (time|expense)|training time|\bfaster\b|speed-?up",
+                     re.IGNORECASE)
+
+
+def is_timing(exp) -> bool:
+    """True for experiments whose claim is about speed (run alone, not beside other jobs)."""
+    return bool(_TIMING.search(exp.title) or _TIMING.search(exp.claim))
+
+
+def _crashed(out_dir: Path, eid: str, exc: BaseException, quick: bool) -> dict:
+    from downhole.experiments import get_experiment
+
+    target = out_dir / eid
+    target.mkdir(parents=True, exist_ok=True)
+    (target / "error.log").write_text(
+        "the worker process running this experiment died:\n" + "".join(
+            traceback.format_exception(type(exc), exc, exc.__traceback__)))
+    claim = {"id": eid, "claim": get_experiment(eid).claim, "measured": {}, "passed": False,
+             "error": f"worker process died: {type(exc).__name__}: {exc}", "log": "error.log",
+             "quick": bool(quick)}
+    _write_json(target / "claim.json", claim)
+    return claim
+
+
+def machine_description() -> dict:
+    """CPU model, core count, memory, OS and Python/numpy/numba versions of this machine."""
+    cpu = platform.processor() or ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.lower().startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    mem = None
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemTotal"):
+                mem = round(int(line.split()[1]) / 1024**2, 1)
+                break
+    except OSError:
+        pass
+    versions = {}
+    for mod in ("numpy", "numba", "scipy"):
+        try:
+            versions[mod] = __import__(mod).__version__
+        except ImportError:
+            pass
+    try:
+        affinity = len(os.sched_getaffinity(0))
+    except AttributeError:
+        affinity = os.cpu_count()
+    return {"cpu": cpu, "cores": affinity, "memory_gib": mem, "platform": platform.platform(),
+            "python": platform.python_version(), **versions}
