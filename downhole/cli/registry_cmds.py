@@ -54,6 +54,9 @@ def reproduce(
 
     from downhole.experiments import all_experiments, get_experiment
     from downhole.report import reproduce as run_all
+    from downhole.report.reproduce import load_plugins
+
+    load_plugins()
 
     if all_ or chapter:
         ids = [e.id for e in all_experiments() if not chapter or e.chapter in chapter]

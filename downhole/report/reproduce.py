@@ -38,6 +38,8 @@ def run_one(eid: str, out_dir: str | Path, quick: bool) -> dict:
     os.environ.setdefault("MPLBACKEND", "Agg")
     from downhole.experiments import get_experiment, run_experiment
 
+    load_plugins()
+
     out_dir = Path(out_dir)
     target = out_dir / eid
     target.mkdir(parents=True, exist_ok=True)
@@ -71,6 +73,20 @@ def run_one(eid: str, out_dir: str | Path, quick: bool) -> dict:
     return claim
 
 
+#: Environment variable naming extra modules (comma-separated) that register experiments; they
+#: are imported in this process and in every worker, so experiments kept outside the package
+#: (a lab's own, or a test's) run like the built-in ones.
+PLUGINS_ENV = "DOWNHOLE_EXPERIMENT_PLUGINS"
+
+
+def load_plugins() -> None:
+    """Import the modules named in ``$DOWNHOLE_EXPERIMENT_PLUGINS`` (once each)."""
+    import importlib
+
+    for name in filter(None, (m.strip() for m in os.environ.get(PLUGINS_ENV, "").split(","))):
+        importlib.import_module(name)
+
+
 def _previous_seconds(out_dir: Path, eid: str) -> float:
     try:
         return float(json.loads((out_dir / eid / "claim.json").read_text()).get("seconds", 1e9))
@@ -90,6 +106,7 @@ def reproduce(ids: list[str], out_dir: str | Path, quick: bool = False, jobs: in
     from downhole.report.html import build_index
 
     out_dir = Path(out_dir)
+    load_plugins()
     for eid in ids:
         get_experiment(eid)  # unknown ids fail before anything runs
     out_dir.mkdir(parents=True, exist_ok=True)
