@@ -158,6 +158,9 @@ class RealTimeRunner:
         Start with the controller on (False: open-loop command).
     spin : float
         Busy-wait this long before each period start for accuracy, s.
+    command_timeout : float, optional
+        Wait budget for a remote command in seconds, overriding ``wait_fraction * dt``
+        (unpaced lock-step runs over the link, e.g. tests and the UDP benchmark).
     realtime : bool
         When paced, try to run the loop thread under SCHED_FIFO (:func:`elevate_priority`);
         the policy obtained is in ``stats["scheduler"]``.
@@ -167,7 +170,8 @@ class RealTimeRunner:
                  reference: dict | None = None, paced: bool = True, record_every: int = 10,
                  ring_rows: int = 200_000, chunk_dir=None, max_lag: float = 0.05,
                  wait_fraction: float = 0.7, safety: SafetyPolicy | None = None,
-                 controller_enabled: bool = True, spin: float = 2e-4, realtime: bool = True):
+                 controller_enabled: bool = True, spin: float = 2e-4, realtime: bool = True,
+                 command_timeout: float | None = None):
         if not isinstance(plant, SilPlant):
             raise DownholeInputError(f"plant must be a SilPlant (downhole.sil.build_plant), got "
                                      f"{type(plant).__name__}")
@@ -192,6 +196,7 @@ class RealTimeRunner:
         self.safety = safety or SafetyPolicy()
         self.spin = float(spin)
         self.realtime = bool(realtime)
+        self.command_timeout = command_timeout
         self.scheduler = "normal"
         ref = reference or {}
         self.reference = {"axial": float(ref.get("axial", 0.01)),
@@ -331,7 +336,9 @@ class RealTimeRunner:
                 o = self._controller_obs(obs)
                 vec = np.array([o[n] for n in self.obs_names])
                 seq = link.send_obs(t, vec)
-                remote = link.wait_command(seq, start + self.wait_fraction * self.dt)
+                budget = (self.wait_fraction * self.dt if self.command_timeout is None
+                          else self.command_timeout)
+                remote = link.wait_command(seq, start + budget)
             else:
                 link.poll()
             if remote is None:

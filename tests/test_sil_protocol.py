@@ -1,0 +1,53 @@
+"""SIL link protocol: byte layout, round trips, and every malformed case rejected (not raised)."""
+
+import struct
+import zlib
+
+import numpy as np
+import pytest
+
+from downhole.sil.protocol import (HEADER_SIZE, MAGIC, VERSION, Layout, MalformedPacket,
+                                   MsgType, pack, pack_layout, unpack, unpack_layout)
+
+
+def test_header_byte_layout_matches_the_documented_offsets():
+    data = pack(MsgType.CMD, 0xDEADBEEF, 7, [1.5, -2.0], ack=6, sim_time=0.25, sent=3.0,
+                echo=2.5)
+    assert HEADER_SIZE == 44 and len(data) == 44 + 16 + 4
+    assert data[0:4] == MAGIC and data[4] == VERSION and data[5] == 4
+    assert struct.unpack_from("<H", data, 6)[0] == 2
+    assert struct.unpack_from("<III", data, 8) == (0xDEADBEEF, 7, 6)
+    assert struct.unpack_from("<ddd", data, 20) == (0.25, 3.0, 2.5)
+    assert struct.unpack_from("<dd", data, 44) == (1.5, -2.0)
+    assert struct.unpack_from("<I", data, 60)[0] == zlib.crc32(data[:60])
+    m = unpack(data)
+    assert (m.type, m.session, m.seq, m.ack) == (MsgType.CMD, 0xDEADBEEF, 7, 6)
+    assert m.values.tolist() == [1.5, -2.0] and m.echo == 2.5
+
+
+def test_layout_round_trip():
+    lay = Layout(1e-3, "hil", ("time", "last_node_axial_velocity"),
+                 ("bit_axial_velocity", "bit_angular_velocity"),
+                 {"time": "s", "last_node_axial_velocity": "m/s", "bit_axial_velocity": "m/s",
+                  "bit_angular_velocity": "rad/s"})
+    msg = unpack(pack(MsgType.LAYOUT, 1, 1, raw=pack_layout(lay)))
+    back = unpack_layout(msg.values.tobytes())
+    assert back == lay
+
+
+@pytest.mark.parametrize("mutate, reason", [
+    (lambda d: d[:10], "shorter"),
+    (lambda d: b"XXXX" + d[4:], "magic"),
+    (lambda d: d[:4] + bytes([9]) + d[5:], "version"),
+    (lambda d: d[:-5] + bytes([d[-5] ^ 0xFF]) + d[-4:], "crc"),
+    (lambda d: d + b"\0" * 8, "length"),
+    (lambda d: _recrc(d[:5] + bytes([77]) + d[6:-4]), "unknown message type"),
+])
+def test_malformed_datagrams_raise_malformed_packet(mutate, reason):
+    good = pack(MsgType.OBS, 3, 9, np.arange(5.0))
+    with pytest.raises(MalformedPacket, match=reason):
+        unpack(mutate(good))
+
+
+def _recrc(body):
+    return body + struct.pack("<I", zlib.crc32(body))

@@ -1,0 +1,103 @@
+"""Runtime properties without a network: bounded memory, chunked recording, pacing arithmetic,
+HIL coupling (in-process and over the link), scenario validation."""
+
+import threading
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from downhole.errors import DownholeInputError, ScenarioError
+from downhole.sil import (ControllerClient, RealTimeRunner, RingRecorder, build_plant,
+                          load_chunks, pi_controller_for)
+from downhole.sil.scenario import parse_sil_scenario
+
+
+def test_ring_recorder_keeps_the_newest_rows_and_chunks_everything(tmp_path):
+    rec = RingRecorder(("time", "x"), capacity=5, chunk_dir=tmp_path, chunk_rows=4)
+    for i in range(13):
+        rec.append(np.array([i * 0.1, i]))
+    rec.flush()
+    assert rec.rows()[:, 1].tolist() == [8, 9, 10, 11, 12]
+    full = load_chunks(tmp_path)
+    assert full["x"].tolist() == list(range(13))
+
+
+def test_long_unpaced_run_does_not_grow_memory():
+    plant = build_plant("lumped")
+    rt = RealTimeRunner(plant, pi_controller_for(plant), paced=False, record_every=1,
+                        ring_rows=2000)
+    rt.run(5.0)  # warm: ring filled, caches built
+    tracemalloc.start()
+    rt.run(10.0, reset=False)
+    a = tracemalloc.get_traced_memory()[0]
+    rt.run(40.0, reset=False)  # 4x more steps
+    b = tracemalloc.get_traced_memory()[0]
+    tracemalloc.stop()
+    print(f"\nmemory after 10 s: {a / 1e3:.1f} kB, after 50 s more: {b / 1e3:.1f} kB")
+    assert b - a < 50e3
+    assert rt.recorder.rows().shape[0] == 2000
+    assert rt.stats["steps"] == round(55 / plant.dt)  # stats accumulate over run(reset=False)
+
+
+def test_unpaced_real_time_factor_and_consistent_time():
+    plant = build_plant("hybrid68")
+    rt = RealTimeRunner(plant, pi_controller_for(plant), paced=False, record_every=100)
+    res = rt.run(1.0)
+    np.testing.assert_allclose(np.diff(res.time), 0.1, rtol=1e-9)
+    assert rt.stats["real_time_factor"] > 0 and rt.stats["deadline_misses"] == 0
+
+
+def test_hil_rig_over_the_link_matches_the_rig_in_process():
+    """Fig. 6.9: the rig gets the last node's velocity and returns the bit's. Over the link,
+    unpaced, lock-step, it must give the same run as the rig called directly; the coupled
+    string and bit move together on average (spring coupling: no drift)."""
+    from downhole.sil.hil import SoftwareRig, build_hil_plant
+
+    T = 8.0
+    plant = build_hil_plant("hybrid24", surface_torque=15e3)
+    # direct: plant and rig stepped by hand
+    rig = SoftwareRig(plant.rig_bit, plant.dt)
+    obs = plant.reset()
+    ref_v = []
+    for k in range(int(T / plant.dt)):
+        b = rig.command(k * plant.dt, obs)
+        cmd = dict(plant.default_command(), **b)
+        obs = plant.step(cmd)
+        ref_v.append((obs["bit_axial_velocity"], obs["last_node_axial_velocity"],
+                      obs["bit_angular_velocity"], obs["last_node_angular_velocity"]))
+    ref_v = np.array(ref_v)
+    # over the link
+    T = 2.0
+    rt = RealTimeRunner(plant, link=("127.0.0.1", 0), hil=True, paced=False, record_every=1,
+                        command_timeout=1.0)
+    client = ControllerClient(*rt.link.address)
+    th = threading.Thread(target=lambda: (client.connect(5.0),
+                                          client.serve(SoftwareRig(plant.rig_bit, plant.dt),
+                                                       idle_timeout=2.0)), daemon=True)
+    th.start()
+    assert rt.wait_for_controller(10.0)
+    res = rt.run(T)  # unpaced, lock-step (1 s wait budget per command)
+    rt.close()
+    th.join(5)
+    assert rt.link.counters["late"] == 0
+    n = res.time.size - 1
+    np.testing.assert_allclose(res["bit_axial_velocity"][1:], ref_v[:n, 0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(res["bit_angular_velocity"][1:], ref_v[:n, 2], rtol=0, atol=1e-12)
+    late = slice(len(ref_v) // 4, None)
+    assert ref_v[late, 2].mean() == pytest.approx(ref_v[late, 3].mean(), rel=0.02)
+    assert ref_v[late, 2].mean() > 1.0  # the torque turns the bit
+
+
+def test_scenario_errors_name_the_field():
+    with pytest.raises(ScenarioError, match="runtime.dt"):
+        parse_sil_scenario({"runtime": {"dt": "-1 ms"}})
+    with pytest.raises(ScenarioError, match="plant.interface"):
+        parse_sil_scenario({"controller": {"kind": "dhp"}})
+    with pytest.raises(ScenarioError, match="plant.colour"):
+        parse_sil_scenario({"plant": {"colour": "red"}})
+    sc = parse_sil_scenario({"runtime": {"dt": "0.5 ms", "duration": "2 s"},
+                             "reference": {"angular": "120 rpm"}})
+    assert sc.runtime.dt == 5e-4 and sc.reference.angular == pytest.approx(4 * np.pi)
+    with pytest.raises(DownholeInputError, match="wait_fraction"):
+        RealTimeRunner(build_plant("lumped"), wait_fraction=1.5)
