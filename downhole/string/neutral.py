@@ -221,10 +221,8 @@ def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, a
     th = bstate[2]
     w = bstate[3]
     # incoming waves at t0 and the top node at t0
-    a_in, _b = wave_incoming(ha, pa, wpa)
-    _a, b_in = wave_incoming(ha, pa, wpa)
-    a_in_t, _b = wave_incoming(ht, pt, wpt)
-    _a, b_in_t = wave_incoming(ht, pt, wpt)
+    a_in, b_in = wave_incoming(ha, pa, wpa)
+    a_in_t, b_in_t = wave_incoming(ht, pt, wpt)
     uvec = np.zeros(2)
     y = np.zeros(2)
     r = np.zeros(2)
@@ -285,10 +283,8 @@ def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, a
         # outgoing waves of t_k, then incoming at t_{k+1}
         wave_push(ha, pa, wpa, vtop - b_in, v - a_in)
         wave_push(ht, pt, wpt, wtop - b_in_t, w - a_in_t)
-        a1, _b = wave_incoming(ha, pa, wpa)
-        _a, b1 = wave_incoming(ha, pa, wpa)
-        a1t, _b = wave_incoming(ht, pt, wpt)
-        _a, b1t = wave_incoming(ht, pt, wpt)
+        a1, b1 = wave_incoming(ha, pa, wpa)
+        a1t, b1t = wave_incoming(ht, pt, wpt)
         # bit node: trapezoidal on the line terms, bit forces with implicit frozen slopes
         ca, ct = bit_force_slopes(d, v, w, bitp, approx)
         v1 = (m_b * v / dt + 0.5 * za * (2.0 * a_in - v) + za * a1 + grav - wob + ca * v) / (
