@@ -189,6 +189,6 @@ def bench_report(
                                  "list")
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".part")
-    tmp.write_text(bench_markdown(data, source=report.name))
+    tmp.write_text(bench_markdown(data, source=str(report)))
     tmp.replace(out)
     console.print(f"written {out} ({len(data['cases'])} cases)")

@@ -79,4 +79,7 @@ def bench_markdown(report: dict, source: str = "bench.json") -> str:
 def _fmt_extra(v) -> str:
     if isinstance(v, float):
         return f"{v:.4g}"
-    return str(v)
+    if isinstance(v, list) and all(isinstance(x, float) for x in v):
+        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
+    text = str(v)
+    return text if len(text) <= 160 else text[:157] + "..."
