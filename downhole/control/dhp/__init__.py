@@ -10,6 +10,8 @@
 - :mod:`~downhole.control.dhp.controller`: :class:`DHPController` (online law, past-horizon
   policy, save/load as npz + JSON).
 - :mod:`~downhole.control.dhp.closed_loop`: closed-loop runs returning Results.
+- :mod:`~downhole.control.dhp.directional`: the directional FEM/hybrid design model (compiled
+  forces) and a plant adapter that reports the design model's full state.
 
 Example
 -------
@@ -24,6 +26,8 @@ from downhole.control.dhp.closed_loop import (DisplacementToVelocity, lumped_tru
                                               run_design_model, run_on_plant)
 from downhole.control.dhp.controller import DHPController, load_controller
 from downhole.control.dhp.design import build_problem, design_dhp
+from downhole.control.dhp.directional import (DirectionalStatePlant, directional_affine_model,
+                                              table_5_1_models)
 from downhole.control.dhp.drilling import (PenaltyWeights, feed_forward, lumped_affine_model,
                                            penalty_matrices, reference_states,
                                            table_4_1_weights)
@@ -37,4 +41,5 @@ __all__ = ["METHODS", "DHPProblem", "DHPSettings", "DHPTraining", "LinearBasis",
            "BitReference", "DHPController", "load_controller", "design_dhp", "build_problem",
            "PenaltyWeights", "penalty_matrices", "table_4_1_weights", "feed_forward",
            "reference_states", "lumped_affine_model", "run_design_model", "run_on_plant",
-           "lumped_true_plant", "DisplacementToVelocity"]
+           "lumped_true_plant", "DisplacementToVelocity", "directional_affine_model",
+           "DirectionalStatePlant", "table_5_1_models"]
