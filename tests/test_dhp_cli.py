@@ -57,3 +57,19 @@ def test_bad_scenarios_exit_2_with_one_line(tmp_path, capsys, text, msg):
     assert rc == 2
     err = capsys.readouterr().err
     assert msg in err and err.count("\n") == 1
+
+
+def test_downhole_simulate_runs_a_dhp_scenario_with_a_saved_controller(tmp_path):
+    sc = tmp_path / "s.toml"
+    sc.write_text(SCEN)
+    assert main(["design", "dhp", str(sc), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    run = tmp_path / "run.toml"
+    run.write_text('title = "saved DHP"\n[controller]\nfile = "o/dhp_controller"\n'
+                   + SCEN.replace("[model]\n", '[model]\ntype = "dhp"\n'))
+    assert main(["simulate", str(run), "--out", str(tmp_path / "r")]) == 0
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    flat = json.dumps(summary)
+    assert "mean_rop" in flat
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[controller]\nfile = "nowhere"\n[model]\ntype = "dhp"\n')
+    assert main(["simulate", str(bad), "--out", str(tmp_path / "b")]) == 2

@@ -5,10 +5,20 @@ Writes ``DIR/dhp_controller.npz`` + ``DIR/dhp_controller.json`` (load with
 a ``[simulation]`` table, the closed-loop summary) and, when simulated, ``DIR/closed_loop.nc`` and
 ``DIR/closed_loop.png``.
 
+The same file runs with ``downhole simulate SCENARIO.toml --out DIR`` (``[model] type = "dhp"``
+selects this runner): it trains the controller (or loads ``[controller] file``) and returns the
+``[simulation]`` closed loop as the run's Result.
+
 Scenario schema (every table and key optional; numbers are SI, strings with units accepted
 where a unit is shown)::
 
+    title = "..."               # optional, shown by downhole simulate
+
+    [controller]                # optional: use a trained controller instead of training
+    file = "out/dhp/dhp_controller"     # relative to the scenario file
+
     [model]
+    type = "dhp"                # required by `downhole simulate`, optional here
     kind = "fem24"              # "fem24": Table 5.1 well, 24-state FEM (6 nodes, the seed's
                                 #   design model); "fem": Table 5.1 FEM with n_elements;
                                 #   "lumped": 4th-order lumped model (Eq. 2.1)
@@ -69,7 +79,7 @@ import typer
 from downhole.cli.design import design_app
 from downhole.errors import DownholeInputError, ScenarioError
 
-__all__ = ["load_dhp_scenario", "design_dhp_cmd"]
+__all__ = ["load_dhp_scenario", "parse_dhp_scenario", "design_dhp_cmd", "run_dhp_scenario"]
 
 _TABLES = {"model", "reference", "weights", "training", "simulation"}
 _MODEL_KEYS = {"kind", "n_elements", "preset", "dt", "input_limits", "friction"}
@@ -113,11 +123,31 @@ def load_dhp_scenario(path) -> dict:
 
     src = str(path)
     try:
-        data = tomllib.loads(Path(path).read_text())
+        text = Path(path).read_text()
+        data = tomllib.loads(text)
     except FileNotFoundError:
         raise ScenarioError(src, "", "file not found") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(src, "", f"invalid TOML: {exc}") from None
+    return parse_dhp_scenario(data, src, text, base=Path(path).parent)
+
+
+def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
+                       base: Path | None = None) -> dict:
+    """Validate an already-parsed DHP scenario (see :func:`load_dhp_scenario`)."""
+    from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights
+
+    data = dict(data)
+    data.pop("title", None)
+    ctl = data.pop("controller", None)
+    controller_file = None
+    if ctl is not None:
+        if not isinstance(ctl, dict) or set(ctl) - {"file"} or "file" not in ctl:
+            raise ScenarioError(src, "controller", "expected a table with one key: file = "
+                                                   "\"path/to/dhp_controller\"")
+        controller_file = Path(ctl["file"])
+        if not controller_file.is_absolute() and base is not None:
+            controller_file = base / controller_file
     bad = set(data) - _TABLES
     if bad:
         raise ScenarioError(src, sorted(bad)[0], f"unknown table; expected {sorted(_TABLES)}")
@@ -140,6 +170,9 @@ def load_dhp_scenario(path) -> dict:
 
     # --------------------------------------------------------------------- model
     mt = dict(data.get("model", {}))
+    mtype = mt.pop("type", "dhp")
+    if mtype != "dhp":
+        raise ScenarioError(src, "model.type", f"a DHP scenario has type = 'dhp', got {mtype!r}")
     kind = mt.pop("kind", "fem24")
     dt = _si(src, "model.dt", mt.pop("dt", 1e-3), "time")
     bit_over = {k: mt.pop(k) for k in list(mt) if k not in _MODEL_KEYS}
@@ -204,7 +237,7 @@ def load_dhp_scenario(path) -> dict:
     return {"model": model, "plant_source": plant_source, "reference": ref, "weights": weights,
             "settings": settings, "horizon": horizon,
             "design": {"use_feed_forward": use_ff, "past_horizon": past},
-            "simulation": sim, "text": Path(path).read_text()}
+            "simulation": sim, "text": text, "controller_file": controller_file}
 
 
 def _build_model(src, kind, mt, dt, bit_over, limits, friction):
@@ -282,6 +315,43 @@ def run_scenario_simulation(sc: dict, ctrl):
     plant = DirectionalStatePlant(dm, model, model.dt, depth_of_cut=sim["depth_of_cut"])
     attrs["bit_radius"] = dm.bit.radius
     return run_on_plant(ctrl, plant, sim["duration"], record_every=10, attrs=attrs)
+
+
+def run_dhp_scenario(data: dict, source: str = "<dict>", text: str = ""):
+    """``downhole simulate`` runner for ``[model] type = "dhp"``: train (or load ``[controller]
+    file``) and run the ``[simulation]`` closed loop; returns the Result."""
+    from downhole.control.dhp import design_dhp, load_controller
+
+    base = Path(source).parent if source != "<dict>" else None
+    sc = parse_dhp_scenario(data, source, text, base=base)
+    if sc["simulation"] is None:
+        kind = sc["plant_source"][0]
+        sc["simulation"] = {"duration": sc["horizon"],
+                            "plant": "lumped" if kind == "lumped" else "fem24",
+                            "depth_of_cut": "approximate"}
+    if sc["controller_file"] is not None:
+        try:
+            ctrl = load_controller(sc["controller_file"])
+        except DownholeInputError as exc:
+            raise ScenarioError(source, "controller.file", str(exc)) from None
+        try:
+            ctrl.attach_model(sc["model"])
+        except DownholeInputError as exc:
+            raise ScenarioError(source, "controller.file", f"the controller does not fit the "
+                                                           f"scenario's model: {exc}") from None
+    else:
+        ctrl = design_dhp(sc["model"], sc["reference"], horizon=sc["horizon"],
+                          weights=sc["weights"], settings=sc["settings"], **sc["design"])
+    return run_scenario_simulation(sc, ctrl)
+
+
+def _register():
+    from downhole.scenario import register_model_type
+
+    register_model_type("dhp", run_dhp_scenario)
+
+
+_register()
 
 
 @design_app.command("dhp")
