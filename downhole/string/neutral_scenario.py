@@ -19,7 +19,7 @@ Schema (every table but ``[model]`` and ``[simulation]`` optional; numbers may c
     type = "eid"
     file = "out/eid"                    # a directory written by `downhole design eid`, or:
     internal_model_gain = [10.0, 1.0]   # B_R (axial, torsional)
-    filter_bandwidth = [10.0, 2.0]      # rad/s, F(s) = bf/(s + bf)
+    filter_bandwidth = [20.0, 2.0]      # rad/s, F(s) = bf/(s + bf)
     observer_gain = [20.0, 7.0]         # L
     gain_bound = 5.0
     predictor = true

@@ -148,7 +148,7 @@ def load_eid(directory) -> EIDController:
                          u_limits=tuple(tuple(x) for x in meta["u_limits"]))
 
 
-def design_eid(model, *, internal_model_gain=(10.0, 1.0), filter_bandwidth=(10.0, 2.0),
+def design_eid(model, *, internal_model_gain=(10.0, 1.0), filter_bandwidth=(20.0, 2.0),
                observer_gain=(20.0, 7.0), gain_bound: float = 5.0, reference=None,
                predictor: bool = True, delayed_input_observer: bool = True,
                eps: float = 1e-6) -> EIDController:
@@ -164,7 +164,10 @@ def design_eid(model, *, internal_model_gain=(10.0, 1.0), filter_bandwidth=(10.0
     internal_model_gain : (float, float)
         B_R per channel (seed Eq. 3.32: 1 and 0.05; default 1 and 1, see docs/neutral-eid.md).
     filter_bandwidth : (float, float)
-        bf of F(s) = bf/(s + bf), rad/s (seed: 200 and 100; with the input delay ~2 rad/s).
+        bf of F(s) = bf/(s + bf), rad/s (seed: 200 and 100). Default (20, 2): the axial 20 rad/s
+        makes the loop damp the regenerative bit/rock mode (~57 rad/s) up to 2x the nominal
+        epsilon (10 rad/s leaves it unstable at 2x; 30 rad/s disturbs tracking), see
+        :func:`downhole.control.eid.stability.regenerative_closed_loop` and docs/neutral-eid.md.
     observer_gain : (float, float)
         L per channel (seed: 199.3 and 357.6; with the input delay about 1/50 of those).
     gain_bound : float
