@@ -29,8 +29,7 @@ from numba import njit
 
 from downhole.bit.detournay import approx_depth_of_cut, bit_forces
 from downhole.bit.rock_surface import rock_advance, rock_depth
-from downhole.contact.softstring import normal_force_per_length
-from downhole.string.wave import wave_incoming, wave_push
+from downhole.params.bit import BIT_ARRAY_LAYOUT
 
 __all__ = ["CHANNELS", "TOP_LAYOUT", "MISC_LAYOUT", "run_directional", "thomas_solve"]
 
@@ -71,143 +70,242 @@ def thomas_solve(d, o, rhs, out, work):
         out[i] -= c[i] * out[i + 1]
 
 
-@njit(cache=True)
-def _tri_mv(d, o, x, i):
-    """(T x)_i for a symmetric tridiagonal T."""
-    s = d[i] * x[i]
-    if i > 0:
-        s += o[i - 1] * x[i - 1]
-    if i < x.size - 1:
-        s += o[i] * x[i + 1]
-    return s
+# indices into the packed bit parameter array (downhole.params.bit.BIT_ARRAY_LAYOUT)
+_B = {name: i for i, name in enumerate(BIT_ARRAY_LAYOUT)}
+_EPS, _SIG, _ZETA, _A, _L, _DSTAR, _KC = (_B["epsilon"], _B["sigma"], _B["zeta"], _B["radius"],
+                                          _B["wear_length"], _B["d_star"],
+                                          _B["contact_stiffness"])
+_MUC, _MUS, _GAM, _GAMB, _VF, _MUGAM = (_B["mu_c"], _B["mu_s"], _B["gamma"], _B["gamma_b"],
+                                        _B["v_f"], _B["mu_gamma"])
+_A1, _B1, _A2, _B2, _CONT, _STRIB, _OMREG = (_B["a1"], _B["b1"], _B["a2"], _B["b2"],
+                                             _B["wear_flat_continuous"],
+                                             _B["friction_stribeck"], _B["omega_reg"])
+_OMFLOOR = _B["omega_floor"]
 
 
 @njit(cache=True)
-def _bit_g(field, v, d0, x_rate, vother, bitp, approx, omega_frozen):
-    """Bit force on the bit node as a function of its new velocity ``v`` (field 0: axial,
-    returns -WOB; field 1: torsional, returns -TOB). ``d0 + x_rate * v`` is the depth of cut."""
-    if field == 0:
-        if approx:
-            d = approx_depth_of_cut(v, omega_frozen, bitp)
-        else:
-            d = d0 + x_rate * v
-        w, _ = bit_forces(d, v, omega_frozen, bitp)
-        return -w
-    _, t = bit_forces(d0, vother, v, bitp)
-    return -t
+def bit_constants(p):
+    """The bit law's constants as a tuple of floats (passed by value into the solves).
+
+    Order: zeta eps a, 0.5 eps a^2, sigma l a, d*, continuous flag, K_c, a1, b1, a2, b2,
+    Stribeck flag, mu_c, mu_s - mu_c, gamma_b / v_f, gamma, mu gamma, omega_reg, 0.5 a."""
+    a = p[_A]
+    eps = p[_EPS]
+    return (p[_ZETA] * eps * a, 0.5 * eps * a * a, p[_SIG] * p[_L] * a, p[_DSTAR], p[_CONT],
+            p[_KC], p[_A1], p[_B1], p[_A2], p[_B2], p[_STRIB], p[_MUC], p[_MUS] - p[_MUC],
+            p[_GAMB] / p[_VF], p[_GAM], p[_MUGAM], p[_OMREG], 0.5 * a)
 
 
 @njit(cache=True)
-def _field_step(Md, Mo, Kd, Ko, Ld, Lo, Ldense, dense, u, v, a, f0, cx, kx, dt, rhs, d, vnew,
-                work, bit_field, bd0, brate, bother, bitp, approx, bomega):
-    """Advance one field: solve for v1 with extra diagonal damper cx and stiffness kx.
+def wear_flat_force(d, v, bk):
+    """Wear-flat contact force W_f(d, v) of the bit law, N (0 for d <= 0)."""
+    if d <= 0.0:
+        return 0.0
+    arg = bk[6] * v + bk[7]
+    fv = 0.0 if arg > 50.0 else 1.0 / (1.0 + math.exp(arg))
+    if bk[4] > 0.5:
+        r = d / bk[3]
+        if r > 1.0:
+            r = 1.0
+        return bk[2] * r * fv
+    if d > bk[3]:
+        return bk[2] * fv
+    return bk[5] * d
 
-    With ``bit_field`` >= 0 the bit force on the last node is applied exactly implicitly
-    (a scalar monotone equation solved after the forward sweep), not linearized."""
-    n = u.size
-    h = 0.5 * dt
-    for i in range(n):
-        mv = Md[i] * (v[i] + h * a[i])
-        if i > 0:
-            mv += Mo[i - 1] * (v[i - 1] + h * a[i - 1])
-        if i < n - 1:
-            mv += Mo[i] * (v[i + 1] + h * a[i + 1])
-        ku = Kd[i] * (u[i] + h * v[i])
-        if i > 0:
-            ku += Ko[i - 1] * (u[i - 1] + h * v[i - 1])
-        if i < n - 1:
-            ku += Ko[i] * (u[i + 1] + h * v[i + 1])
-        rhs[i] = mv - h * ku + h * (f0[i] - kx[i] * h * v[i])
-        d[i] = Ld[i] + h * (cx[i] + kx[i] * h)
-    if dense:
-        A = Ldense.copy()
-        for i in range(n):
-            A[i, i] = Ldense[i, i] + (d[i] - Ld[i])
-        if bit_field >= 0:
-            # linearize the bit force about the old velocity (dense path only)
-            g0 = _bit_g(bit_field, v[n - 1], bd0, brate, bother, bitp, approx, bomega)
-            hv = 1e-7 + 1e-6 * abs(v[n - 1])
-            g1 = _bit_g(bit_field, v[n - 1] + hv, bd0, brate, bother, bitp, approx, bomega)
-            slope = (g1 - g0) / hv
-            if slope > 0.0:
-                slope = 0.0
-            rhs[n - 1] += h * (g0 - slope * v[n - 1])
-            A[n - 1, n - 1] -= h * slope
-        sol = np.linalg.solve(A, rhs)
-        for i in range(n):
-            vnew[i] = sol[i]
+
+@njit(cache=True)
+def wob_and_slope(d0, rate, v, bk):
+    """WOB and dWOB/dv for the bit axial velocity ``v`` with depth of cut d = d0 + rate v."""
+    d = d0 + rate * v
+    if d <= 0.0:
+        return 0.0, 0.0
+    arg = bk[6] * v + bk[7]
+    if arg > 50.0:
+        fv = 0.0
+        dfv = 0.0
     else:
-        # Thomas forward sweep
-        c = work
-        o = Lo
-        den = d[0]
-        r = rhs[0]
-        for i in range(n):
-            if i > 0:
-                den = d[i] - o[i - 1] * c[i - 1]
-                r = rhs[i] - o[i - 1] * vnew[i - 1]
-            if i < n - 1:
-                c[i] = o[i] / den
-                vnew[i] = r / den
-            else:
-                if bit_field < 0:
-                    vnew[i] = r / den
-                else:
-                    # den * x - h * g(x) = r, g decreasing in x: monotone, safeguarded Newton
-                    x = v[i]
-                    xprev = x
-                    fprev = 0.0
-                    fp = den
-                    lo = -1e300
-                    hi = 1e300
-                    for it in range(60):
-                        gx = _bit_g(bit_field, x, bd0, brate, bother, bitp, approx, bomega)
-                        fx = den * x - h * gx - r
-                        if fx > 0.0:
-                            hi = x
-                        else:
-                            lo = x
-                        if it == 0:
-                            eps = 1e-9 * (1.0 + abs(x))
-                            fp = den - h * (_bit_g(bit_field, x + eps, bd0, brate, bother,
-                                                   bitp, approx, bomega) - gx) / eps
-                        elif x != xprev:
-                            fp = (fx - fprev) / (x - xprev)  # secant: one evaluation per step
-                        xprev = x
-                        fprev = fx
-                        xn = x - fx / fp if fp > 0.0 else x - fx / den
-                        if not (lo < xn < hi):
-                            if lo > -1e299 and hi < 1e299:
-                                xn = 0.5 * (lo + hi)
-                            elif xn <= lo:
-                                xn = lo + 1.0 + abs(lo)
-                            else:
-                                xn = hi - 1.0 - abs(hi)
-                        if abs(xn - x) < 1e-13 * (1.0 + abs(x)):
-                            x = xn
-                            break
-                        x = xn
-                    vnew[i] = x
-        for i in range(n - 2, -1, -1):
-            vnew[i] -= c[i] * vnew[i + 1]
-    for i in range(n):
-        an = (vnew[i] - v[i]) / h - a[i]
-        u[i] += h * (v[i] + vnew[i])
-        v[i] = vnew[i]
-        a[i] = an
+        fv = 1.0 / (1.0 + math.exp(arg))
+        dfv = -bk[6] * fv * (1.0 - fv)
+    full = bk[2]
+    if bk[4] > 0.5:
+        if d < bk[3]:
+            r = d / bk[3]
+            wf = full * r * fv
+            dwf = full * (rate / bk[3] * fv + r * dfv)
+        else:
+            wf = full * fv
+            dwf = full * dfv
+    elif d > bk[3]:
+        wf = full * fv
+        dwf = full * dfv
+    else:
+        wf = bk[5] * d
+        dwf = bk[5] * rate
+    return bk[0] * d + wf, bk[0] * rate + dwf
 
 
 @njit(cache=True)
-def _lag_update(lag, row, n_lags, tau, dt, x):
-    """Cascade of first-order lags (exact discretization); returns the last output."""
-    if n_lags <= 0:
-        return x
-    al = 1.0 - math.exp(-dt / tau)
+def tob_and_slope(d, wobf, omega, bk):
+    """TOB and dTOB/domega at depth of cut ``d`` and wear-flat force ``wobf``."""
+    if d <= 0.0:
+        return 0.0, 0.0
+    s = omega / bk[16]
+    ds = 1.0 / bk[16]
+    if s < 0.0:
+        s = 0.0
+        ds = 0.0
+    elif s > 1.0:
+        s = 1.0
+        ds = 0.0
+    if bk[10] > 0.5:
+        e = math.exp(-bk[13] * abs(omega))
+        mugam = (bk[11] + bk[12] * e) * bk[14]
+        dmugam = -bk[12] * bk[14] * bk[13] * e * (1.0 if omega > 0.0 else -1.0)
+    else:
+        mugam = bk[15]
+        dmugam = 0.0
+    g = math.tanh(bk[8] * omega + bk[9])
+    dg = bk[8] * (1.0 - g * g)
+    c = bk[1] * d
+    f = bk[17] * wobf
+    return c * s + f * mugam * g, c * ds + f * (dmugam * g + mugam * dg)
+
+
+@njit(cache=True)
+def solve_bit_node(field, den, r, h, x, c0, c1, bk):
+    """Solve ``den x + h F(x) = r`` for the bit node's new velocity (safeguarded Newton).
+
+    ``field`` 0: F = WOB with depth of cut ``c0 + c1 x``; 1: F = TOB at depth ``c0`` with
+    wear-flat force ``c1``. F is non-decreasing in x for the default laws (Stribeck weakening
+    is bracketed), so the root is bracketed as it goes and bisection takes over if Newton
+    leaves the bracket."""
+    lo = -1e300
+    hi = 1e300
+    for _ in range(60):
+        if field == 0:
+            f, df = wob_and_slope(c0, c1, x, bk)
+        else:
+            f, df = tob_and_slope(c0, c1, x, bk)
+        fx = den * x + h * f - r
+        if fx == 0.0:
+            return x
+        if fx > 0.0:
+            hi = x
+        else:
+            lo = x
+        fp = den + h * df
+        if not fp > 0.0:
+            fp = den
+        xn = x - fx / fp
+        if abs(xn - x) < 1e-13 * (1.0 + abs(x)):
+            return xn
+        if not (lo < xn < hi):
+            if lo > -1e299 and hi < 1e299:
+                xn = 0.5 * (lo + hi)
+            elif xn <= lo:
+                xn = lo + 1.0 + abs(lo)
+            else:
+                xn = hi - 1.0 - abs(hi)
+        x = xn
+    return x
+
+
+@njit(cache=True)
+def _wave_sample(hist, row, k, cap, init):
+    if k < 0:
+        return init
+    return hist[row, k % cap]
+
+
+@njit(cache=True)
+def rock_depth_fast(surf, j_next, theta_ref, h, nb, cap, nbl, x, theta):
+    """:func:`downhole.bit.rock_surface.rock_depth` with the layout unpacked (same result)."""
+    mask = cap - 1
+    jf = (theta - theta_ref) / h
+    if jf >= j_next - 1:
+        q = jf - nb
+        if q > j_next - 1.0:
+            q = j_next - 1.0
+        if q < j_next - cap + 1.0:
+            q = j_next - cap + 1.0
+        if q == j_next - 1.0:
+            q = q - 1e-12
+    else:
+        q = jf
+        if q < j_next - cap + 1.0:
+            q = j_next - cap + 1.0
+    j0 = int(math.floor(q))
+    f = q - j0
+    s0 = surf[j0 & mask]
+    s = s0 + f * (surf[(j0 + 1) & mask] - s0)
+    return nbl * (x - s)
+
+
+@njit(cache=True)
+def rock_advance_fast(surf, j_next, theta_ref, h, nb, cap, memory, theta_prev, x_prev,
+                      theta_new, x_new):
+    """:func:`downhole.bit.rock_surface.rock_advance` with the layout unpacked and one
+    division per call instead of one per grid point; returns the new ``j_next``."""
+    if not (theta_new > theta_prev) or not math.isfinite(theta_new + x_new):
+        return j_next
+    a0 = (theta_prev - theta_ref) / h
+    a1 = (theta_new - theta_ref) / h
+    if abs(a1) > 1e15 or abs(a0) > 1e15:
+        return j_next
+    mask = cap - 1
+    j_lo = int(math.floor(a0)) + 1
+    j_hi = int(math.floor(a1))
+    if j_lo < j_next - cap + nb + 1:
+        j_lo = j_next - cap + nb + 1
+    if j_hi - j_lo >= cap - nb:
+        j_lo = j_hi - cap + nb + 1
+    slope = (x_new - x_prev) / (theta_new - theta_prev)
+    for j in range(j_lo, j_hi + 1):
+        xj = x_prev + slope * (theta_ref + j * h - theta_prev)
+        if j >= j_next:
+            if memory:
+                below = surf[(j - nb) & mask]
+                surf[j & mask] = xj if xj > below else below
+            else:
+                surf[j & mask] = xj
+        elif memory:
+            if xj > surf[j & mask]:
+                surf[j & mask] = xj
+    if j_hi + 1 > j_next:
+        return j_hi + 1
+    return j_next
+
+@njit(cache=True)
+def _lag_cascade(lag, row, n_lags, al, x):
+    """Cascade of first-order lags (exact discretization, factor ``al``); the last output."""
     inp = x
     for j in range(n_lags):
         lag[row, j] += al * (inp - lag[row, j])
         inp = lag[row, j]
     return inp
+
+
+@njit(cache=True)
+def _spd_solve2(A, b1, b2, x1, x2, n):
+    """Solve A x1 = b1 and A x2 = b2 for a symmetric positive definite A (Gaussian elimination
+    without pivoting, in place: A, b1 and b2 are overwritten)."""
+    for k in range(n):
+        inv = 1.0 / A[k, k]
+        for i in range(k + 1, n):
+            m = A[i, k] * inv
+            if m != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= m * A[k, j]
+                b1[i] -= m * b1[k]
+                b2[i] -= m * b2[k]
+    for i in range(n - 1, -1, -1):
+        s1 = b1[i]
+        s2 = b2[i]
+        for j in range(i + 1, n):
+            s1 -= A[i, j] * x1[j]
+            s2 -= A[i, j] * x2[j]
+        x1[i] = s1 / A[i, i]
+        x2[i] = s2 / A[i, i]
 
 
 @njit(cache=True)
@@ -220,6 +318,24 @@ def _tension(Ko, u, e):
 def _torque(Ko, th, e):
     """Elastic torque in element e: GJ/L (theta_e - theta_{e+1})."""
     return Ko[e] * (th[e + 1] - th[e])
+
+
+@njit(cache=True)
+def _mid_tension(Ko, u, i):
+    """Tension at node i: mean of its two elements (an end node: its one element)."""
+    n = u.size
+    if 0 < i < n - 1:
+        return 0.5 * (_tension(Ko, u, i - 1) + _tension(Ko, u, i))
+    return _tension(Ko, u, min(max(i, 0), n - 2))
+
+
+@njit(cache=True)
+def _mid_torque(Ko, th, i):
+    """Torque at node i: mean of its two elements (an end node: its one element)."""
+    n = th.size
+    if 0 < i < n - 1:
+        return 0.5 * (_torque(Ko, th, i - 1) + _torque(Ko, th, i))
+    return _torque(Ko, th, min(max(i, 0), n - 2))
 
 
 @njit(cache=True)
@@ -245,7 +361,8 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         u_a, v_a, a_a, theta, omega, alpha. Updated in place.
     misc : see :data:`MISC_LAYOUT`. Updated in place.
     surf, istate, rp : rock-surface memory.
-    wa_*, wt_* : wave-segment states (axial, torsional); ignored unless hybrid.
+    wa_*, wt_* : wave-segment states (axial, torsional; :mod:`downhole.string.wave` layout);
+        ignored unless hybrid.
     lag : (4, m) lag-cascade states (rows: axial b_in, axial a_in, torsional b_in, a_in).
     cmd : (n_steps, 2)
         Per step: axial command (hook load N, or top axial velocity m/s) and torsional command
@@ -258,176 +375,368 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         0 ok, 1 non-finite state.
     rows : int
         Number of rows written.
+
+    Notes
+    -----
+    Written for a small fixed cost per step (the hybrid models have only 6-27 nodes): one
+    function body; scalar bit-law helpers with analytic slopes; everything constant over the
+    call found once (contact elements, static forces and dampers, the Thomas factors of the
+    nodes above the first contact node, wave read offsets, lag factors); the rock-surface and
+    wave ring buffers read and written inline; clocks in locals.
     """
     n = state.shape[1]
-    MAd, MAo, KAd, KAo, LAd, LAo = mats[0], mats[1], mats[2], mats[3], mats[4], mats[5]
-    MTd, MTo, KTd, KTo, LTd, LTo = mats[6], mats[7], mats[8], mats[9], mats[10], mats[11]
-    ua, va, aa, ut, vt, at = state[0], state[1], state[2], state[3], state[4], state[5]
-    ib = int(top[_IBIT])
+    ib = n - 1
     iB = int(top[_IB])
     iC = int(top[_IC])
     hybrid = top[_HYB] > 0.5
     dense = top[_DENSE] > 0.5
     approx = top[_APPROX] > 0.5
+    vel_hook = top[_AXM] > 0.5
+    torque_mode = top[_TQM] > 0.5
+    soft = (not torque_mode) and top[_SG] > 0.0
+    hk, hc, h0 = top[_HK], top[_HC], top[_H0]
+    kp, ki, sg, stau = top[_KP], top[_KI], top[_SG], top[_ST]
     mu = top[_MU]
-    veps = top[_VEPS]
+    veps2 = top[_VEPS] * top[_VEPS]
+    fb0, fc0 = top[_FB0], top[_FC0]
+    omfloor = bitp[_OMFLOOR]
     h = 0.5 * dt
-    fa = np.zeros(n)
-    ft = np.zeros(n)
-    ca = np.zeros(n)
-    ct = np.zeros(n)
-    kxa = np.zeros(n)
-    kxt = np.zeros(n)
+    ih = 1.0 / h
+    bk = bit_constants(bitp)
+    # rock surface (downhole.bit.rock_surface layout), unpacked
+    r_ref, r_h, r_nb, r_cap, r_nbl = rp[0], rp[1], int(rp[2]), int(rp[3]), rp[4]
+    r_mem = rp[5] > 0.5
+    j_next = istate[0]
+    drate_rock = rp[4] * h  # delayed depth of cut: d(v1) = d0 + n h (v0 + v1)
+    # ---- contact elements / nodes (skip elements whose normal force is identically zero:
+    # straight and vertical, no curvature and no lateral weight)
+    ce = np.empty(n, np.int64)
+    n_ce = 0
+    if mu > 0.0:
+        for e in range(n - 1):
+            if elem[e, 7] > 0.5 and (elem[e, 1] != 0.0 or elem[e, 2] != 0.0 or elem[e, 3] != 0.0
+                                     or elem[e, 4] != 0.0 or elem[e, 5] != 0.0
+                                     or elem[e, 6] != 0.0):
+                ce[n_ce] = e
+                n_ce += 1
+    incontact = np.zeros(n, np.bool_)
+    for j in range(n_ce):
+        incontact[ce[j]] = True
+        incontact[ce[j] + 1] = True
+    cn = np.empty(n, np.int64)
+    n_cn = 0
+    for i in range(n):
+        if incontact[i]:
+            cn[n_cn] = i
+            n_cn += 1
+    # first node whose diagonal changes from step to step (contact), capped at the bit node
+    p_var = ib
+    if n_cn > 0 and cn[0] < ib:
+        p_var = cn[0]
+    # ---- static forces, dampers and springs; the diagonal and Thomas factors they give
+    Fst = np.zeros((2, n))
+    Cst = np.zeros((2, n))
+    Kx = np.zeros((2, n))
+    for i in range(n):
+        Fst[0, i] = node[i, 0]
+    if vel_hook:
+        Fst[0, 0] += -h0
+        Cst[0, 0] += hc
+        Kx[0, 0] = hk
+    if not torque_mode:
+        Cst[1, 0] += kp
+        Kx[1, 0] = ki
+    if hybrid:
+        za0 = wa_wp[0]
+        zt0 = wt_wp[0]
+        Fst[0, iB] += fb0
+        Fst[0, iC] += fc0
+        Cst[0, iB] += za0
+        Cst[0, iC] += za0
+        Cst[1, iB] += zt0
+        Cst[1, iC] += zt0
+    Dst = np.empty((2, n))
+    cwc = np.zeros((2, n))
+    invc = np.zeros((2, n))
+    for f in range(2):
+        for i in range(n):
+            Dst[f, i] = mats[6 * f + 4, i] + h * (Cst[f, i] + Kx[f, i] * h)
+        for i in range(p_var):
+            den = Dst[f, i]
+            if i > 0:
+                den -= mats[6 * f + 5, i - 1] * cwc[f, i - 1]
+            invc[f, i] = 1.0 / den
+            cwc[f, i] = mats[6 * f + 5, i] * invc[f, i]
+    F = Fst.copy()
+    cfr = np.zeros((2, n))
     rhs = np.empty(n)
     dd = np.empty(n)
-    vnew = np.empty(n)
-    work = np.empty(n)
+    y = np.empty(n)
+    cw = np.empty(n)
     nrm = np.zeros(n)
-    row = rec_start
+    Aw = np.empty((n, n)) if dense else np.empty((1, 1))
+    # ---- wave segments: constant read offset and interpolation weight
     za = wa_wp[0]
     zt = wt_wp[0]
+    pos_a = wa_pos[0]
+    pos_t = wt_pos[0]
+    cap_a = int(wa_wp[2])
+    cap_t = int(wt_wp[2])
+    off_a = int(math.floor(-wa_wp[1]))
+    fr_a = -wa_wp[1] - off_a
+    off_t = int(math.floor(-wt_wp[1]))
+    fr_t = -wt_wp[1] - off_t
+    nla = int(top[_NLA])
+    nlt = int(top[_NLT])
+    al_a = 1.0 - math.exp(-dt / top[_LTA]) if nla > 0 else 0.0
+    al_t = 1.0 - math.exp(-dt / top[_LTT]) if nlt > 0 else 0.0
+    # ---- clocks and references in locals
+    t_now = misc[0]
+    x_ref = misc[1]
+    th_ref = misc[2]
+    lowp = misc[3]
+    n_done = misc[5]
     fb_line = 0.0
     tb_line = 0.0
     fc_line = 0.0
     tc_line = 0.0
+    row = rec_start
+    countdown = rec_every
+    status = 0
     for k in range(n_steps):
         cax = cmd[k, 0]
         ctq = cmd[k, 1]
         # ---- references at t_{n+1}
-        surf_torque0 = _torque(KTo, ut, 0) if n > 1 else 0.0
         omega_ref = ctq
-        if top[_TQM] < 0.5 and top[_SG] > 0.0:
-            misc[3] += (dt / top[_ST]) * (surf_torque0 - misc[3]) if top[_ST] > 0 else 0.0
-            omega_ref = ctq - top[_SG] * (surf_torque0 - misc[3])
-        misc[2] += dt * omega_ref
-        if top[_AXM] > 0.5:
-            misc[1] += dt * cax
-        for i in range(n):
-            fa[i] = node[i, 0]
-            ft[i] = 0.0
-            ca[i] = 0.0
-            ct[i] = 0.0
-            kxa[i] = 0.0
-            kxt[i] = 0.0
-            nrm[i] = 0.0
-        # ---- top drive and hook
-        if top[_AXM] < 0.5:
-            fa[0] -= cax
+        if soft:
+            tq0 = mats[9, 0] * (state[3, 1] - state[3, 0]) if n > 1 else 0.0
+            if stau > 0:
+                lowp += (dt / stau) * (tq0 - lowp)
+            omega_ref = ctq - sg * (tq0 - lowp)
+        th_ref += dt * omega_ref
+        # ---- top drive and hook (node 0)
+        if vel_hook:
+            x_ref += dt * cax
+            F[0, 0] = Fst[0, 0] + hk * (x_ref - state[0, 0]) + hc * cax
         else:
-            fa[0] += -top[_H0] + top[_HK] * (misc[1] - ua[0]) + top[_HC] * cax
-            ca[0] += top[_HC]
-            kxa[0] += top[_HK]
-        if top[_TQM] < 0.5:
-            ft[0] += top[_KP] * omega_ref + top[_KI] * (misc[2] - ut[0])
-            ct[0] += top[_KP]
-            kxt[0] += top[_KI]
+            F[0, 0] = Fst[0, 0] - cax
+        if torque_mode:
+            F[1, 0] = ctq
         else:
-            ft[0] += ctq
+            F[1, 0] = kp * omega_ref + ki * (th_ref - state[3, 0])
         # ---- wellbore contact (soft string, frozen-coefficient friction)
-        if mu > 0.0:
-            for e in range(n - 1):
-                if elem[e, 7] > 0.5:
-                    T = _tension(KAo, ua, e)
-                    Nl = normal_force_per_length(T, elem[e, 1], elem[e, 2], elem[e, 3],
-                                                 elem[e, 4], elem[e, 5], elem[e, 6])
-                    half = 0.5 * elem[e, 0] * Nl
-                    nrm[e] += half
-                    nrm[e + 1] += half
-            for i in range(n):
+        if n_ce > 0:
+            for j in range(n_cn):
+                nrm[cn[j]] = 0.0
+            for j in range(n_ce):
+                e = ce[j]
+                T = -mats[3, e] * (state[0, e + 1] - state[0, e])
+                gx = T * elem[e, 1] + elem[e, 4]
+                gy = T * elem[e, 2] + elem[e, 5]
+                gz = T * elem[e, 3] + elem[e, 6]
+                half = 0.5 * elem[e, 0] * math.sqrt(gx * gx + gy * gy + gz * gz)
+                nrm[e] += half
+                nrm[e + 1] += half
+            for j in range(n_cn):
+                i = cn[j]
                 if nrm[i] > 0.0:
                     r = node[i, 1]
-                    c = mu * nrm[i] / math.sqrt(va[i] * va[i] + r * r * vt[i] * vt[i]
-                                                 + veps * veps)
-                    ca[i] += c
-                    ct[i] += c * r * r
-        # ---- bit: depth of cut from the old state; forces applied exactly implicitly
+                    va_i = state[1, i]
+                    rw = r * state[4, i]
+                    c = mu * nrm[i] / math.sqrt(va_i * va_i + rw * rw + veps2)
+                    cfr[0, i] = c
+                    cfr[1, i] = c * r * r
+                else:
+                    cfr[0, i] = 0.0
+                    cfr[1, i] = 0.0
+        # ---- bit: depth of cut from the old state (axial: d(v1) = dax0 + drate v1)
+        ua_b0 = state[0, ib]
+        th_b0 = state[3, ib]
         if approx:
-            d0 = approx_depth_of_cut(va[ib], vt[ib], bitp)
+            w_fl = state[4, ib]
+            if w_fl < omfloor:
+                w_fl = omfloor
+            dax0 = 0.0
+            drate = 2.0 * math.pi / w_fl
         else:
-            d0 = rock_depth(surf, istate, rp, ua[ib], ut[ib])
-        # axial: d(v1) = d0 + n h (v0 + v1) = (d0 + n h v0) + n h v1
-        dax0 = d0 + rp[4] * h * va[ib] if not approx else 0.0
-        drate = rp[4] * h if not approx else 0.0
+            d0 = rock_depth_fast(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, ua_b0, th_b0)
+            dax0 = d0 + drate_rock * state[1, ib]
+            drate = drate_rock
         # ---- wave segment between B and C
+        a_in = 0.0
+        b_in = 0.0
+        ta_in = 0.0
+        tb_in = 0.0
         if hybrid:
-            a_in, b_in = wave_incoming(wa_hist, wa_pos, wa_wp)
-            b_in = _lag_update(lag, 0, int(top[_NLA]), top[_LTA], dt, b_in)
-            a_in = _lag_update(lag, 1, int(top[_NLA]), top[_LTA], dt, a_in)
-            ta_in, tb_in = wave_incoming(wt_hist, wt_pos, wt_wp)
-            tb_in = _lag_update(lag, 2, int(top[_NLT]), top[_LTT], dt, tb_in)
-            ta_in = _lag_update(lag, 3, int(top[_NLT]), top[_LTT], dt, ta_in)
-            fa[iB] += top[_FB0] + 2.0 * za * b_in
-            ca[iB] += za
-            fa[iC] += top[_FC0] + 2.0 * za * a_in
-            ca[iC] += za
-            ft[iB] += 2.0 * zt * tb_in
-            ct[iB] += zt
-            ft[iC] += 2.0 * zt * ta_in
-            ct[iC] += zt
-        # ---- solve both fields
-        thb0 = ut[ib]
-        xb0 = ua[ib]
-        thb_w = vt[ib]
-        _field_step(MAd, MAo, KAd, KAo, LAd, LAo, Ldense[0], dense, ua, va, aa, fa, ca, kxa, dt,
-                    rhs, dd, vnew, work, 0 if ib == n - 1 else -1, dax0, drate, 0.0, bitp,
-                    approx, vt[ib])
-        if approx:
-            d1 = approx_depth_of_cut(va[ib], thb_w, bitp)
-        else:
-            d1 = dax0 + drate * va[ib]
-        _field_step(MTd, MTo, KTd, KTo, LTd, LTo, Ldense[1], dense, ut, vt, at, ft, ct, kxt, dt,
-                    rhs, dd, vnew, work, 1 if ib == n - 1 else -1, d1, 0.0, va[ib], bitp,
-                    approx, 0.0)
-        if not approx:
-            rock_advance(surf, istate, rp, thb0, xb0, ut[ib], ua[ib])
-        if hybrid:
-            wave_push(wa_hist, wa_pos, wa_wp, va[iB] - b_in, va[iC] - a_in)
-            wave_push(wt_hist, wt_pos, wt_wp, vt[iB] - tb_in, vt[iC] - ta_in)
-            fb_line = top[_FB0] + za * (2.0 * b_in - va[iB])
-            fc_line = -top[_FC0] - za * (2.0 * a_in - va[iC])
-            # reported torque GJ (theta_up - theta_down)/L is minus the line's N
-            tb_line = -zt * (2.0 * tb_in - vt[iB])
-            tc_line = zt * (2.0 * ta_in - vt[iC])
-        misc[0] += dt
-        misc[5] += 1.0
-        # ---- record
-        if (k + 1) % rec_every == 0:
-            if not (math.isfinite(va[ib]) and math.isfinite(vt[ib]) and math.isfinite(ua[0])):
-                return 1, row - rec_start
-            if approx:
-                dn = approx_depth_of_cut(va[ib], vt[ib], bitp)
+            k0 = pos_a + off_a
+            a_in = (1.0 - fr_a) * _wave_sample(wa_hist, 0, k0, cap_a, wa_wp[3]) \
+                + fr_a * _wave_sample(wa_hist, 0, k0 + 1, cap_a, wa_wp[3])
+            b_in = (1.0 - fr_a) * _wave_sample(wa_hist, 1, k0, cap_a, wa_wp[4]) \
+                + fr_a * _wave_sample(wa_hist, 1, k0 + 1, cap_a, wa_wp[4])
+            k0 = pos_t + off_t
+            ta_in = (1.0 - fr_t) * _wave_sample(wt_hist, 0, k0, cap_t, wt_wp[3]) \
+                + fr_t * _wave_sample(wt_hist, 0, k0 + 1, cap_t, wt_wp[3])
+            tb_in = (1.0 - fr_t) * _wave_sample(wt_hist, 1, k0, cap_t, wt_wp[4]) \
+                + fr_t * _wave_sample(wt_hist, 1, k0 + 1, cap_t, wt_wp[4])
+            if nla > 0:
+                b_in = _lag_cascade(lag, 0, nla, al_a, b_in)
+                a_in = _lag_cascade(lag, 1, nla, al_a, a_in)
+            if nlt > 0:
+                tb_in = _lag_cascade(lag, 2, nlt, al_t, tb_in)
+                ta_in = _lag_cascade(lag, 3, nlt, al_t, ta_in)
+            F[0, iB] = Fst[0, iB] + 2.0 * za * b_in
+            F[0, iC] = Fst[0, iC] + 2.0 * za * a_in
+            F[1, iB] = 2.0 * zt * tb_in
+            F[1, iC] = 2.0 * zt * ta_in
+        # ---- solve both fields: (M + h C + h^2 K + h C_x + h^2 K_x) v1 = rhs
+        for f in range(2):
+            ru = 3 * f
+            rm = 6 * f
+            for i in range(n):
+                mv = mats[rm, i] * (state[ru + 1, i] + h * state[ru + 2, i])
+                ku = mats[rm + 2, i] * (state[ru, i] + h * state[ru + 1, i])
+                if i > 0:
+                    mv += mats[rm + 1, i - 1] * (state[ru + 1, i - 1] + h * state[ru + 2, i - 1])
+                    ku += mats[rm + 3, i - 1] * (state[ru, i - 1] + h * state[ru + 1, i - 1])
+                if i < n - 1:
+                    mv += mats[rm + 1, i] * (state[ru + 1, i + 1] + h * state[ru + 2, i + 1])
+                    ku += mats[rm + 3, i] * (state[ru, i + 1] + h * state[ru + 1, i + 1])
+                rhs[i] = mv - h * ku + h * (F[f, i] - Kx[f, i] * h * state[ru + 1, i])
+            if f == 0:
+                c0 = dax0
+                c1 = drate
             else:
-                dn = rock_depth(surf, istate, rp, ua[ib], ut[ib])
-            wn, tn = bit_forces(dn, va[ib], vt[ib], bitp)
-            rec[row, 0] = ua[ib] - misc[4]
-            rec[row, 1] = va[ib]
-            rec[row, 2] = ut[ib]
-            rec[row, 3] = vt[ib]
+                va_new = state[1, ib]
+                if approx:
+                    w_fl = state[4, ib]
+                    if w_fl < omfloor:
+                        w_fl = omfloor
+                    d1 = 2.0 * math.pi * va_new / w_fl
+                else:
+                    d1 = dax0 + drate * va_new
+                c0 = d1
+                c1 = wear_flat_force(d1, va_new, bk)
+            if dense:
+                for i in range(n):
+                    for j in range(n):
+                        Aw[i, j] = Ldense[f, i, j]
+                    Aw[i, i] = Dst[f, i] + h * cfr[f, i] + (Ldense[f, i, i] - mats[rm + 4, i])
+                # exact implicit bit force through the Schur complement on the bit node:
+                # v = y1 - h F(x) y2 with A y1 = rhs, A y2 = e_bit, x = v_bit
+                for i in range(n):
+                    cw[i] = 0.0
+                cw[ib] = 1.0
+                _spd_solve2(Aw, rhs, cw, y, dd, n)
+                den = 1.0 / dd[ib]
+                x = solve_bit_node(f, den, den * y[ib], h, state[ru + 1, ib], c0, c1, bk)
+                if f == 0:
+                    fb, _ = wob_and_slope(c0, c1, x, bk)
+                else:
+                    fb, _ = tob_and_slope(c0, c1, x, bk)
+                for i in range(n):
+                    y[i] -= h * fb * dd[i]
+                y[ib] = x
+            else:
+                # Thomas: forward sweep (factors precomputed above the first contact node),
+                # the exact implicit bit force on the last node, back sweep
+                rr = 0.0
+                for i in range(p_var):
+                    rr = rhs[i]
+                    if i > 0:
+                        rr -= mats[rm + 5, i - 1] * y[i - 1]
+                    y[i] = rr * invc[f, i]
+                    cw[i] = cwc[f, i]
+                for i in range(p_var, n):
+                    den = Dst[f, i] + h * cfr[f, i]
+                    rr = rhs[i]
+                    if i > 0:
+                        den -= mats[rm + 5, i - 1] * cw[i - 1]
+                        rr -= mats[rm + 5, i - 1] * y[i - 1]
+                    if i < ib:
+                        inv = 1.0 / den
+                        cw[i] = mats[rm + 5, i] * inv
+                        y[i] = rr * inv
+                    else:
+                        y[i] = solve_bit_node(f, den, rr, h, state[ru + 1, i], c0, c1, bk)
+                for i in range(n - 2, -1, -1):
+                    y[i] -= cw[i] * y[i + 1]
+            for i in range(n):
+                vo = state[ru + 1, i]
+                vn = y[i]
+                state[ru + 2, i] = (vn - vo) * ih - state[ru + 2, i]
+                state[ru, i] += h * (vo + vn)
+                state[ru + 1, i] = vn
+        if not approx:
+            j_next = rock_advance_fast(surf, j_next, r_ref, r_h, r_nb, r_cap, r_mem, th_b0,
+                                       ua_b0, state[3, ib], state[0, ib])
+        if hybrid:
+            vB = state[1, iB]
+            vC = state[1, iC]
+            ka = pos_a % cap_a
+            wa_hist[0, ka] = vB - b_in
+            wa_hist[1, ka] = vC - a_in
+            pos_a += 1
+            wB = state[4, iB]
+            wC = state[4, iC]
+            kt = pos_t % cap_t
+            wt_hist[0, kt] = wB - tb_in
+            wt_hist[1, kt] = wC - ta_in
+            pos_t += 1
+            fb_line = fb0 + za * (2.0 * b_in - vB)
+            fc_line = -fc0 - za * (2.0 * a_in - vC)
+            # reported torque GJ (theta_up - theta_down)/L is minus the line's N
+            tb_line = -zt * (2.0 * tb_in - wB)
+            tc_line = zt * (2.0 * ta_in - wC)
+        t_now += dt
+        n_done += 1.0
+        # ---- record
+        countdown -= 1
+        if countdown == 0:
+            countdown = rec_every
+            vab = state[1, ib]
+            vtb = state[4, ib]
+            if not (math.isfinite(vab) and math.isfinite(vtb) and math.isfinite(state[0, 0])):
+                status = 1
+                break
+            if approx:
+                dn = approx_depth_of_cut(vab, vtb, bitp)
+            else:
+                dn = rock_depth_fast(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, state[0, ib],
+                                     state[3, ib])
+            wn, tn = bit_forces(dn, vab, vtb, bitp)
+            rec[row, 0] = state[0, ib] - misc[4]
+            rec[row, 1] = vab
+            rec[row, 2] = state[3, ib]
+            rec[row, 3] = vtb
             rec[row, 4] = dn
             rec[row, 5] = wn
             rec[row, 6] = tn
-            if top[_AXM] < 0.5:
-                rec[row, 7] = cax
+            if vel_hook:
+                rec[row, 7] = h0 - hk * (x_ref - state[0, 0]) - hc * (cax - state[1, 0])
             else:
-                rec[row, 7] = top[_H0] - top[_HK] * (misc[1] - ua[0]) - top[_HC] * (cax - va[0])
-            rec[row, 8] = _torque(KTo, ut, 0) if n > 1 else 0.0
-            rec[row, 9] = va[0]
-            rec[row, 10] = vt[0]
+                rec[row, 7] = cax
+            rec[row, 8] = mats[9, 0] * (state[3, 1] - state[3, 0]) if n > 1 else 0.0
+            rec[row, 9] = state[1, 0]
+            rec[row, 10] = state[4, 0]
             if hybrid:
                 rec[row, 11] = fb_line
                 rec[row, 12] = tb_line
                 rec[row, 13] = fc_line
                 rec[row, 14] = tc_line
             else:
-                rec[row, 11] = 0.5 * (_tension(KAo, ua, iB - 1) + _tension(KAo, ua, iB)) \
-                    if 0 < iB < n - 1 else _tension(KAo, ua, min(max(iB, 0), n - 2))
-                rec[row, 12] = 0.5 * (_torque(KTo, ut, iB - 1) + _torque(KTo, ut, iB)) \
-                    if 0 < iB < n - 1 else _torque(KTo, ut, min(max(iB, 0), n - 2))
-                rec[row, 13] = 0.5 * (_tension(KAo, ua, iC - 1) + _tension(KAo, ua, iC)) \
-                    if 0 < iC < n - 1 else _tension(KAo, ua, min(max(iC, 0), n - 2))
-                rec[row, 14] = 0.5 * (_torque(KTo, ut, iC - 1) + _torque(KTo, ut, iC)) \
-                    if 0 < iC < n - 1 else _torque(KTo, ut, min(max(iC, 0), n - 2))
-            rec[row, 15] = ut[0]
+                rec[row, 11] = _mid_tension(mats[3], state[0], iB)
+                rec[row, 12] = _mid_torque(mats[9], state[3], iB)
+                rec[row, 13] = _mid_tension(mats[3], state[0], iC)
+                rec[row, 14] = _mid_torque(mats[9], state[3], iC)
+            rec[row, 15] = state[3, 0]
             rec[row, 16] = omega_ref
             row += 1
-    return 0, row - rec_start
+    misc[0] = t_now
+    misc[1] = x_ref
+    misc[2] = th_ref
+    misc[3] = lowp
+    misc[5] = n_done
+    istate[0] = j_next
+    wa_pos[0] = pos_a
+    wt_pos[0] = pos_t
+    return status, row - rec_start
