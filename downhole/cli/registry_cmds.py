@@ -30,6 +30,9 @@ def presets():
 def experiments():
     """List the experiment ids (dissertation figures/tables) with their claims."""
     from downhole.experiments import all_experiments
+    from downhole.report.reproduce import load_plugins
+
+    load_plugins()
 
     table = Table("id", "chapter", "title", "claim")
     for e in all_experiments():

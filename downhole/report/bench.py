@@ -32,7 +32,8 @@ def bench_markdown(report: dict, source: str = "bench.json") -> str:
     cmd = meta.get("command", "downhole bench --out bench.json")
     lines += [f"- produced with: `{cmd}` then `downhole bench-report {source} --out "
               "docs/performance.md`",
-              f"- mode: {'quick (the cases marked quick, reduced sizes)' if meta.get('quick') else 'full'}",
+              "- mode: " + ("quick (the cases marked quick, reduced sizes)" if meta.get("quick")
+                            else "full (every case)"),
               f"- date: {meta.get('date', '-')}, downhole {meta.get('downhole_version', '-')}"
               + (f", commit {meta['git_commit']}" if meta.get("git_commit") else ""),
               f"- machine: {m.get('cpu') or m.get('processor') or '-'}, "

@@ -15,7 +15,6 @@ import json
 import math
 import os
 import time
-import traceback
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
 
@@ -96,7 +95,8 @@ def _batches(n: int, size: int) -> list[range]:
 
 
 def _limit_threads_env() -> dict:
-    """Environment for worker processes: one BLAS/OpenMP thread each (the pool is the parallelism)."""
+    """Environment for worker processes: one BLAS/OpenMP thread each (the pool is the
+    parallelism)."""
     saved = {}
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
         saved[var] = os.environ.get(var)
@@ -202,7 +202,7 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
         rng = np.random.default_rng(seed)
         cases = np.column_stack([rng.uniform(s.low, s.high, size=random) for s in specs])
     n = len(cases)
-    workers = processes or os.cpu_count() or 1
+    workers = processes or _cluster_workers(scheduler) or os.cpu_count() or 1
     if batch_size is None:
         batch_size = max(1, min(64, math.ceil(n / (4 * workers))))
     batches = _batches(n, batch_size)
@@ -229,6 +229,20 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
     wall = time.perf_counter() - t0
     return _assemble(specs, cases, results, metrics, window, base, source, random, seed,
                      executor_desc, wall, batch_size)
+
+
+def _cluster_workers(scheduler) -> int | None:
+    """Worker count of an existing Dask client (for batch sizing), else None."""
+    try:
+        from distributed import Client
+    except ImportError:  # pragma: no cover
+        return None
+    if isinstance(scheduler, Client):
+        try:
+            return len(scheduler.scheduler_info()["workers"]) or None
+        except Exception:  # noqa: BLE001
+            return None
+    return None
 
 
 def _validate_base(base: dict, source: str) -> None:
