@@ -22,3 +22,12 @@ def _directional(data, source, text):
 register_model_type("neutral", _neutral)
 register_model_type("fem", _directional)
 register_model_type("hybrid", _directional)
+
+
+def _dhp(data, source, text):
+    from downhole.cli.design_dhp import run_dhp_scenario
+
+    return run_dhp_scenario(data, source, text)
+
+
+register_model_type("dhp", _dhp)
