@@ -158,7 +158,8 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
             ax = None if body.get("axial") is None else float(body["axial"])
             an = None if body.get("angular") is None else float(body["angular"])
         except (TypeError, ValueError):
-            raise HTTPException(status_code=422, detail="axial and angular must be numbers")
+            raise HTTPException(status_code=422,
+                                detail="axial and angular must be numbers") from None
         session.runner.set_reference(ax, an)
         return {"reference": session.runner.reference}
 

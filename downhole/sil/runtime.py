@@ -527,8 +527,9 @@ class RealTimeRunner:
         units = {f"command_{c}": self.plant.units.get(c, "") for c in self.plant.command_names}
         units.update({n: u for n, u in self.plant.units.items() if n in self.channels})
         units.update(wall_lag="s", exec_time="s")
-        attrs = {"model": self.plant.name, "dt": self.dt, "scheduler": self.scheduler, "runtime": "real-time" if self.paced
-                 else "unpaced", "stats": json.dumps(self.stats),
+        attrs = {"model": self.plant.name, "dt": self.dt, "scheduler": self.scheduler,
+                 "runtime": "real-time" if self.paced else "unpaced",
+                 "stats": json.dumps(self.stats),
                  "events": json.dumps(list(self.events)),
                  "safety": json.dumps(asdict(self.safety)), "hil": int(self.hil),
                  "controller": type(self.controller).__name__ if self.controller is not None
