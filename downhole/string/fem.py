@@ -769,8 +769,8 @@ def _check_duration(duration, dt, record_dt):
 def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: float = 1e-3, *,
                          top_drive: TopDrive | None = None, hook: Hook | None = None,
                          depth_of_cut: str = "delayed", record_dt: float | None = 0.01,
-                         hook_load=None, scenario: str = "", record_nodes: bool = False
-                         ) -> Result:
+                         hook_load=None, hook_velocity=None, speed=None, scenario: str = "",
+                         record_nodes: bool = False, attrs: dict | None = None) -> Result:
     """Run a directional FEM or hybrid model from its static equilibrium.
 
     Parameters
@@ -785,8 +785,14 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
     depth_of_cut : {"delayed", "approximate"}
     record_dt : float or None
         Recording interval (None: every step).
-    hook_load : callable, optional
-        ``hook_load(t) -> N`` overriding the constant hook load (force mode).
+    hook_load : number, (times, values) or callable, optional
+        Hook load (N) over time overriding the constant hook load (force-mode hook); a
+        callable gets the step times (an array; a scalar-only callable is called per time).
+    hook_velocity : number, (times, values) or callable, optional
+        Block velocity (m/s) over time overriding ``hook.velocity`` (velocity-mode hook).
+    speed : number, (times, values) or callable, optional
+        Top-drive set-point (rad/s; N m in torque mode) over time overriding
+        ``top_drive.command``.
     record_nodes : bool
         Also record ``node_axial_velocity`` and ``node_angular_velocity`` (time x node) at
         the recording interval (node depths in the attr ``node_md``).
@@ -811,11 +817,16 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
     t = (np.arange(n_steps) + 1) * dt
     cmd = np.empty((n_steps, 2))
     if hook.mode == "force":
-        cmd[:, 0] = pk.hook_load0 if hook_load is None else np.asarray(
-            [hook_load(tt) for tt in t], float)
+        if hook_velocity is not None:
+            raise DownholeInputError("hook_velocity needs a velocity-mode hook "
+                                     "(Hook(mode='velocity'))")
+        cmd[:, 0] = pk.hook_load0 if hook_load is None else _signal(hook_load, t, "hook_load")
     else:
-        cmd[:, 0] = hook.velocity
-    cmd[:, 1] = top_drive.command(t)
+        if hook_load is not None:
+            raise DownholeInputError("hook_load needs a force-mode hook (Hook(mode='force'))")
+        cmd[:, 0] = hook.velocity if hook_velocity is None else _signal(hook_velocity, t,
+                                                                          "hook_velocity")
+    cmd[:, 1] = top_drive.command(t) if speed is None else _signal(speed, t, "speed")
     st = pk.initial_state()
     n_rec = n_steps // every
     rec = np.zeros((n_rec + 1, len(CHANNELS)))
@@ -839,8 +850,10 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
         raise SimulationDiverged(float(st["misc"][0]), "bit_angular_velocity")
     time = np.concatenate([[0.0], (np.arange(1, rows + 1)) * every * dt])
     channels = {name: rec[:rows + 1, i] for i, name in enumerate(CHANNELS)}
+    sp0 = (top_drive.command(np.array([0.0]))[0] if speed is None
+           else _signal(speed, np.array([0.0]), "speed")[0])
     channels["reference_angular_velocity"] = np.concatenate(
-        [[top_drive.command(np.array([0.0]))[0]], channels["reference_angular_velocity"][1:]])
+        [[sp0], channels["reference_angular_velocity"][1:]])
     if top_drive.mode == "torque":
         del channels["reference_angular_velocity"]
     units = dict(EXTRA_UNITS)
@@ -853,7 +866,19 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
                          "model_kind": model.kind, "n_states": model.n_states, "dt": dt,
                          "depth_of_cut": depth_of_cut, "top_drive_mode": top_drive.mode,
                          "hook_mode": hook.mode, "scenario": scenario,
-                         "node_md": model.node_md.tolist()})
+                         "node_md": model.node_md.tolist(), **(attrs or {})})
+
+
+def _signal(sig, t, name):
+    """A command signal sampled at the step times ``t``."""
+    from downhole.sim.inputs import sample_signal
+
+    if callable(sig):
+        try:
+            return sample_signal(sig, t, name)
+        except (TypeError, ValueError, DownholeInputError):
+            return np.array([float(sig(tt)) for tt in t])  # a scalar-only callable
+    return sample_signal(sig, t, name)
 
 
 def _initial_record(pk: _Packed, st) -> np.ndarray:

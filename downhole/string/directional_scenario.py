@@ -1,0 +1,601 @@
+"""Scenario files for the directional FEM and hybrid models (``[model] type = "fem" | "hybrid"``):
+schema, validation and the runner behind ``downhole simulate``.
+
+Everything is validated before anything runs; an error names the file and the dotted field
+(``ScenarioError``, exit code 2 from the CLI) and nothing is written. Numbers may carry units.
+Schema (only ``[model]`` and ``[simulation]`` are required)::
+
+    title = "..."
+    [model]
+    type = "fem"                    # or "hybrid"
+    preset = "table_5_1"            # a 'directional' preset: well, pipe, bit, damping, friction
+    elements = 107                  # fem: number of elements (4 (elements + 1) states)
+    hybrid = "hybrid68"             # hybrid: "hybrid24" | "hybrid68" | "hybrid108" (seed sizes)
+    nodes_ab = 4                    # hybrid: FEM nodes on AB / on CD (override the preset)
+    nodes_cd = 13
+    md_b = "2000 m"                 # B and C: ends of the hybrid's wave segment (BC must be
+    md_c = "3000 m"                 #   straight, vertical, one pipe); FEM: where force_b/c are
+    damping = "rayleigh"            # or "modal"
+    rayleigh_alpha = 0.05           # 1/s  (default: the preset)
+    rayleigh_beta = 0.03            # s
+    modal_ratio = 0.03              # of critical, every mode (damping = "modal")
+    friction = 0.5                  # wellbore friction coefficient (0: no contact)
+    friction_velocity = "1 mm/s"    # regularization velocity v_eps
+    mass = "consistent"             # or "lumped"
+    [model.string]                  # DirectionalWellParams overrides (length_ab, pipe, ...)
+    [model.bit]                     # BitParams overrides (epsilon = "45 MPa", ...)
+
+    [well]                          # optional (default: the preset's Table 5.1 well); one of:
+    survey = "well_survey.csv"      # MD, INC, AZI columns; path relative to this file
+    units = "si"                    # survey MD in m ("si") or ft ("oilfield")
+    # md = [0, 500, 1000] ; inclination = [0, 10, 30] ; azimuth = [0, 45, 45]  (m, deg)
+    # [[well.sections]]             # surface first
+    # type = "vertical" | "tangent" (length) | "arc" (radius, angle, toolface, azimuth)
+    #        | "build_turn" (length, inclination, azimuth)
+
+    [string]                        # optional (default: the preset's pipe over the whole well)
+    mud_density = "1200 kg/m^3"
+    [[string.segments]]             # surface first; the last may omit length (= the rest)
+    kind = "pipe"                   # pipe | heavyweight | collar | bha
+    length = "4000 m"
+    outer_diameter = "5 in"
+    inner_diameter = "4.276 in"
+    # young_modulus, shear_modulus, density (defaults: steel)
+    [[string.stabilizers]]
+    distance_from_bit = "15 m"
+    outer_diameter = "8.5 in"
+
+    [controller]                    # top drive (default: PI at 10 rad/s, Table 5.1 gains)
+    type = "pi"                     # "pi" | "soft_torque" | "dhp"
+    speed = "10 rad/s"              # set-point: a constant or [[t, value], ...]
+    kp = 1e4                        # N m s/rad
+    ki = 2e3                        # N m/rad
+    inertia = "500 kg*m**2"
+    soft_gain = 2e-4                # soft_torque: rad/s per N m of high-passed string torque
+    soft_tau = "2 s"
+    # type = "dhp": file = "out/dhp/dhp_controller" (a `downhole design dhp` controller,
+    # relative to this file); it commands slack-off force and surface torque
+
+    [hook]                          # default: constant hook load = buoyed weight - 120 kN
+    type = "force"                  # "force" (hook load) or "velocity" (block velocity servo)
+    wob = "120 kN"                  # static WOB of the initial state (force: sets hook load)
+    hook_load = [[0, "380 kN"], [20, "360 kN"]]   # force: optional profile overriding it
+    velocity = "5 mm/s"             # velocity: block velocity, constant or [[t, value], ...]
+    servo_stiffness = "1e7 N/m"
+    servo_damping = "1e6 N*s/m"
+    block_mass = "0 kg"
+
+    [reference]                     # optional desired bit velocities (reference_* channels)
+    axial_velocity = "10 mm/s"
+    angular_velocity = "10 rad/s"
+
+    [simulation]
+    duration = "30 s"
+    dt = "1 ms"
+    depth_of_cut = "delayed"        # or "approximate" (Eq. 4.16)
+    record_dt = "10 ms"
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Literal, Optional, Union
+
+import numpy as np
+from pydantic import Field, ValidationError, field_validator, model_validator
+
+from downhole.errors import DownholeInputError, ScenarioError
+from downhole.params.quantity import Q
+from downhole.scenario import Profile, _raise_validation, _Strict, parse_scenario, \
+    profile_to_signal
+from downhole.units import UnitError
+
+__all__ = ["DirectionalScenario", "build_directional", "run_directional_scenario"]
+
+
+def _profile(value, dim, name):
+    try:
+        return profile_to_signal(value, dim, name)
+    except UnitError as exc:
+        raise ValueError(str(exc)) from None
+
+
+# ---------------------------------------------------------------------------------- schema
+class DirectionalModelSettings(_Strict):
+    """``[model]``: FEM or hybrid, preset and discretization."""
+
+    type: Literal["fem", "hybrid"]
+    preset: str = "table_5_1"
+    elements: Optional[int] = Field(None, ge=1)
+    hybrid: Optional[Literal["hybrid24", "hybrid68", "hybrid108"]] = None
+    nodes_ab: Optional[int] = Field(None, ge=2)
+    nodes_cd: Optional[int] = Field(None, ge=2)
+    md_b: Optional[Q["length"]] = Field(None, gt=0)
+    md_c: Optional[Q["length"]] = Field(None, gt=0)
+    damping: Literal["rayleigh", "modal"] = "rayleigh"
+    rayleigh_alpha: Optional[float] = Field(None, ge=0)
+    rayleigh_beta: Optional[float] = Field(None, ge=0)
+    modal_ratio: float = Field(0.03, gt=0, lt=1)
+    friction: Optional[float] = Field(None, ge=0)
+    friction_velocity: Q["velocity"] = Field(1e-3, gt=0)
+    mass: Literal["consistent", "lumped"] = "consistent"
+    n_lags: int = Field(0, ge=0, le=8)
+    string: dict[str, Any] = Field(default_factory=dict)
+    bit: dict[str, Any] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _kind_options(self):
+        if self.type == "fem":
+            bad = [k for k in ("hybrid", "nodes_ab", "nodes_cd") if getattr(self, k) is not None]
+            if bad or self.n_lags:
+                raise ValueError(f"{', '.join(bad or ['n_lags'])}: hybrid options, but type = "
+                                 "'fem' (use elements)")
+        elif self.elements is not None:
+            raise ValueError("elements: a FEM option, but type = 'hybrid' (use hybrid = "
+                             "'hybrid68' or nodes_ab / nodes_cd)")
+        return self
+
+
+class SectionSettings(_Strict):
+    """One ``[[well.sections]]`` entry."""
+
+    type: Literal["vertical", "tangent", "arc", "build_turn"]
+    length: Optional[Q["length"]] = Field(None, gt=0)
+    radius: Optional[Q["length"]] = Field(None, gt=0)
+    angle: Optional[Q["angle"]] = Field(None, gt=0, lt=math.pi)
+    toolface: Q["angle"] = 0.0
+    azimuth: Optional[Q["angle"]] = None
+    inclination: Optional[Q["angle"]] = Field(None, ge=0, le=math.pi)
+
+    @model_validator(mode="after")
+    def _needs(self):
+        need = {"vertical": ("length",), "tangent": ("length",), "arc": ("radius", "angle"),
+                "build_turn": ("length", "inclination", "azimuth")}[self.type]
+        missing = [k for k in need if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"a {self.type!r} section needs {', '.join(missing)}")
+        return self
+
+    def build(self):
+        from downhole.well import Arc, BuildTurn, Tangent, Vertical
+
+        if self.type == "vertical":
+            return Vertical(self.length)
+        if self.type == "tangent":
+            return Tangent(self.length)
+        if self.type == "arc":
+            return Arc(self.radius, self.angle, self.toolface, self.azimuth)
+        return BuildTurn(self.length, self.inclination, self.azimuth)
+
+
+class WellSettings(_Strict):
+    """``[well]``: a survey CSV, survey columns or sections (exactly one)."""
+
+    survey: Optional[str] = None
+    units: Literal["si", "oilfield"] = "si"
+    md: Optional[list[float]] = None
+    inclination: Optional[list[float]] = None
+    azimuth: Optional[list[float]] = None
+    sections: Optional[list[SectionSettings]] = None
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        cols = [self.md, self.inclination, self.azimuth]
+        given = [self.survey is not None, any(c is not None for c in cols),
+                 self.sections is not None]
+        if sum(given) != 1:
+            raise ValueError("give exactly one of survey (a CSV file), md/inclination/azimuth "
+                             "(stations, m and deg) or [[well.sections]]")
+        if given[1] and any(c is None for c in cols):
+            raise ValueError("stations need all of md, inclination and azimuth")
+        if self.sections is not None and not self.sections:
+            raise ValueError("sections is empty")
+        return self
+
+
+class SegmentSettings(_Strict):
+    """One ``[[string.segments]]`` entry (a uniform tubular)."""
+
+    kind: Literal["pipe", "heavyweight", "collar", "bha"] = "pipe"
+    length: Optional[Q["length"]] = Field(None, gt=0)
+    outer_diameter: Q["length"] = Field(..., gt=0)
+    inner_diameter: Q["length"] = Field(..., ge=0)
+    young_modulus: Q["pressure"] = Field(2.1e11, gt=0)
+    shear_modulus: Q["pressure"] = Field(8.08e10, gt=0)
+    density: Q["density"] = Field(7850.0, gt=0)
+
+    @model_validator(mode="after")
+    def _diameters(self):
+        if self.inner_diameter >= self.outer_diameter:
+            raise ValueError(f"inner_diameter ({self.inner_diameter:g} m) must be smaller than "
+                             f"outer_diameter ({self.outer_diameter:g} m)")
+        return self
+
+
+class StabilizerSettings(_Strict):
+    """One ``[[string.stabilizers]]`` entry."""
+
+    distance_from_bit: Q["length"] = Field(..., ge=0)
+    outer_diameter: Q["length"] = Field(..., gt=0)
+
+
+class StringSettings(_Strict):
+    """``[string]``: segments (surface first), stabilizers, mud density."""
+
+    segments: Optional[list[SegmentSettings]] = None
+    stabilizers: list[StabilizerSettings] = Field(default_factory=list)
+    mud_density: Q["density"] = Field(0.0, ge=0)
+
+    @field_validator("segments", mode="after")
+    @classmethod
+    def _lengths(cls, v):
+        if v is not None:
+            if not v:
+                raise ValueError("segments is empty")
+            for k, seg in enumerate(v[:-1]):
+                if seg.length is None:
+                    raise ValueError(f"segment {k}: only the last segment may omit length")
+        return v
+
+
+class ControllerSettings(_Strict):
+    """``[controller]``: the top drive's speed control (or a saved DHP controller)."""
+
+    type: Literal["pi", "soft_torque", "dhp"] = "pi"
+    speed: Profile = "10 rad/s"
+    kp: Optional[Q["torsional_damping"]] = Field(None, ge=0)
+    ki: Optional[Q["torsional_stiffness"]] = Field(None, ge=0)
+    inertia: Optional[Q["inertia"]] = Field(None, gt=0)
+    soft_gain: float = Field(2e-4, ge=0)
+    soft_tau: Q["time"] = Field(2.0, gt=0)
+    file: Optional[str] = None
+
+    @field_validator("speed", mode="after")
+    @classmethod
+    def _sig(cls, v):
+        return _profile(v, "angular_velocity", "speed")
+
+    @model_validator(mode="after")
+    def _file(self):
+        if self.type == "dhp" and not self.file:
+            raise ValueError("type 'dhp' needs file = a controller saved by `downhole design dhp`")
+        if self.type != "dhp" and self.file is not None:
+            raise ValueError(f"file is only used with type = 'dhp' (type is {self.type!r})")
+        return self
+
+
+class HookSettings(_Strict):
+    """``[hook]``: force-driven (hook load) or velocity-driven (block servo)."""
+
+    type: Literal["force", "velocity"] = "force"
+    wob: Q["force"] = Field(120e3, ge=0)
+    hook_load: Optional[Profile] = None
+    velocity: Profile = 0.0
+    servo_stiffness: Q["stiffness"] = Field(1e7, gt=0)
+    servo_damping: Q["damping"] = Field(1e6, ge=0)
+    block_mass: Q["mass"] = Field(0.0, ge=0)
+
+    @field_validator("hook_load", mode="after")
+    @classmethod
+    def _load(cls, v):
+        return None if v is None else _profile(v, "force", "hook_load")
+
+    @field_validator("velocity", mode="after")
+    @classmethod
+    def _vel(cls, v):
+        return _profile(v, "velocity", "velocity")
+
+    @model_validator(mode="after")
+    def _mode(self):
+        if self.type == "velocity" and self.hook_load is not None:
+            raise ValueError("hook_load is for type = 'force'; a velocity hook takes velocity")
+        return self
+
+
+class ReferenceSettings(_Strict):
+    """``[reference]``: desired bit velocities, recorded as ``reference_*`` channels."""
+
+    axial_velocity: Optional[Profile] = None
+    angular_velocity: Optional[Profile] = None
+
+    @field_validator("axial_velocity", "angular_velocity", mode="after")
+    @classmethod
+    def _sig(cls, v, info):
+        if v is None:
+            return v
+        dim = "velocity" if info.field_name == "axial_velocity" else "angular_velocity"
+        return _profile(v, dim, info.field_name)
+
+
+class SimulationSettings(_Strict):
+    """``[simulation]``."""
+
+    duration: Q["time"] = Field(..., gt=0)
+    dt: Q["time"] = Field(1e-3, gt=0, le=0.01)
+    depth_of_cut: Literal["delayed", "approximate"] = "delayed"
+    record_dt: Optional[Q["time"]] = Field(0.01, gt=0)
+
+    @model_validator(mode="after")
+    def _steps(self):
+        if self.dt > self.duration:
+            raise ValueError(f"dt ({self.dt:g} s) exceeds duration ({self.duration:g} s)")
+        if self.record_dt is not None and self.record_dt < self.dt:
+            raise ValueError(f"record_dt ({self.record_dt:g} s) is shorter than dt "
+                             f"({self.dt:g} s)")
+        return self
+
+
+class DirectionalScenario(_Strict):
+    """A whole directional (FEM or hybrid) scenario file."""
+
+    title: str = ""
+    description: str = ""
+    model: DirectionalModelSettings
+    well: Optional[WellSettings] = None
+    string: Optional[StringSettings] = None
+    controller: ControllerSettings = ControllerSettings()
+    hook: HookSettings = HookSettings()
+    reference: Optional[ReferenceSettings] = None
+    simulation: SimulationSettings
+
+
+# ---------------------------------------------------------------------------------- build
+def _wrap(source: str, field: str):
+    """Context manager turning a DownholeInputError into a ScenarioError naming ``field``."""
+    from contextlib import contextmanager
+
+    @contextmanager
+    def cm():
+        try:
+            yield
+        except ScenarioError:
+            raise
+        except DownholeInputError as exc:
+            raise ScenarioError(source, field, str(exc)) from None
+
+    return cm()
+
+
+def _base_dir(source: str) -> Path:
+    p = Path(source)
+    return p.parent if p.suffix else Path.cwd()
+
+
+def _params(sc: DirectionalScenario, source: str):
+    from downhole.params import BitParams, DirectionalWellParams, get_preset
+
+    try:
+        preset = get_preset(sc.model.preset)
+    except KeyError as exc:
+        raise ScenarioError(source, "model.preset", exc.args[0]) from None
+    if preset.kind != "directional":
+        raise ScenarioError(source, "model.preset", f"preset {sc.model.preset!r} is a "
+                            f"{preset.kind} model, expected a directional one (table_5_1)")
+    try:
+        params = DirectionalWellParams(**{**preset.string.model_dump(), **sc.model.string})
+    except ValidationError as exc:
+        _raise_validation(source, exc, "model.string.")
+    try:
+        bit = BitParams(**{**preset.bit.model_dump(), **sc.model.bit})
+    except ValidationError as exc:
+        _raise_validation(source, exc, "model.bit.")
+    return params, bit
+
+
+def _well(sc: DirectionalScenario, source: str, params):
+    from downhole.well import WellPath, read_survey_csv
+
+    w = sc.well
+    if w is None:
+        return WellPath.table_5_1(params)
+    if w.survey is not None:
+        path = Path(w.survey)
+        if not path.is_absolute():
+            path = _base_dir(source) / path
+        with _wrap(source, "well.survey"):
+            return read_survey_csv(path, units=w.units)
+    if w.md is not None:
+        with _wrap(source, "well.md"):
+            if len(w.md) != len(w.inclination) or len(w.md) != len(w.azimuth):
+                raise DownholeInputError(
+                    f"md, inclination and azimuth differ in length ({len(w.md)}, "
+                    f"{len(w.inclination)}, {len(w.azimuth)})")
+            return WellPath.from_survey(w.md, w.inclination, w.azimuth,
+                                        length_unit="ft" if w.units == "oilfield" else "m")
+    with _wrap(source, "well.sections"):
+        return WellPath.from_sections([s.build() for s in w.sections])
+
+
+def _string(sc: DirectionalScenario, source: str, params, well):
+    from downhole.string.drillstring import (DrillString, Stabilizer, StringSegment,
+                                             pipe_section)
+
+    st = sc.string
+    if st is None:
+        return DrillString.uniform(well.total_depth, params.pipe, g=params.g)
+    with _wrap(source, "string.segments"):
+        if st.segments is None:
+            segs = [StringSegment(well.total_depth, params.pipe)]
+        else:
+            segs = []
+            used = 0.0
+            for k, s in enumerate(st.segments):
+                length = s.length
+                if length is None:
+                    length = well.total_depth - used
+                    if length <= 0:
+                        raise ScenarioError(source, f"string.segments.{k}.length",
+                                            f"the segments above fill the well "
+                                            f"({used:g} m of {well.total_depth:g} m); give a length")
+                used += length
+                sec = pipe_section(s.outer_diameter, s.inner_diameter,
+                                   young_modulus=s.young_modulus, shear_modulus=s.shear_modulus,
+                                   density=s.density)
+                segs.append(StringSegment(float(length), sec, s.kind))
+    with _wrap(source, "string"):
+        stabs = tuple(Stabilizer(x.distance_from_bit, x.outer_diameter) for x in st.stabilizers)
+        ds = DrillString(tuple(segs), stabs, mud_density=st.mud_density, g=params.g)
+    if ds.length > well.total_depth + 1e-6:
+        raise ScenarioError(source, "string.segments",
+                            f"the string ({ds.length:g} m) is longer than the well "
+                            f"({well.total_depth:g} m)")
+    return ds
+
+
+def build_directional(sc: DirectionalScenario, source: str = "<dict>"):
+    """The :class:`~downhole.string.fem.DirectionalModel` a validated scenario describes.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the field: bad preset or overrides, a bad well (non-monotonic MD, inclination
+        outside 0-180 deg, ...), string (ID >= OD, too long, ...) or discretization (too few
+        nodes or elements for the well's sections, a curved BC for a hybrid, ...).
+    """
+    from downhole.string.fem import fem_model
+    from downhole.string.hybrid import hybrid_model
+
+    params, bit = _params(sc, source)
+    well = _well(sc, source, params)
+    string = _string(sc, source, params, well)
+    m = sc.model
+    common = dict(damping=m.damping, rayleigh_alpha=m.rayleigh_alpha,
+                  rayleigh_beta=m.rayleigh_beta, modal_ratio=m.modal_ratio, friction=m.friction,
+                  v_eps=m.friction_velocity, mass=m.mass, md_b=m.md_b, md_c=m.md_c)
+    if m.rayleigh_alpha is None:
+        common["rayleigh_alpha"] = params.rayleigh_alpha
+    if m.rayleigh_beta is None:
+        common["rayleigh_beta"] = params.rayleigh_beta
+    if m.friction is None:
+        common["friction"] = params.wellbore_friction
+    if m.type == "fem":
+        if m.md_b is None:
+            common["md_b"] = min(params.length_ab, well.total_depth)
+        if m.md_c is None:
+            common["md_c"] = min(params.length_ab + params.length_bc, well.total_depth)
+        field = "model.elements"
+        with _wrap(source, field):
+            return fem_model(well, string, bit, n_elements=m.elements or 107, **common)
+    preset = m.hybrid if m.hybrid is not None else (
+        None if (m.nodes_ab is not None and m.nodes_cd is not None) else "hybrid68")
+    if common["md_b"] is None:
+        common["md_b"] = params.length_ab
+    if common["md_c"] is None:
+        common["md_c"] = params.length_ab + params.length_bc
+    try:
+        return hybrid_model(preset, n_ab=m.nodes_ab, n_cd=m.nodes_cd, well=well, string=string,
+                            bit=bit, n_lags=m.n_lags, **common)
+    except DownholeInputError as exc:
+        msg = str(exc)
+        if msg.startswith("n_ab") or (" nodes are too few for" in msg
+                                      and f"..{common['md_b']:g} m" in msg):
+            field = "model.nodes_ab" if m.nodes_ab is not None else "model.hybrid"
+        elif msg.startswith("n_cd") or " nodes are too few for" in msg:
+            field = "model.nodes_cd" if m.nodes_cd is not None else "model.hybrid"
+        elif "section BC" in msg or "md_b" in msg:
+            field = "model.md_b"
+        elif "lags" in msg:
+            field = "model.n_lags"
+        else:
+            field = "model"
+        raise ScenarioError(source, field, msg) from None
+
+
+def _top_drive(sc: DirectionalScenario, params):
+    from downhole.control.topdrive import TopDrive
+
+    c = sc.controller
+    speed = c.speed if not isinstance(c.speed, tuple) else float(c.speed[1][-1])
+    return TopDrive(inertia=c.inertia if c.inertia is not None else params.top_drive_inertia,
+                    mode="soft_torque" if c.type == "soft_torque" else "pi", speed=speed,
+                    kp=c.kp if c.kp is not None else params.top_drive_kp,
+                    ki=c.ki if c.ki is not None else params.top_drive_ki,
+                    soft_gain=c.soft_gain, soft_tau=c.soft_tau)
+
+
+def _hook(sc: DirectionalScenario):
+    from downhole.control.topdrive import Hook
+
+    h = sc.hook
+    vel = h.velocity if not isinstance(h.velocity, tuple) else float(h.velocity[1][0])
+    return Hook(mode=h.type, wob=h.wob, velocity=vel, block_mass=h.block_mass,
+                servo_stiffness=h.servo_stiffness, servo_damping=h.servo_damping)
+
+
+def _run_dhp(sc, source, text, model, attrs):
+    """Closed loop with a saved DHP controller (torque-driven top drive, force hook)."""
+    from types import SimpleNamespace
+
+    from downhole.control.dhp import load_controller, run_on_plant
+    from downhole.control.dhp.directional import DirectionalStatePlant
+    from downhole.string.fem import fem_model
+
+    path = Path(sc.controller.file)
+    if not path.is_absolute():
+        path = _base_dir(source) / path
+    try:
+        ctrl = load_controller(path)
+    except (OSError, KeyError, ValueError, DownholeInputError) as exc:
+        raise ScenarioError(source, "controller.file",
+                            f"cannot load a DHP controller from {str(path)!r}: {exc}") from None
+    sim = sc.simulation
+    if abs(ctrl.dt - sim.dt) > 1e-12:
+        raise ScenarioError(source, "simulation.dt", f"the DHP controller runs at dt = "
+                            f"{ctrl.dt:g} s; set simulation.dt to it (got {sim.dt:g} s)")
+    n_design = ctrl.n_states // 4
+    if ctrl.n_states % 4 or n_design < 2 or not ctrl.state_names or \
+            ctrl.state_names[0] != "x_1":
+        raise ScenarioError(source, "controller.file", "not a directional DHP controller "
+                            "(designed with `downhole design dhp`, model kind fem24 / fem)")
+    # the design FEM's node depths: the same mesh on this scenario's well (kinds fem24 / fem)
+    design_fem = fem_model(model.well, model.string, model.bit, n_elements=n_design - 1)
+    design = SimpleNamespace(node_depths=design_fem.node_md)
+    with _wrap(source, "controller"):
+        plant = DirectionalStatePlant(model, design, sim.dt, depth_of_cut=sim.depth_of_cut)
+        every = max(1, int(round((sim.record_dt or sim.dt) / sim.dt)))
+        res = run_on_plant(ctrl, plant, sim.duration, record_every=every, attrs=attrs)
+    return res
+
+
+def run_directional_scenario(data: dict, source: str, text: str):
+    """Validate and run a directional scenario; returns the :class:`~downhole.sim.Result`
+    (the TOML text in ``attrs["scenario"]``)."""
+    from downhole.sim.inputs import sample_signal
+    from downhole.sim.result import Result
+    from downhole.string.fem import simulate_directional
+
+    sc = parse_scenario(data, source, DirectionalScenario)
+    params, _ = _params(sc, source)
+    model = build_directional(sc, source)
+    sim = sc.simulation
+    attrs = {"scenario": text, "scenario_source": source, "title": sc.title}
+    if sc.controller.type == "dhp":
+        res = _run_dhp(sc, source, text, model, attrs)
+    else:
+        td = _top_drive(sc, params)
+        hook = _hook(sc)
+        kw = {}
+        if isinstance(sc.controller.speed, tuple):
+            kw["speed"] = sc.controller.speed
+        if hook.mode == "force" and sc.hook.hook_load is not None:
+            kw["hook_load"] = sc.hook.hook_load
+        if hook.mode == "velocity" and isinstance(sc.hook.velocity, tuple):
+            kw["hook_velocity"] = sc.hook.velocity
+        with _wrap(source, "simulation"):
+            res = simulate_directional(model, sim.duration, sim.dt, top_drive=td, hook=hook,
+                                       depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,
+                                       scenario=text, attrs=attrs, **kw)
+    if sc.reference is not None and (sc.reference.axial_velocity is not None
+                                     or sc.reference.angular_velocity is not None):
+        ds = res.dataset
+        chans = {n: ds[n].values for n in ds.data_vars}
+        units = {n: ds[n].attrs.get("units", "") for n in ds.data_vars}
+        if sc.reference.axial_velocity is not None:
+            chans["reference_axial_velocity"] = sample_signal(sc.reference.axial_velocity,
+                                                              res.time, "reference")
+        if sc.reference.angular_velocity is not None:
+            chans["reference_angular_velocity"] = sample_signal(sc.reference.angular_velocity,
+                                                                res.time, "reference")
+        res = Result(res.time, chans, units=units, attrs=dict(ds.attrs))
+    return res
