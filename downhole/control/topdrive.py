@@ -67,7 +67,7 @@ class TopDrive:
     speed: float = 10.0
     kp: float = 1e4
     ki: float = 2e3
-    soft_gain: float = 2e-4
+    soft_gain: float = 5e-4
     soft_tau: float = 2.0
     ramp_time: float = 0.0
 

@@ -396,13 +396,18 @@ def _well(sc: DirectionalScenario, source: str, params):
         with _wrap(source, "well.survey"):
             return read_survey_csv(path, units=w.units)
     if w.md is not None:
-        with _wrap(source, "well.md"):
-            if len(w.md) != len(w.inclination) or len(w.md) != len(w.azimuth):
-                raise DownholeInputError(
-                    f"md, inclination and azimuth differ in length ({len(w.md)}, "
-                    f"{len(w.inclination)}, {len(w.azimuth)})")
+        if len(w.md) != len(w.inclination) or len(w.md) != len(w.azimuth):
+            raise ScenarioError(source, "well.md",
+                                f"md, inclination and azimuth differ in length ({len(w.md)}, "
+                                f"{len(w.inclination)}, {len(w.azimuth)})")
+        try:
             return WellPath.from_survey(w.md, w.inclination, w.azimuth,
                                         length_unit="ft" if w.units == "oilfield" else "m")
+        except DownholeInputError as exc:
+            msg = str(exc)
+            field = ("well.inclination" if "inclination" in msg else
+                     "well.azimuth" if "azimuth" in msg else "well.md")
+            raise ScenarioError(source, field, msg) from None
     with _wrap(source, "well.sections"):
         return WellPath.from_sections([s.build() for s in w.sections])
 

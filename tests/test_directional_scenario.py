@@ -1,0 +1,101 @@
+"""Directional (FEM / hybrid) scenario files through the CLI: the shipped examples run and write
+their outputs; bad input exits with code 2, names the file and the field, and writes nothing."""
+
+import json
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from downhole.cli import main
+from downhole.sim import load_result
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+@pytest.mark.parametrize("name", ["directional_fem_stickslip", "directional_hybrid68_stickslip",
+                                  "directional_survey"])
+def test_examples_run_through_the_cli(name, tmp_path):
+    path = EXAMPLES / f"{name}.toml"
+    out = tmp_path / "run"
+    assert main(["simulate", str(path), "--out", str(out)]) == 0
+    for f in ("result.nc", "summary.json", "overview.png"):
+        assert (out / f).stat().st_size > 0, f
+    res = load_result(out / "result.nc")
+    assert res.attrs["scenario"] == path.read_text()
+    summary = json.loads((out / "summary.json").read_text())
+    if "stickslip" in name:
+        # both Table 5.1 cases stick-slip (fig4.4 / fig5.7 claims)
+        assert summary["stuck_fraction"] > 0.2
+        w = res["bit_angular_velocity"][res.time >= 10.0]
+        assert 1.5 * 10.0 <= w.max() <= 3.0 * 10.0
+    else:
+        # the survey well: bit ends where the CSV's last station is (2700 m MD, 45 deg hold)
+        md = res.attrs["node_md"]
+        md = json.loads(md) if isinstance(md, str) else md
+        assert md[-1] == pytest.approx(2700.0)
+        assert summary["mean_rop"] > 0
+
+
+BASE = """
+title = "bad input"
+[model]
+type = "{mtype}"
+{model}
+{extra}
+[simulation]
+duration = "0.2 s"
+dt = "1 ms"
+"""
+
+
+def _run_bad(tmp_path, capsys, mtype="fem", model="elements = 20", extra=""):
+    p = tmp_path / "bad.toml"
+    p.write_text(textwrap.dedent(BASE.format(mtype=mtype, model=model, extra=extra)))
+    out = tmp_path / "out"
+    rc = main(["simulate", str(p), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    assert not out.exists()
+    assert str(p) in err
+    return err
+
+
+@pytest.mark.parametrize("extra,field,words", [
+    ("[well]\nmd = [0, 500, 400]\ninclination = [0, 0, 10]\nazimuth = [0, 0, 0]",
+     "well.md", "increase"),
+    ("[well]\nmd = [0, 500, 900]\ninclination = [0, 10, 190]\nazimuth = [0, 0, 0]",
+     "well.inclination", "0 to 180"),
+    ("[[well.sections]]\ntype = \"vertical\"\nlength = \"-100 m\"",
+     "well.sections.0.length", "greater than 0"),
+    ("[[well.sections]]\ntype = \"vertical\"\nlength = 500\n[[well.sections]]\ntype = \"arc\"\n"
+     "radius = 300", "well.sections.1", "needs angle"),
+    ("[[string.segments]]\nlength = 1000\nouter_diameter = \"5 in\"\ninner_diameter = \"6 in\"",
+     "string.segments.0", "must be smaller than outer_diameter"),
+    ("[[string.segments]]\nlength = 1000\nouter_diameter = -0.1\ninner_diameter = 0.05",
+     "string.segments.0.outer_diameter", "greater than 0"),
+    ("[hook]\nwob = \"120 kN\"\nweight = 3", "hook.weight", "unknown key"),
+    ("[controller]\ntype = \"pi\"\nspeed = \"10 m/s\"", "controller.speed", "rad/s"),
+])
+def test_bad_well_string_and_tables_name_file_and_field(tmp_path, capsys, extra, field, words):
+    err = _run_bad(tmp_path, capsys, extra=extra)
+    assert f": {field}: " in err and words in err, err
+
+
+def test_bad_survey_csv_is_reported_with_line(tmp_path, capsys):
+    (tmp_path / "s.csv").write_text("MD,INC,AZI\n0,0,0\n800,5,0\n700,10,0\n")
+    err = _run_bad(tmp_path, capsys, extra='[well]\nsurvey = "s.csv"')
+    assert ": well.survey: " in err and "must increase" in err
+
+
+@pytest.mark.parametrize("mtype,model,field,words", [
+    ("fem", "elements = 1", "model.elements", "too few"),
+    ("fem", "element = 20", "model.element", "unknown key"),
+    ("hybrid", "nodes_ab = 3\nnodes_cd = 1", "model.nodes_cd", "greater than or equal to 2"),
+    ("hybrid", "hybrid = \"hybrid68\"\nelements = 20", "model", "FEM option"),
+    ("hybrid", "hybrid = \"hybrid68\"\nmd_b = 2500\nmd_c = 3500", "model.md_b", "curved"),
+    ("fem", "preset = \"table_2_1\"", "model.preset", "directional"),
+])
+def test_bad_discretization_names_the_field(tmp_path, capsys, mtype, model, field, words):
+    err = _run_bad(tmp_path, capsys, mtype=mtype, model=model)
+    assert f": {field}: " in err and words in err, err
