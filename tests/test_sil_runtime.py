@@ -101,3 +101,41 @@ def test_scenario_errors_name_the_field():
     assert sc.runtime.dt == 5e-4 and sc.reference.angular == pytest.approx(4 * np.pi)
     with pytest.raises(DownholeInputError, match="wait_fraction"):
         RealTimeRunner(build_plant("lumped"), wait_fraction=1.5)
+
+
+class _Stall:
+    """PI that stalls once for ``stall`` s at step ``at`` (a GC pause, a slow solver...)."""
+
+    def __init__(self, inner, at, stall):
+        self.inner, self.at, self.stall = inner, at, stall
+
+    def reset(self):
+        self.inner.reset()
+
+    def command(self, t, obs, ref):
+        import time
+
+        if abs(t - self.at) < 1e-9:
+            time.sleep(self.stall)
+        return self.inner.command(t, obs, ref)
+
+
+@pytest.mark.parametrize("stall, resyncs", [(0.02, 0), (0.12, 1)])
+def test_falling_behind_catches_up_or_resyncs_and_keeps_simulated_time(stall, resyncs):
+    plant = build_plant("lumped")
+    rt = RealTimeRunner(plant, _Stall(pi_controller_for(plant), 0.3, stall), record_every=1,
+                        max_lag=0.05)
+    res = rt.run(0.8)
+    st = rt.stats
+    print(f"\nstall {stall * 1e3:.0f} ms: misses {st['deadline_misses']}, resyncs "
+          f"{st['resyncs']}, max lag {1e3 * st['max_lag_s']:.1f} ms, wall {st['wall_s']:.3f} s")
+    np.testing.assert_allclose(res.time, np.arange(801) * 1e-3, atol=1e-12)  # no step skipped
+    assert st["steps"] == 800 and st["resyncs"] == resyncs
+    assert st["overruns"] >= 1 and st["deadline_misses"] >= 1
+    lag = res["wall_lag"]
+    assert lag[301] >= stall - 2e-3  # the stalled step finished late by the stall
+    if resyncs == 0:  # caught up: later steps on time again, wall time = simulated time
+        assert np.all(lag[-100:] <= 0) and st["wall_s"] == pytest.approx(0.8, abs=0.02)
+    else:  # re-anchored: a constant offset, wall time longer by the stall
+        assert [e["kind"] for e in rt.events].count("resync") == 1
+        assert st["wall_s"] == pytest.approx(0.8 + stall, abs=0.03)
