@@ -31,6 +31,38 @@ def test_survey_csv_oilfield_matches_published_minimum_curvature(tmp_path):
     assert np.allclose(read_survey_csv(f2).stations["north"], st["north"])
 
 
+def _iscwsa1_stations():
+    """ISCWSA test well #1 (Williamson, SPE-67616-PA, 2000) surveyed every 30 m: vertical to
+    1200 m, build 2 deg/30 m to 60 deg at 2100 m, hold to 5100 m, build 3 deg/30 m to 90 deg at
+    5400 m, hold to 8000 m, azimuth 75 deg."""
+    md = np.concatenate([np.arange(0.0, 8000.0, 30.0), [8000.0]])
+    inc = np.interp(md, [0, 1200, 2100, 5100, 5400, 8000], [0, 0, 60, 60, 90, 90])
+    azi = np.where(md > 1200, 75.0, 0.0)
+    return md, inc, azi
+
+
+def test_survey_csv_matches_published_iscwsa_well_1(tmp_path):
+    # Published minimum-curvature positions (north, east, TVD in m) of ISCWSA well #1 from the
+    # ISCWSA MWD error-model example workbook (error-model-example-mwdrev5-1-iscwsa-1.xlsx),
+    # as tabulated in github.com/jonnymaserati/welleng tests/ISCWSA_code_ex1.csv.
+    published = {1500.0: (13.415, 50.064, 1493.945), 2100.0: (111.219, 415.076, 1944.294),
+                 3000.0: (312.949, 1167.941, 2394.294), 5100.0: (783.651, 2924.625, 3444.294),
+                 5250.0: (819.416, 3058.103, 3501.533), 5400.0: (857.797, 3201.342, 3521.056),
+                 8000.0: (1530.727, 5712.749, 3521.056)}
+    md, inc, azi = _iscwsa1_stations()
+    f = tmp_path / "iscwsa1.csv"
+    f.write_text("MD,INC,AZI\n" + "".join(f"{a:.1f},{b:.6f},{c:.1f}\n"
+                                          for a, b, c in zip(md, inc, azi)))
+    w = read_survey_csv(f)                       # SI: metres and degrees
+    for m, ref in published.items():
+        got = w.position(m)
+        assert np.max(np.abs(got - np.array(ref))) < 0.1, (m, got, ref)   # acceptance bar
+        assert np.max(np.abs(got - np.array(ref))) < 2e-3, (m, got, ref)  # published rounding
+    # and the stations' inclination / azimuth come back
+    assert math.degrees(float(w.inclination(3000.0))) == pytest.approx(60.0)
+    assert math.degrees(float(w.azimuth(3000.0))) == pytest.approx(75.0)
+
+
 def test_table_5_1_arc_geometry_is_analytic():
     R, th = 4000.0, math.radians(30)
     w = WellPath.from_sections([Vertical(2000), Vertical(1000), Arc(R, th)])
