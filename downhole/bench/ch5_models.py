@@ -18,7 +18,7 @@ from scipy.linalg import solve_banded
 
 from downhole.bench import BenchOutcome, bench_case, timed
 
-__all__ = ["lsoda_seconds"]
+__all__ = ["lsoda_seconds", "best_time"]
 
 
 def _ode_rhs(model, top_speed=10.0, wob=120e3, kp=1e4, ki=2e3, j_td=500.0):
@@ -86,7 +86,7 @@ def lsoda_seconds(model, horizon: float) -> float:
     return sec
 
 
-def _best(fn, *args, repeat=5, budget=1.0, **kwargs):
+def best_time(fn, *args, repeat=5, budget=1.0, **kwargs):
     """Best wall time and best thread CPU time of at least ``repeat`` calls, more for short
     calls (up to ``budget`` seconds in all, at most 50 calls), after the caller warmed the
     compiled code up: the machine is shared, so the minimum is the least disturbed run."""
@@ -110,8 +110,8 @@ def _row(make, dt, quick, horizon):
     # warm-up: compile (or load the cache) and touch every code path of both depth-of-cut laws
     simulate_directional(m, duration=0.01, dt=dt, depth_of_cut="approximate")
     simulate_directional(m, duration=0.01, dt=dt)
-    sec, cpu = _best(simulate_directional, m, 10.0, dt, depth_of_cut="approximate")
-    sec_delayed, cpu_delayed = _best(simulate_directional, m, 10.0, dt)
+    sec, cpu = best_time(simulate_directional, m, 10.0, dt, depth_of_cut="approximate")
+    sec_delayed, cpu_delayed = best_time(simulate_directional, m, 10.0, dt)
     base = lsoda_seconds(m, horizon) * (10.0 / horizon)
     return BenchOutcome(sec, f"scipy solve_ivp LSODA, same ODE ({horizon:g} s scaled to 10 s)",
                         base, extra={"states": m.n_states, "dt": dt, "cpu_seconds": cpu,
@@ -144,7 +144,7 @@ def _realtime(quick):
 
     m = hybrid_model("hybrid68")
     simulate_directional(m, duration=0.01, dt=1e-3)
-    sec, cpu = _best(simulate_directional, m, 10.0, 1e-3)
+    sec, cpu = best_time(simulate_directional, m, 10.0, 1e-3)
     plant = DirectionalPlant(m, 1e-3)
     plant.step()
 
@@ -153,7 +153,7 @@ def _realtime(quick):
         for _ in range(1000):
             plant.step()
 
-    psec, _ = _best(stepped, repeat=3)
+    psec, _ = best_time(stepped, repeat=3)
     base = lsoda_seconds(m, 1.0) * 10.0
     return BenchOutcome(sec, "scipy solve_ivp LSODA, same-size FEM (1 s scaled to 10 s)", base,
                         extra={"real_time_factor": 10.0 / sec, "cpu_seconds": cpu,
