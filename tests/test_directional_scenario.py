@@ -99,3 +99,50 @@ def test_bad_survey_csv_is_reported_with_line(tmp_path, capsys):
 def test_bad_discretization_names_the_field(tmp_path, capsys, mtype, model, field, words):
     err = _run_bad(tmp_path, capsys, mtype=mtype, model=model)
     assert f": {field}: " in err and words in err, err
+
+
+def test_dhp_controller_file_drives_the_directional_plant(tmp_path, capsys):
+    from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
+    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
+    from downhole.scenario import load_scenario, parse_scenario
+    from downhole.string.directional_scenario import (DirectionalScenario, _dhp_design_depths,
+                                                      build_directional)
+
+    fem24, _ = table_5_1_models()
+    design = directional_affine_model(fem24, 1e-3)
+    ctrl = design_dhp(design, BitReference.step(0.01, 20.0), horizon=2.0,
+                      weights=PenaltyWeights(bit_velocity=(100, 100), bit_position=(0.1, 0.1),
+                                             r=(1, 1)),
+                      settings=DHPSettings(n_samples=50, method="riccati"))
+    ctrl.save(tmp_path / "ctrl")
+    text = textwrap.dedent("""
+        [model]
+        type = "hybrid"
+        hybrid = "hybrid68"
+        [controller]
+        type = "dhp"
+        file = "ctrl"
+        [simulation]
+        duration = "2 s"
+        dt = "{dt}"
+        depth_of_cut = "approximate"
+        """)
+    p = tmp_path / "dhp.toml"
+    p.write_text(text.format(dt="1 ms"))
+    # the design model's nodes re-meshed on the scenario's well are the DHP module's own
+    data, src, _ = load_scenario(p)
+    sc = parse_scenario(data, src, DirectionalScenario)
+    from downhole.control.dhp import load_controller
+
+    loaded = load_controller(tmp_path / "ctrl")
+    depths = _dhp_design_depths(loaded, build_directional(sc, src), loaded.n_states // 4)
+    assert depths == pytest.approx(fem24.node_md)
+    out = tmp_path / "run"
+    assert main(["simulate", str(p), "--out", str(out)]) == 0
+    res = load_result(out / "result.nc")
+    assert res["surface_torque"].max() > 0           # the controller turned the string
+    # a controller trained at 1 ms cannot run at 0.5 ms
+    p.write_text(text.format(dt="0.5 ms"))
+    assert main(["simulate", str(p), "--out", str(tmp_path / "run2")]) == 2
+    assert ": simulation.dt: " in capsys.readouterr().err
+    assert not (tmp_path / "run2").exists()

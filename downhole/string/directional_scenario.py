@@ -528,13 +528,33 @@ def _hook(sc: DirectionalScenario):
                 servo_stiffness=h.servo_stiffness, servo_damping=h.servo_damping)
 
 
+def _dhp_design_depths(ctrl, model, n_design):
+    """Node depths of the controller's design FEM, re-meshed on this scenario's well.
+
+    ``downhole design dhp`` kind ``fem24`` designs on a hybrid preset's design FEM (AB and CD
+    nodes, one BC element; its name says "(a+b nodes) design FEM"), kind ``fem`` on
+    ``fem_model(n_elements=...)`` ("fem N elements")."""
+    import re
+
+    from downhole.string.fem import fem_model
+    from downhole.string.hybrid import hybrid_model
+
+    name = str(ctrl.meta.get("model", {}).get("name", ""))
+    hit = re.search(r"\((\d+)\+(\d+) nodes\) design FEM", name)
+    if hit:
+        md_b, md_c = (float(model.node_md[model.node_b]), float(model.node_md[model.node_c]))
+        dm = hybrid_model(None, n_ab=int(hit.group(1)), n_cd=int(hit.group(2)), well=model.well,
+                          string=model.string, bit=model.bit, md_b=md_b, md_c=md_c)
+        return dm.design_model().node_md
+    return fem_model(model.well, model.string, model.bit, n_elements=n_design - 1).node_md
+
+
 def _run_dhp(sc, source, text, model, attrs):
     """Closed loop with a saved DHP controller (torque-driven top drive, force hook)."""
     from types import SimpleNamespace
 
     from downhole.control.dhp import load_controller, run_on_plant
     from downhole.control.dhp.directional import DirectionalStatePlant
-    from downhole.string.fem import fem_model
 
     path = Path(sc.controller.file)
     if not path.is_absolute():
@@ -553,9 +573,7 @@ def _run_dhp(sc, source, text, model, attrs):
             ctrl.state_names[0] != "x_1":
         raise ScenarioError(source, "controller.file", "not a directional DHP controller "
                             "(designed with `downhole design dhp`, model kind fem24 / fem)")
-    # the design FEM's node depths: the same mesh on this scenario's well (kinds fem24 / fem)
-    design_fem = fem_model(model.well, model.string, model.bit, n_elements=n_design - 1)
-    design = SimpleNamespace(node_depths=design_fem.node_md)
+    design = SimpleNamespace(node_depths=_dhp_design_depths(ctrl, model, n_design))
     with _wrap(source, "controller"):
         plant = DirectionalStatePlant(model, design, sim.dt, depth_of_cut=sim.depth_of_cut)
         every = max(1, int(round((sim.record_dt or sim.dt) / sim.dt)))
