@@ -135,6 +135,7 @@ def bench(
     if not selected:
         fail("no bench case selected")
     rows, report = [], None
+    t_start = time.perf_counter()
     with console.status("benchmarking") as status:
         for c in selected:
             status.update(f"benchmarking {c.name}")
@@ -154,7 +155,8 @@ def bench(
     full = {"machine": machine, "cases": rows,
             "run": {"quick": quick, "date": time.strftime("%Y-%m-%d %H:%M %Z"),
                     "downhole_version": __version__, "git_commit": _git_commit(),
-                    "command": " ".join(argv)}}
+                    "command": " ".join(argv),
+                    "wall_seconds": round(time.perf_counter() - t_start, 1)}}
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".part")
     tmp.write_text(json.dumps(full, indent=2))

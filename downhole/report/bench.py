@@ -35,7 +35,9 @@ def bench_markdown(report: dict, source: str = "bench.json") -> str:
               "- mode: " + ("quick (the cases marked quick, reduced sizes)" if meta.get("quick")
                             else "full (every case)"),
               f"- date: {meta.get('date', '-')}, downhole {meta.get('downhole_version', '-')}"
-              + (f", commit {meta['git_commit']}" if meta.get("git_commit") else ""),
+              + (f", commit {meta['git_commit']}" if meta.get("git_commit") else "")
+              + (f"; {len(report.get('cases', []))} cases in {meta['wall_seconds']:.0f} s "
+                 "of wall time" if meta.get("wall_seconds") else ""),
               f"- machine: {m.get('cpu') or m.get('processor') or '-'}, "
               f"{m.get('cores') or m.get('cpus')} cores, {m.get('memory_gib', '-')} GiB; "
               f"{m.get('platform', '-')}; Python {m.get('python', '-')}"
