@@ -146,3 +146,22 @@ def test_dhp_controller_file_drives_the_directional_plant(tmp_path, capsys):
     assert main(["simulate", str(p), "--out", str(tmp_path / "run2")]) == 2
     assert ": simulation.dt: " in capsys.readouterr().err
     assert not (tmp_path / "run2").exists()
+
+
+def test_minimal_scenario_uses_the_table_5_1_defaults(tmp_path):
+    from downhole.scenario import run_scenario
+    from downhole.string.fem import fem_model
+
+    p = tmp_path / "min.toml"
+    p.write_text('[model]\ntype = "fem"\nelements = 30\n[simulation]\nduration = "1 s"\n')
+    res = run_scenario(p)
+    assert res["reference_angular_velocity"][-1] == 10.0          # PI at 10 rad/s
+    assert res["wob"][0] == pytest.approx(120e3, rel=1e-6)          # static WOB 120 kN
+    m = fem_model(n_elements=30)
+    assert res["hook_load"][0] == pytest.approx(m.buoyed_weight - 120e3, rel=1e-9)
+
+
+def test_wave_segment_shorter_than_dt_names_simulation_dt(tmp_path, capsys):
+    err = _run_bad(tmp_path, capsys, mtype="hybrid",
+                   model='hybrid = "hybrid24"\nmd_b = 2000\nmd_c = 2005')
+    assert ": simulation.dt: " in err and "shorter than the step" in err

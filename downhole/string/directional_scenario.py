@@ -243,7 +243,7 @@ class ControllerSettings(_Strict):
     """``[controller]``: the top drive's speed control (or a saved DHP controller)."""
 
     type: Literal["pi", "soft_torque", "dhp"] = "pi"
-    speed: Profile = "10 rad/s"
+    speed: Profile = Field("10 rad/s", validate_default=True)
     kp: Optional[Q["torsional_damping"]] = Field(None, ge=0)
     ki: Optional[Q["torsional_stiffness"]] = Field(None, ge=0)
     inertia: Optional[Q["inertia"]] = Field(None, gt=0)
@@ -271,7 +271,7 @@ class HookSettings(_Strict):
     type: Literal["force", "velocity"] = "force"
     wob: Q["force"] = Field(120e3, ge=0)
     hook_load: Optional[Profile] = None
-    velocity: Profile = 0.0
+    velocity: Profile = Field(0.0, validate_default=True)
     servo_stiffness: Q["stiffness"] = Field(1e7, gt=0)
     servo_damping: Q["damping"] = Field(1e6, ge=0)
     block_mass: Q["mass"] = Field(0.0, ge=0)
@@ -605,10 +605,17 @@ def run_directional_scenario(data: dict, source: str, text: str):
             kw["hook_load"] = sc.hook.hook_load
         if hook.mode == "velocity" and isinstance(sc.hook.velocity, tuple):
             kw["hook_velocity"] = sc.hook.velocity
-        with _wrap(source, "simulation"):
+        try:
             res = simulate_directional(model, sim.duration, sim.dt, top_drive=td, hook=hook,
                                        depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,
                                        scenario=text, attrs=attrs, **kw)
+        except ScenarioError:
+            raise
+        except DownholeInputError as exc:
+            msg = str(exc)
+            field = ("simulation.dt" if "delay" in msg or "dt" in msg.split(":")[0] else
+                     "hook.wob" if "WOB" in msg else "simulation")
+            raise ScenarioError(source, field, msg) from None
     if sc.reference is not None and (sc.reference.axial_velocity is not None
                                      or sc.reference.angular_velocity is not None):
         ds = res.dataset

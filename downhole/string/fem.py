@@ -753,7 +753,7 @@ def _packed(model: DirectionalModel, dt: float, top_drive: TopDrive, hook: Hook,
     per_model = _PACKS.setdefault(model, {})
     pk = per_model.get(key)
     if pk is None:
-        if len(per_model) > 16:
+        if len(per_model) > 4:
             per_model.clear()
         pk = per_model[key] = _Packed(model, dt, top_drive, hook, depth_of_cut)
     return pk
