@@ -101,6 +101,7 @@ def test_bad_discretization_names_the_field(tmp_path, capsys, mtype, model, fiel
     assert f": {field}: " in err and words in err, err
 
 
+@pytest.mark.slow  # compiles the DHP trainer's kernels (~40 s with a cold numba cache)
 def test_dhp_controller_file_drives_the_directional_plant(tmp_path, capsys):
     from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
     from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
