@@ -470,9 +470,12 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     F = Fst.copy()
     cfr = np.zeros((2, n))
     rhs = np.empty(n)
+    rhs_t = np.empty(n)
     dd = np.empty(n)
     y = np.empty(n)
+    y_t = np.empty(n)
     cw = np.empty(n)
+    cw_t = np.empty(n)
     nrm = np.zeros(n)
     Aw = np.empty((n, n)) if dense else np.empty((1, 1))
     # ---- wave segments: constant read offset and interpolation weight
@@ -589,34 +592,35 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
             F[1, iB] = 2.0 * zt * tb_in
             F[1, iC] = 2.0 * zt * ta_in
         # ---- solve both fields: (M + h C + h^2 K + h C_x + h^2 K_x) v1 = rhs
-        for f in range(2):
-            ru = 3 * f
-            rm = 6 * f
-            for i in range(n):
-                mv = mats[rm, i] * (state[ru + 1, i] + h * state[ru + 2, i])
-                ku = mats[rm + 2, i] * (state[ru, i] + h * state[ru + 1, i])
-                if i > 0:
-                    mv += mats[rm + 1, i - 1] * (state[ru + 1, i - 1] + h * state[ru + 2, i - 1])
-                    ku += mats[rm + 3, i - 1] * (state[ru, i - 1] + h * state[ru + 1, i - 1])
-                if i < n - 1:
-                    mv += mats[rm + 1, i] * (state[ru + 1, i + 1] + h * state[ru + 2, i + 1])
-                    ku += mats[rm + 3, i] * (state[ru, i + 1] + h * state[ru + 1, i + 1])
-                rhs[i] = mv - h * ku + h * (F[f, i] - Kx[f, i] * h * state[ru + 1, i])
-            if f == 0:
-                c0 = dax0
-                c1 = drate
-            else:
-                va_new = state[1, ib]
-                if approx:
-                    w_fl = state[4, ib]
-                    if w_fl < omfloor:
-                        w_fl = omfloor
-                    d1 = 2.0 * math.pi * va_new / w_fl
+        if dense:
+            for f in range(2):
+                ru = 3 * f
+                rm = 6 * f
+                for i in range(n):
+                    mv = mats[rm, i] * (state[ru + 1, i] + h * state[ru + 2, i])
+                    ku = mats[rm + 2, i] * (state[ru, i] + h * state[ru + 1, i])
+                    if i > 0:
+                        mv += mats[rm + 1, i - 1] * (state[ru + 1, i - 1]
+                                                     + h * state[ru + 2, i - 1])
+                        ku += mats[rm + 3, i - 1] * (state[ru, i - 1] + h * state[ru + 1, i - 1])
+                    if i < n - 1:
+                        mv += mats[rm + 1, i] * (state[ru + 1, i + 1] + h * state[ru + 2, i + 1])
+                        ku += mats[rm + 3, i] * (state[ru, i + 1] + h * state[ru + 1, i + 1])
+                    rhs[i] = mv - h * ku + h * (F[f, i] - Kx[f, i] * h * state[ru + 1, i])
+                if f == 0:
+                    c0 = dax0
+                    c1 = drate
                 else:
-                    d1 = dax0 + drate * va_new
-                c0 = d1
-                c1 = wear_flat_force(d1, va_new, bk)
-            if dense:
+                    va_new = state[1, ib]
+                    if approx:
+                        w_fl = state[4, ib]
+                        if w_fl < omfloor:
+                            w_fl = omfloor
+                        d1 = 2.0 * math.pi * va_new / w_fl
+                    else:
+                        d1 = dax0 + drate * va_new
+                    c0 = d1
+                    c1 = wear_flat_force(d1, va_new, bk)
                 for i in range(n):
                     for j in range(n):
                         Aw[i, j] = Ldense[f, i, j]
@@ -636,36 +640,91 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 for i in range(n):
                     y[i] -= h * fb * dd[i]
                 y[ib] = x
-            else:
-                # Thomas: forward sweep (factors precomputed above the first contact node),
-                # the exact implicit bit force on the last node, back sweep
-                rr = 0.0
-                for i in range(p_var):
-                    rr = rhs[i]
-                    if i > 0:
-                        rr -= mats[rm + 5, i - 1] * y[i - 1]
-                    y[i] = rr * invc[f, i]
-                    cw[i] = cwc[f, i]
-                for i in range(p_var, n):
-                    den = Dst[f, i] + h * cfr[f, i]
-                    rr = rhs[i]
-                    if i > 0:
-                        den -= mats[rm + 5, i - 1] * cw[i - 1]
-                        rr -= mats[rm + 5, i - 1] * y[i - 1]
-                    if i < ib:
-                        inv = 1.0 / den
-                        cw[i] = mats[rm + 5, i] * inv
-                        y[i] = rr * inv
-                    else:
-                        y[i] = solve_bit_node(f, den, rr, h, state[ru + 1, i], c0, c1, bk)
-                for i in range(n - 2, -1, -1):
-                    y[i] -= cw[i] * y[i + 1]
+                # Newmark update: a1 = (v1 - v0)/h - a0, u1 = u0 + h (v0 + v1)
+                for i in range(n):
+                    vo = state[ru + 1, i]
+                    vn = y[i]
+                    state[ru + 2, i] = (vn - vo) * ih - state[ru + 2, i]
+                    state[ru, i] += h * (vo + vn)
+                    state[ru + 1, i] = vn
+        else:
+            # both fields at once (two independent dependency chains): rhs, forward sweeps
+            # (factors precomputed above the first contact node), the exact implicit bit forces
+            # on the last node (axial first: the torsional law needs the new bit axial speed),
+            # back sweeps and the Newmark update
             for i in range(n):
-                vo = state[ru + 1, i]
+                mva = mats[0, i] * (state[1, i] + h * state[2, i])
+                kua = mats[2, i] * (state[0, i] + h * state[1, i])
+                mvt = mats[6, i] * (state[4, i] + h * state[5, i])
+                kut = mats[8, i] * (state[3, i] + h * state[4, i])
+                if i > 0:
+                    mva += mats[1, i - 1] * (state[1, i - 1] + h * state[2, i - 1])
+                    kua += mats[3, i - 1] * (state[0, i - 1] + h * state[1, i - 1])
+                    mvt += mats[7, i - 1] * (state[4, i - 1] + h * state[5, i - 1])
+                    kut += mats[9, i - 1] * (state[3, i - 1] + h * state[4, i - 1])
+                if i < n - 1:
+                    mva += mats[1, i] * (state[1, i + 1] + h * state[2, i + 1])
+                    kua += mats[3, i] * (state[0, i + 1] + h * state[1, i + 1])
+                    mvt += mats[7, i] * (state[4, i + 1] + h * state[5, i + 1])
+                    kut += mats[9, i] * (state[3, i + 1] + h * state[4, i + 1])
+                rhs[i] = mva - h * kua + h * (F[0, i] - Kx[0, i] * h * state[1, i])
+                rhs_t[i] = mvt - h * kut + h * (F[1, i] - Kx[1, i] * h * state[4, i])
+            for i in range(p_var):
+                ra = rhs[i]
+                rt = rhs_t[i]
+                if i > 0:
+                    ra -= mats[5, i - 1] * y[i - 1]
+                    rt -= mats[11, i - 1] * y_t[i - 1]
+                y[i] = ra * invc[0, i]
+                y_t[i] = rt * invc[1, i]
+                cw[i] = cwc[0, i]
+                cw_t[i] = cwc[1, i]
+            dena = 1.0
+            dent = 1.0
+            ra = 0.0
+            rt = 0.0
+            for i in range(p_var, n):
+                dena = Dst[0, i] + h * cfr[0, i]
+                dent = Dst[1, i] + h * cfr[1, i]
+                ra = rhs[i]
+                rt = rhs_t[i]
+                if i > 0:
+                    dena -= mats[5, i - 1] * cw[i - 1]
+                    ra -= mats[5, i - 1] * y[i - 1]
+                    dent -= mats[11, i - 1] * cw_t[i - 1]
+                    rt -= mats[11, i - 1] * y_t[i - 1]
+                if i < ib:
+                    inva = 1.0 / dena
+                    invt = 1.0 / dent
+                    cw[i] = mats[5, i] * inva
+                    y[i] = ra * inva
+                    cw_t[i] = mats[11, i] * invt
+                    y_t[i] = rt * invt
+            va_new = solve_bit_node(0, dena, ra, h, state[1, ib], dax0, drate, bk)
+            if approx:
+                w_fl = state[4, ib]
+                if w_fl < omfloor:
+                    w_fl = omfloor
+                d1 = 2.0 * math.pi * va_new / w_fl
+            else:
+                d1 = dax0 + drate * va_new
+            y[ib] = va_new
+            y_t[ib] = solve_bit_node(1, dent, rt, h, state[4, ib], d1,
+                                     wear_flat_force(d1, va_new, bk), bk)
+            for i in range(n - 2, -1, -1):
+                y[i] -= cw[i] * y[i + 1]
+                y_t[i] -= cw_t[i] * y_t[i + 1]
+            for i in range(n):
+                vo = state[1, i]
                 vn = y[i]
-                state[ru + 2, i] = (vn - vo) * ih - state[ru + 2, i]
-                state[ru, i] += h * (vo + vn)
-                state[ru + 1, i] = vn
+                state[2, i] = (vn - vo) * ih - state[2, i]
+                state[0, i] += h * (vo + vn)
+                state[1, i] = vn
+                vo = state[4, i]
+                vn = y_t[i]
+                state[5, i] = (vn - vo) * ih - state[5, i]
+                state[3, i] += h * (vo + vn)
+                state[4, i] = vn
         if not approx:
             j_next = rock_advance_fast(surf, j_next, r_ref, r_h, r_nb, r_cap, r_mem, th_b0,
                                        ua_b0, state[3, ib], state[0, ib])
