@@ -102,7 +102,7 @@ def wear_flat_force(d, v, bk):
     if d <= 0.0:
         return 0.0
     arg = bk[6] * v + bk[7]
-    fv = 0.0 if arg > 50.0 else 1.0 / (1.0 + math.exp(arg))
+    fv = 0.0 if arg > 50.0 else (1.0 if arg < -40.0 else 1.0 / (1.0 + math.exp(arg)))
     if bk[4] > 0.5:
         r = d / bk[3]
         if r > 1.0:
@@ -122,6 +122,9 @@ def wob_and_slope(d0, rate, v, bk):
     arg = bk[6] * v + bk[7]
     if arg > 50.0:
         fv = 0.0
+        dfv = 0.0
+    elif arg < -40.0:
+        fv = 1.0  # 1 / (1 + e^arg) rounds to 1 exactly: skip the exp
         dfv = 0.0
     else:
         fv = 1.0 / (1.0 + math.exp(arg))
@@ -164,8 +167,16 @@ def tob_and_slope(d, wobf, omega, bk):
     else:
         mugam = bk[15]
         dmugam = 0.0
-    g = math.tanh(bk[8] * omega + bk[9])
-    dg = bk[8] * (1.0 - g * g)
+    z = bk[8] * omega + bk[9]
+    if z > 20.0:
+        g = 1.0  # tanh rounds to +-1 exactly beyond |z| = 19.1: skip it
+        dg = 0.0
+    elif z < -20.0:
+        g = -1.0
+        dg = 0.0
+    else:
+        g = math.tanh(z)
+        dg = bk[8] * (1.0 - g * g)
     c = bk[1] * d
     f = bk[17] * wobf
     return c * s + f * mugam * g, c * ds + f * (dmugam * g + mugam * dg)
