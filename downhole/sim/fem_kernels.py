@@ -28,7 +28,6 @@ import numpy as np
 from numba import njit
 
 from downhole.bit.detournay import approx_depth_of_cut, bit_forces
-from downhole.bit.rock_surface import rock_advance, rock_depth
 from downhole.params.bit import BIT_ARRAY_LAYOUT
 
 __all__ = ["CHANNELS", "TOP_LAYOUT", "MISC_LAYOUT", "run_directional", "thomas_solve"]

@@ -80,15 +80,13 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Literal, Optional, Union
+from typing import Any, Literal, Optional
 
-import numpy as np
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params.quantity import Q
-from downhole.scenario import Profile, _raise_validation, _Strict, parse_scenario, \
-    profile_to_signal
+from downhole.scenario import Profile, _raise_validation, _Strict, parse_scenario, profile_to_signal
 from downhole.units import UnitError
 
 __all__ = ["DirectionalScenario", "build_directional", "run_directional_scenario"]
@@ -413,8 +411,7 @@ def _well(sc: DirectionalScenario, source: str, params):
 
 
 def _string(sc: DirectionalScenario, source: str, params, well):
-    from downhole.string.drillstring import (DrillString, Stabilizer, StringSegment,
-                                             pipe_section)
+    from downhole.string.drillstring import DrillString, Stabilizer, StringSegment, pipe_section
 
     st = sc.string
     if st is None:
@@ -432,7 +429,8 @@ def _string(sc: DirectionalScenario, source: str, params, well):
                     if length <= 0:
                         raise ScenarioError(source, f"string.segments.{k}.length",
                                             f"the segments above fill the well "
-                                            f"({used:g} m of {well.total_depth:g} m); give a length")
+                                            f"({used:g} m of {well.total_depth:g} m); "
+                                            "give a length")
                 used += length
                 sec = pipe_section(s.outer_diameter, s.inner_diameter,
                                    young_modulus=s.young_modulus, shear_modulus=s.shear_modulus,

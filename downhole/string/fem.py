@@ -31,7 +31,8 @@ from downhole.sim.result import Result
 from downhole.string.drillstring import DrillString
 from downhole.well import WellPath
 
-__all__ = ["DirectionalModel", "fem_model", "fem_from_nodes", "simulate_directional", "DirectionalPlant",
+__all__ = ["DirectionalModel", "fem_model", "fem_from_nodes", "simulate_directional",
+           "DirectionalPlant",
            "table_5_1_setup", "EXTRA_UNITS"]
 
 #: Units of the extra (non-standard) channels written by the directional models.
