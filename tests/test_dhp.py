@@ -171,3 +171,71 @@ def test_resampling_every_k_steps_matches_fresh_samples_on_linear_plant():
     a = train_dhp(pb, DHPSettings(resample_every=1))
     b = train_dhp(pb, DHPSettings(resample_every=25, chunk=16))
     np.testing.assert_allclose(a.kd, b.kd, rtol=1e-9, atol=1e-12)
+
+
+def test_compiled_sample_stream_equals_numpy_generator():
+    """The trainer's compiled sample draws are NumPy's Generator(SFC64) numbers, bit for bit."""
+    from downhole.control.dhp.riccati import _step_state_py, compiled_offsets, draw_offsets
+
+    w = draw_offsets(7, [0, 3, 3, 11], 9, 5)
+    np.testing.assert_array_equal(compiled_offsets(7, [0, 3, 3, 11], 9, np.ones(5)), w)
+    np.testing.assert_array_equal(w[1], w[2])          # same set id, same samples
+    assert not np.allclose(w[0], w[1])                  # fresh otherwise
+    bg = np.random.SFC64()
+    st = bg.state
+    st["state"]["state"] = np.array(_step_state_py(7, 11), dtype=np.uint64)
+    bg.state = st
+    np.testing.assert_array_equal(w[3], 2.0 * np.random.Generator(bg).random((9, 5)) - 1.0)
+    assert -1.0 <= w.min() and w.max() < 1.0
+
+
+def test_modal_riccati_matches_closed_form_numpy_and_threads_on_fem():
+    """The fast trainer (modal Riccati form, fused compiled samples/forces/fit, 1 or 2 threads)
+    gives Algorithm 1's fixed point: the closed form in the original coordinates on the same
+    samples, and the plain-NumPy version of the same trainer."""
+    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
+    from downhole.control.dhp.riccati import riccati_numpy
+
+    design = directional_affine_model(table_5_1_models()[0])
+    pb = build_problem(design, BitReference.step(), 0.12, PenaltyWeights())
+    st = DHPSettings(n_samples=60, seed=5)
+    ric = train_dhp(pb, st)
+    scale = np.abs(ric.kd).max()
+    cf = train_dhp(pb, DHPSettings(n_samples=60, seed=5, method="closed_form"))
+    assert np.abs(cf.kd - ric.kd).max() <= 1e-8 * scale
+    assert np.abs(cf.kc - ric.kc).max() <= 1e-8 * np.abs(ric.kc).max()
+    kc, kd, mu = riccati_numpy(pb, st)
+    assert np.abs(kd - ric.kd).max() <= 1e-10 * scale
+    np.testing.assert_allclose(mu, ric.mu, rtol=1e-10)
+    two = train_dhp(pb, DHPSettings(n_samples=60, seed=5, threads=2, chunk=16))
+    np.testing.assert_array_equal(two.kd, ric.kd)
+    generic = design.sample_fit
+    try:  # the generic path (draw, model.forces, fit) gives the same numbers as the fused one
+        design.sample_fit = None
+        gen = train_dhp(pb, st)
+    finally:
+        design.sample_fit = generic
+    np.testing.assert_array_equal(gen.kd, ric.kd)
+    # the weight snapshots map back to the original coordinates: W = [c - D r; D^T]
+    k = int(ric.weight_steps[-1])
+    W = ric.weights[-1]
+    Rinv = np.linalg.inv(pb.R)
+    np.testing.assert_allclose(Rinv @ design.g.T @ W[1:].T, ric.kd[k], rtol=1e-9,
+                               atol=1e-12 * scale)
+
+
+def test_defective_linear_part_falls_back_to_dense_and_equals_lqr():
+    """A Jordan block (double integrator) has no modal basis: the trainer uses T = A."""
+    from downhole.control.dhp.riccati import ModalForm
+
+    A = np.array([[1.0, 0.1, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.9]])
+    B = np.array([[0.0], [0.1], [0.2]])
+    assert not ModalForm(A).banded
+    model = ControlAffineModel(A, B, state_scale=1.0, input_scale=1.0, dt=0.1,
+                               state_names=["x", "v", "y"], input_names=["u"],
+                               strict_inputs=False)
+    Q, R, S = np.diag([1.0, 0.1, 0.5]), np.array([[0.3]]), np.eye(3)
+    tr = train_dhp(DHPProblem(model, Q, R, S, np.zeros((41, 3))),
+                   DHPSettings(require_contraction=False))
+    np.testing.assert_allclose(tr.kd, finite_horizon_lqr(A, B, Q, R, S, 40), rtol=1e-9,
+                               atol=1e-12)

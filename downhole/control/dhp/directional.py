@@ -25,44 +25,110 @@ from scipy.linalg import expm
 
 from downhole.bit.detournay import approx_depth_of_cut, bit_forces
 from downhole.control.affine import ControlAffineModel
+from downhole.control.dhp.riccati import _draw_one, _fit_one
 from downhole.errors import DownholeInputError
 
 __all__ = ["directional_affine_model", "DirectionalStatePlant", "table_5_1_models"]
 
 
-@njit(cache=True)
-def _directional_forces(zb, P, bitp, tension, koff, elem, radius, mu, v_eps, out):
-    """Nodal forces (N, 2n) [axial_1, torque_1, ...] of the bit and wellbore friction."""
+@njit(cache=True, nogil=True, error_model="numpy")
+def _directional_forces(zb, P, bitp, tension, koff, elem, radius, mu, v_eps, contact, nodes,
+                        out):
+    """Active nodal forces (N, q) of the bit and the wellbore friction.
+
+    ``nodes`` (q/2,): the nodes whose force pair [axial, torque] is a column pair of ``out``
+    (the bit node and the nodes of contact elements, in increasing order); ``contact`` (E,):
+    the contact elements. The other nodes carry no nonlinear force (their columns would be
+    identically zero), so the design model leaves them out. Samples are processed in blocks
+    with the sample index innermost (vectorized square roots)."""
     N = zb.shape[0]
     n = radius.shape[0]
     ib = n - 1
-    for s in range(N):
-        for j in range(2 * n):
-            out[s, j] = 0.0
-        va = zb[s, 2 * n + 2 * ib] * P[2 * n + 2 * ib]
-        vt = zb[s, 2 * n + 2 * ib + 1] * P[2 * n + 2 * ib + 1]
-        d = approx_depth_of_cut(va, vt, bitp)
-        w, t = bit_forces(d, va, vt, bitp)
-        out[s, 2 * ib] -= w
-        out[s, 2 * ib + 1] -= t
-        if mu > 0.0:
-            for e in range(n - 1):
-                if elem[e, 7] < 0.5:
-                    continue
-                dx = zb[s, 2 * (e + 1)] * P[2 * (e + 1)] - zb[s, 2 * e] * P[2 * e]
-                T = tension[e] - koff[e] * dx
-                a0 = T * elem[e, 1] + elem[e, 4]
-                a1 = T * elem[e, 2] + elem[e, 5]
-                a2 = T * elem[e, 3] + elem[e, 6]
-                half = 0.5 * elem[e, 0] * math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-                for i in (e, e + 1):
-                    vax = zb[s, 2 * n + 2 * i] * P[2 * n + 2 * i]
-                    vtr = zb[s, 2 * n + 2 * i + 1] * P[2 * n + 2 * i + 1]
-                    r = radius[i]
-                    den = math.sqrt(vax * vax + (r * vtr) ** 2 + v_eps * v_eps)
-                    c = mu * half / den
-                    out[s, 2 * i] -= c * vax
-                    out[s, 2 * i + 1] -= c * r * r * vtr
+    q2 = nodes.shape[0]
+    slot = np.full(n, -1)
+    for j in range(q2):
+        slot[nodes[j]] = j
+    BS = 64
+    normal = np.empty((q2, BS))
+    vax = np.empty(BS)
+    vtr = np.empty(BS)
+    for s0 in range(0, N, BS):
+        nb = min(BS, N - s0)
+        for t in range(nb):
+            s = s0 + t
+            for j in range(2 * q2):
+                out[s, j] = 0.0
+            va = zb[s, 2 * n + 2 * ib] * P[2 * n + 2 * ib]
+            vt = zb[s, 2 * n + 2 * ib + 1] * P[2 * n + 2 * ib + 1]
+            d = approx_depth_of_cut(va, vt, bitp)
+            w, tq = bit_forces(d, va, vt, bitp)
+            out[s, 2 * slot[ib]] = -w
+            out[s, 2 * slot[ib] + 1] = -tq
+        if not (mu > 0.0 and contact.shape[0] > 0):
+            continue
+        normal[:, :nb] = 0.0
+        for e in contact:
+            i0 = 2 * e
+            i1 = 2 * (e + 1)
+            p0 = P[i0]
+            p1 = P[i1]
+            te = tension[e]
+            ke = koff[e]
+            k1, k2, k3 = elem[e, 1], elem[e, 2], elem[e, 3]
+            g1, g2, g3 = elem[e, 4], elem[e, 5], elem[e, 6]
+            hl = 0.5 * elem[e, 0]
+            sa = slot[e]
+            sb = slot[e + 1]
+            for t in range(nb):
+                dx = zb[s0 + t, i1] * p1 - zb[s0 + t, i0] * p0
+                T = te - ke * dx
+                a0 = T * k1 + g1
+                a1 = T * k2 + g2
+                a2 = T * k3 + g3
+                half = hl * math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+                normal[sa, t] += half
+                normal[sb, t] += half
+        for j in range(q2):
+            i = nodes[j]
+            ia = 2 * n + 2 * i
+            pa = P[ia]
+            pt = P[ia + 1]
+            r = radius[i]
+            for t in range(nb):
+                vax[t] = zb[s0 + t, ia] * pa
+                vtr[t] = zb[s0 + t, ia + 1] * pt
+            for t in range(nb):
+                den = math.sqrt(vax[t] * vax[t] + (r * vtr[t]) ** 2 + v_eps * v_eps)
+                c = mu * normal[j, t] / den
+                vax[t] = c * vax[t]
+                vtr[t] = c * r * r * vtr[t]
+            for t in range(nb):
+                out[s0 + t, 2 * j] -= vax[t]
+                out[s0 + t, 2 * j + 1] -= vtr[t]
+
+
+@njit(cache=True, nogil=True)
+def _directional_sample_fit(seed, set_ids, ref, radius, ns, Vr, c0, Y, P, bitp, tension, koff,
+                            elem, rnode, mu, v_eps, contact, nodes):
+    """Fused DHP sample step for the directional model: for every step j, draw the step's fresh
+    samples, evaluate the forces on them and fit them (see :mod:`downhole.control.dhp.riccati`);
+    the samples of one step stay in cache. Returns the first singular step or -1."""
+    K = set_ids.shape[0]
+    n = ref.shape[1]
+    p = n + 1
+    q = 2 * nodes.shape[0]
+    Phi = np.empty((ns, p))
+    Z = np.empty((ns, n))
+    F = np.empty((ns, q))
+    U = np.empty((p, p))
+    B = np.empty((p, q))
+    for j in range(K):
+        _draw_one(seed, set_ids[j], ref[j], radius, Phi, Z)
+        _directional_forces(Z, P, bitp, tension, koff, elem, rnode, mu, v_eps, contact, nodes,
+                            F)
+        if not _fit_one(Phi, F, Vr, c0[j], Y[j], U, B, j == 0 or set_ids[j] != set_ids[j - 1]):
+            return j
+    return -1
 
 
 def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
@@ -72,7 +138,10 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
     """Compiled, structured control-affine design model of a directional FEM / hybrid model.
 
     Same model as ``dmodel.control_affine(dt, ...)`` (a test checks that both give the same
-    f), with the nonlinear forces as ``forces`` (N, 2n) and their ZOH map as ``force_map``.
+    f), with the nonlinear forces as ``forces`` (N, q) and their ZOH map as ``force_map``
+    (n, q): only the force pairs that can be non-zero (the bit node and the nodes of the
+    contact elements; ``metadata["force_nodes"]``), so that the DHP trainer fits no
+    identically-zero force column.
 
     Parameters
     ----------
@@ -126,22 +195,38 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
     elem = np.ascontiguousarray(m.elem, dtype=float)
     radius = np.ascontiguousarray(m.radius, dtype=float)
     mu = float(m.mu) if friction else 0.0
+    # contact elements whose normal force can be non-zero (a straight vertical element has
+    # zero curvature and zero normal weight: its soft-string normal force is exactly 0)
+    can = (elem[:n - 1, 7] >= 0.5) & np.any(elem[:n - 1, 1:7] != 0.0, axis=1)
+    contact = np.flatnonzero(can).astype(np.int64) if mu > 0.0 else np.zeros(0, dtype=np.int64)
+    act = np.unique(np.concatenate([[n - 1], contact, contact + 1])).astype(np.int64)
+    cols = np.ravel(np.column_stack([2 * act, 2 * act + 1]))
+    Gam = np.ascontiguousarray(Gam[:, cols])
 
     def forces(zb):
         zb = np.ascontiguousarray(zb, dtype=float)
-        out = np.empty((zb.shape[0], 2 * n))
+        out = np.empty((zb.shape[0], 2 * act.size))
         _directional_forces(zb, P, bitp, tension, koff, elem, radius, mu, float(v_eps_design),
-                            out)
+                            contact, act, out)
         return out
 
-    return ControlAffineModel.from_physical(
+    def sample_fit(seed, set_ids, ref, radius_s, ns, Vr, c0, Y):
+        return _directional_sample_fit(int(seed), np.ascontiguousarray(set_ids, dtype=np.int64),
+                                       np.ascontiguousarray(ref), radius_s, int(ns), Vr, c0, Y,
+                                       P, bitp, tension, koff, elem, radius, mu,
+                                       float(v_eps_design), contact, act)
+
+    model = ControlAffineModel.from_physical(
         A_d, B_d, state_scale=P, input_scale=input_scale, dt=dt, force_map=Gam, forces=forces,
         state_names=names, state_kinds=kinds, state_nodes=nodes,
         input_names=["slack_off_force", "surface_torque"], bit=m.bit,
         hanging_hook_load=m.buoyed_weight, node_depths=m.node_md, input_limits=input_limits,
         name=f"{dmodel.name} design ({m.n_states} states)",
         metadata={"family": "directional", "model": dmodel.name, "kind": dmodel.kind,
-                  "n_nodes": n})
+                  "n_nodes": n, "force_nodes": act.tolist()})
+    # compiled samples + forces + fit of the DHP trainer (same numbers as the generic path)
+    model.sample_fit = sample_fit
+    return model
 
 
 def table_5_1_models():

@@ -20,7 +20,12 @@ see :mod:`downhole.control.dhp` for the feed-forward). Three methods compute the
     The same fixed point written as matrices: fit only the nonlinear forces to the samples
     (h(z) ~ c0 + H (z - r_k)), then D_k^T = N M (A + H), c_k = N [M(f_r + g u_ff - r_{k+1}) + a]
     with N = (I + M G)^-1 = I - M g (R + g^T M g)^-1 g^T. For a linear plant this is the
-    finite-horizon LQR Riccati recursion.
+    finite-horizon LQR Riccati recursion. Computed in the modal basis of A with compiled
+    kernels (:mod:`downhole.control.dhp.riccati`); ``riccati_numpy`` is the same trainer in
+    plain NumPy (benchmark baseline, same samples).
+
+All methods draw the samples from one SFC64 stream (``settings.seed``), so for the same
+settings they see the very same samples.
 
 Algorithm 1's fixed-point iteration contracts only if mu = rho(g^T M g R^-1) < 1, where M is
 the target's derivative with respect to z_{k+1} (S at the last step, Q + A^T W_{z,k+1}^T
@@ -41,10 +46,16 @@ import numpy as np
 from numba import njit
 
 from downhole.control.affine import ControlAffineModel
+from downhole.control.dhp.riccati import (
+    compiled_offsets,
+    draw_offsets,
+    riccati_numpy,
+    train_riccati,
+)
 from downhole.errors import DownholeError, DownholeInputError
 
 __all__ = ["DHPSettings", "DHPProblem", "DHPTraining", "TrainingDiverged", "LinearBasis",
-           "QuadraticBasis", "train_dhp", "METHODS", "finite_horizon_lqr"]
+           "QuadraticBasis", "train_dhp", "METHODS", "finite_horizon_lqr", "riccati_numpy"]
 
 METHODS = ("riccati", "closed_form", "algorithm1", "algorithm1_numpy")
 
@@ -132,7 +143,12 @@ class DHPSettings:
         the seed's Algorithm 1). The samples are always centred on the step's own reference;
         re-using the offsets lets the Riccati form factor the least-squares fit once per set.
     max_weight : float
-        Weights larger than this (or non-finite) count as divergence.
+        Weights larger than this (or non-finite) count as divergence (for ``"riccati"``: the
+        co-state offsets c_k and the gains R^-1 g^T W_k).
+    threads : int
+        Threads for the per-step force fits of ``"riccati"`` (independent across steps; the
+        backward pass stays sequential). 1 (default) is single-threaded; BLAS is always pinned
+        to one thread inside the trainer.
     """
 
     n_samples: int | None = None
@@ -150,6 +166,7 @@ class DHPSettings:
     chunk: int = 256
     max_weight: float = 1e12
     resample_every: int = 1
+    threads: int = 1
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -176,6 +193,8 @@ class DHPSettings:
             raise DownholeInputError(f"sample_radius must be positive, got {self.sample_radius!r}")
         if self.chunk < 1:
             raise DownholeInputError(f"chunk must be >= 1, got {self.chunk!r}")
+        if not (isinstance(self.threads, int) and self.threads >= 1):
+            raise DownholeInputError(f"threads must be an integer >= 1, got {self.threads!r}")
         if not (isinstance(self.resample_every, int) and self.resample_every >= 1):
             raise DownholeInputError(f"resample_every must be an integer >= 1, got "
                                      f"{self.resample_every!r}")
@@ -335,17 +354,6 @@ def _mu(g, M, Rinv):
 
 
 @njit(cache=True)
-def _projector(delta):
-    """(p, N) least-squares projector onto phi = [1, delta]: fit = proj @ Y."""
-    N, n = delta.shape
-    Phi = np.empty((N, n + 1))
-    Phi[:, 0] = 1.0
-    Phi[:, 1:] = delta
-    Gm = Phi.T @ Phi
-    return np.linalg.solve(Gm, Phi.T.copy())
-
-
-@njit(cache=True)
 def _centered_fit(delta, Y):
     """LS fit Y ~ c + delta @ Dt over the samples: returns c (q,), Dt (n, q)."""
     N, n = delta.shape
@@ -357,85 +365,6 @@ def _centered_fit(delta, Y):
     rhs = Phi.T @ Y
     sol = np.linalg.solve(Gm, rhs)
     return sol[0].copy(), sol[1:].copy()
-
-
-@njit(cache=True)
-def _riccati_chunk(k_hi, sets, set_id, fr, hsamp, cols_map, A, g, Q, S, Rinv, R, ref, uff,
-                   n_total, M, c_next, kc, kd, mu_out, err_out, keep_every, w_steps, w_store,
-                   w_count, mu_max_ok, max_weight):
-    """Backward Riccati-form pass over steps k_hi, k_hi-1, ..., k_hi-K+1 of a chunk.
-
-    sets (S, N, n): sample sets (samples minus reference), set_id (K,): the set of each step;
-    fr (K, n): the linear part A r_k at the reference; hsamp (K, N, q): nonlinear columns at the samples; cols_map (n, q): the map
-    from the fitted columns to the state rows (identity columns or the force map).
-    M (n, n) and c_next (n,) carry the co-state model of step k+1 between chunks.
-    Returns status (0 ok, 1 mu >= 1, 2 non-finite/too large) and the failing step.
-    """
-    K = set_id.shape[0]
-    n = A.shape[0]
-    q = hsamp.shape[2]
-    last = -1
-    reuse = K > 1 and set_id[K - 1] < K - 1
-    proj = np.zeros((n + 1, sets.shape[1]))
-    for j in range(K):
-        k = k_hi - j
-        if q > 0:
-            if reuse:
-                if set_id[j] != last:
-                    proj = np.ascontiguousarray(_projector(sets[set_id[j]]))
-                    last = set_id[j]
-                sol = proj @ np.ascontiguousarray(hsamp[j])   # (p, q)
-            else:
-                c0f, Ctf = _centered_fit(sets[set_id[j]], np.ascontiguousarray(hsamp[j]))
-                sol = np.empty((n + 1, q))
-                sol[0] = c0f
-                sol[1:] = Ctf
-            Ct = sol[1:]                        # (n, q)
-            H = cols_map @ Ct.T                 # (n, n): dh/dz of the fit
-            h0 = cols_map @ sol[0]              # (n,): fitted h at the reference
-        else:
-            H = np.zeros((n, n))
-            h0 = np.zeros(n)
-        F = A + H
-        if k == n_total - 1:
-            Mk = S.copy()
-            a = np.zeros(n)
-        else:
-            Mk = M.copy()
-            a = A.T @ c_next
-        mu = _mu(g, Mk, Rinv)
-        mu_out[k] = mu
-        if mu >= mu_max_ok:
-            return 1, k
-        Mg = Mk @ g                                  # (n, m)
-        Sg = R + g.T @ Mg                            # (m, m)
-        Sginv = np.linalg.inv(Sg)
-        NM = Mk - Mg @ (Sginv @ (g.T @ Mk))          # (I + M G)^-1 M
-        e_r = fr[j] + h0 + g @ uff[k] - ref[k + 1]
-        # N v = v - M g Sg^-1 g^T v
-        v = Mk @ e_r + a
-        c = v - Mg @ (Sginv @ (g.T @ v))
-        Dt = NM @ F                                  # D_k^T
-        kc[k] = Rinv @ (g.T @ c)
-        kd[k] = Rinv @ (g.T @ Dt)
-        err_out[k] = 0.0
-        big = 0.0
-        for i in range(n):
-            if abs(c[i]) > big:
-                big = abs(c[i])
-            for l in range(n):
-                if abs(Dt[i, l]) > big:
-                    big = abs(Dt[i, l])
-        if not (big < max_weight):
-            return 2, k
-        if keep_every > 0 and k % keep_every == 0:
-            w_steps[w_count[0]] = k
-            w_store[w_count[0], 0] = c - Dt @ ref[k]
-            w_store[w_count[0], 1:] = Dt.T
-            w_count[0] += 1
-        M[:, :] = Q + A.T @ Dt
-        c_next[:] = c
-    return 0, -1
 
 
 @njit(cache=True)
@@ -584,20 +513,25 @@ def _alg1_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, ref, n_total, Dn, c_next, 
     return 0, -1, 0
 
 
-def _uniform_sets(rng, n_sets, ns, radius):
-    """(n_sets, ns, n) offsets uniform in [-radius, radius]."""
-    out = rng.random((n_sets, ns, radius.shape[0]))
-    out *= 2.0 * radius
-    out -= radius
-    return out
+def _uniform_sets(seed, set_ids, ns, radius, compiled=True):
+    """(len(set_ids), ns, n) offsets radius * w, w uniform in [-1, 1), from the SFC64 stream
+    of each sample set (the same numbers for every method; see ``riccati.draw_offsets``)."""
+    if compiled:
+        return compiled_offsets(seed, set_ids, ns, radius)
+    return draw_offsets(seed, set_ids, ns, radius.shape[0]) * radius
 
 
 # ---------------------------------------------------------------------------------------- driver
 def _progress(total, enabled, label):
     if not enabled:
         return None
-    from rich.progress import (BarColumn, Progress, TextColumn, TimeElapsedColumn,
-                               TimeRemainingColumn)
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     prog = Progress(TextColumn(label), BarColumn(), TextColumn("{task.completed}/{task.total} steps"),
                     TimeElapsedColumn(), TimeRemainingColumn(), transient=True)
@@ -657,7 +591,7 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
             f"least-squares fit is singular; use n_samples >= 2 (n + 1) = {2 * (n + 1)}")
     radius = np.broadcast_to(np.asarray(settings.sample_radius, dtype=float), (n,)).copy()
     n_steps = problem.n_steps
-    rng = np.random.default_rng(settings.seed)
+    rng = settings.seed
     A = np.ascontiguousarray(model.linear)
     g = np.ascontiguousarray(model.g)
     Rinv = np.linalg.inv(problem.R)
@@ -689,6 +623,19 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
         if method == "algorithm1_numpy":
             _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, err, iters,
                          stride, w_steps, w_store, w_count, rec_steps, history, mu_ok, bar)
+        elif method == "riccati":
+            out = dict(kc=kc, kd=kd, mu=mu, stride=stride, w_steps=w_steps, w_store=w_store,
+                       w_count=w_count)
+            status, kf = train_riccati(problem, settings, ns, radius, out, mu_ok, bar)
+            if status == 1:
+                raise TrainingDiverged(int(kf), model.dt, _mu_reason(mu[kf]))
+            if status == 2:
+                raise TrainingDiverged(int(kf), model.dt,
+                                       f"weights became non-finite or exceeded max_weight = "
+                                       f"{settings.max_weight:g}")
+            if status == 3:
+                raise TrainingDiverged(int(kf), model.dt, "the least-squares fit of the forces "
+                                       "is singular (sample design matrix not positive definite)")
         else:
             M = np.zeros((n, n))
             c_next = np.zeros(n)
@@ -697,39 +644,27 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
                 K = min(settings.chunk, k_hi + 1)
                 ks = np.arange(k_hi, k_hi - K, -1)
                 set_id = ((n_steps - 1 - ks) // settings.resample_every).astype(np.int64)
-                set_id -= set_id[0]
-                n_sets = int(set_id[-1]) + 1
-                sets = _uniform_sets(rng, n_sets, ns, radius)
-                deltas = sets if n_sets == K else sets[set_id]
+                deltas = _uniform_sets(rng, set_id, ns, radius)
                 Z = deltas + ref[ks][:, None, :]
-                if method == "riccati":
-                    fr = ref[ks] @ A.T  # linear part at the reference; h enters via the fit
-                    hs, cmap = _nonlinear_samples(model, Z)
-                    status, kf = _riccati_chunk(
-                        k_hi, sets, set_id, fr, hs, cmap, A, g, problem.Q, problem.S, Rinv, problem.R,
-                        ref, uff, n_steps, M, c_next, kc, kd, mu, err, stride, w_steps, w_store,
+                base = (model.f(Z.reshape(K * ns, n)).reshape(K, ns, n)
+                        + (uff[ks] @ g.T)[:, None, :] - ref[ks + 1][:, None, :])
+                if method == "closed_form":
+                    status, kf = _closed_form_chunk(
+                        k_hi, deltas, base, A, g, problem.Q, problem.S, Rinv, problem.R, ref,
+                        n_steps, M, c_next, kc, kd, mu, err, stride, w_steps, w_store,
                         w_count, mu_ok, settings.max_weight)
                     it_f = None
                 else:
-                    base = (model.f(Z.reshape(K * ns, n)).reshape(K, ns, n)
-                            + (uff[ks] @ g.T)[:, None, :] - ref[ks + 1][:, None, :])
-                    if method == "closed_form":
-                        status, kf = _closed_form_chunk(
-                            k_hi, deltas, base, A, g, problem.Q, problem.S, Rinv, problem.R, ref,
-                            n_steps, M, c_next, kc, kd, mu, err, stride, w_steps, w_store,
-                            w_count, mu_ok, settings.max_weight)
-                        it_f = None
-                    else:
-                        rec = rec_steps[0] if rec_steps and ks[-1] <= rec_steps[0] <= k_hi else -1
-                        rec_out = np.zeros((settings.n_iterations + 1, p, n))
-                        rec_n = np.ones(1, dtype=np.int64)
-                        status, kf, it_f = _alg1_chunk(
-                            k_hi, deltas, base, A, g, problem.Q, problem.S, Rinv, ref, n_steps,
-                            M, c_next, kc, kd, mu, err, iters, stride, w_steps, w_store, w_count,
-                            settings.n_iterations, settings.threshold, settings.warm_start,
-                            mu_ok, settings.max_weight, rec, rec_out, rec_n)
-                        if rec >= 0:
-                            history[rec] = rec_out[:rec_n[0]].copy()
+                    rec = rec_steps[0] if rec_steps and ks[-1] <= rec_steps[0] <= k_hi else -1
+                    rec_out = np.zeros((settings.n_iterations + 1, p, n))
+                    rec_n = np.ones(1, dtype=np.int64)
+                    status, kf, it_f = _alg1_chunk(
+                        k_hi, deltas, base, A, g, problem.Q, problem.S, Rinv, ref, n_steps,
+                        M, c_next, kc, kd, mu, err, iters, stride, w_steps, w_store, w_count,
+                        settings.n_iterations, settings.threshold, settings.warm_start,
+                        mu_ok, settings.max_weight, rec, rec_out, rec_n)
+                    if rec >= 0:
+                        history[rec] = rec_out[:rec_n[0]].copy()
                 if status == 1:
                     raise TrainingDiverged(int(kf), model.dt, _mu_reason(mu[kf]))
                 if status == 2:
@@ -783,7 +718,8 @@ def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, er
     n_steps = problem.n_steps
     W_next = None
     for k in range(n_steps - 1, -1, -1):
-        delta = _uniform_sets(rng, 1, ns, radius)[0]
+        delta = _uniform_sets(rng, [(n_steps - 1 - k) // settings.resample_every], ns, radius,
+                              compiled=False)[0]
         Z = ref[k] + delta
         Phi = basis(Z)
         base = model.f(Z) + g @ uff[k]
@@ -860,63 +796,6 @@ def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, er
         W_next = W
         if bar:
             bar[0].update(bar[1], advance=1)
-
-
-def riccati_numpy(problem: DHPProblem, settings: DHPSettings | None = None):
-    """Plain-NumPy Riccati form of the trainer (benchmark baseline, same samples and result).
-
-    Same mathematics, random stream and samples as ``method="riccati"`` (fresh samples every
-    step), written as a Python loop over steps with NumPy calls. Returns ``(kc, kd, mu)``."""
-    settings = settings or DHPSettings()
-    model = problem.model
-    n, m = model.n_states, model.n_inputs
-    ns = settings.n_samples if settings.n_samples is not None else max(2 * (n + 1), 20)
-    radius = np.broadcast_to(np.asarray(settings.sample_radius, dtype=float), (n,)).copy()
-    rng = np.random.default_rng(settings.seed)
-    A, g, Q, S, R = model.linear, model.g, problem.Q, problem.S, problem.R
-    Rinv = np.linalg.inv(R)
-    ref, uff = problem.reference, problem.u_ff
-    n_steps = problem.n_steps
-    kc = np.zeros((n_steps, m))
-    kd = np.zeros((n_steps, m, n))
-    mu = np.zeros(n_steps)
-    M = S.copy()
-    c_next = np.zeros(n)
-    chunk = settings.chunk
-    k_hi = n_steps - 1
-    while k_hi >= 0:
-        K = min(chunk, k_hi + 1)
-        ks = np.arange(k_hi, k_hi - K, -1)
-        sets = _uniform_sets(rng, K, ns, radius)
-        Z = sets + ref[ks][:, None, :]
-        hs, cmap = _nonlinear_samples(model, Z)
-        for j, k in enumerate(ks):
-            last = k == n_steps - 1
-            Mk = S if last else M
-            a = np.zeros(n) if last else A.T @ c_next
-            mu[k] = float(np.max(np.abs(np.linalg.eigvals(g.T @ Mk @ g @ Rinv))))
-            if cmap.shape[1]:
-                Phi = np.hstack([np.ones((ns, 1)), sets[j]])
-                sol = np.linalg.solve(Phi.T @ Phi, Phi.T @ hs[j])
-                H = cmap @ sol[1:].T
-                h0 = cmap @ sol[0]
-            else:
-                H = np.zeros((n, n))
-                h0 = np.zeros(n)
-            F = A + H
-            Mg = Mk @ g
-            Sginv = np.linalg.inv(R + g.T @ Mg)
-            NM = Mk - Mg @ (Sginv @ (g.T @ Mk))
-            e_r = A @ ref[k] + h0 + g @ uff[k] - ref[k + 1]
-            v = Mk @ e_r + a
-            c = v - Mg @ (Sginv @ (g.T @ v))
-            Dt = NM @ F
-            kc[k] = Rinv @ (g.T @ c)
-            kd[k] = Rinv @ (g.T @ Dt)
-            M = Q + A.T @ Dt
-            c_next = c
-        k_hi -= K
-    return kc, kd, mu
 
 
 # ---------------------------------------------------------------------------------------- LQR

@@ -1,0 +1,712 @@
+"""The fast exact DHP trainer: the Riccati form with fresh samples, in the modal basis.
+
+This is ``method="riccati"`` of :func:`downhole.control.dhp.trainer.train_dhp`: the same weights
+as Algorithm 1 (seed Sec. 4.3.3) at its fixed point, with N_S fresh random samples at every
+step, computed as
+
+1. *samples* (fresh at every step): ``w = 2 u - 1``, ``u`` uniform from the SFC64 generator
+   (bit-identical to ``numpy.random.Generator(numpy.random.SFC64(seed))``, so the plain-NumPy
+   baseline and the reference methods draw the very same samples), ``z = r_k + radius * w``;
+2. *the fit* of the nonlinear forces only (``h(z) = forces(z) @ force_map.T``): least squares
+   of the q force columns on ``phi = [1, w]`` over the N_S samples (normal equations, Cholesky);
+   steps are independent, so this runs chunk by chunk and, with ``threads > 1``, in parallel;
+3. *the backward pass* (sequential) in the real modal basis of the linear part,
+   ``A = V T V^-1`` with T block diagonal (1x1 and 2x2 blocks): with M' = V^T M V,
+   g' = V^-1 g, Gam' = V^-1 force_map and the fitted slopes ``C`` (n, q),
+
+       N M' = M' - M'g' (R + g'^T M' g')^-1 g'^T M'
+       D'   = N M' T + (N M' Gam') (C^T V)            (D' = V^T D_k^T V)
+       c'   = N [M' e'_k + T^T c'_{k+1}]               (e'_k = V^-1 (f_fit(r_k) + g u_ff - r_{k+1}))
+       M'_{k-1} = Q' + T^T D'
+       kd_k = R^-1 g'^T D' V^-1,  kc_k = R^-1 g'^T c'
+
+   which is the Riccati form of :mod:`~downhole.control.dhp.trainer` written in other
+   coordinates (a similarity transform; no approximation). The per-step cost is O(n^2 q) instead
+   of the O(n^3) of the two dense products D = N M (A + H), M = Q + A^T D; T being block
+   diagonal, N M' T and T^T D' are O(n^2). When the eigenvector matrix is ill-conditioned
+   (cond > 1e7, e.g. a defective A) the pass runs with V = I and T = A (dense).
+
+What is fresh: the N_S x n sample offsets of every step (``resample_every = 1``, as the seed's
+Algorithm 1). What is constant and computed once: V, T, g', Gam', Q', S' and the linear part of
+the residual along the reference. With ``resample_every = K`` the offsets (not the samples: they
+stay centred on each step's reference) are re-used for K steps and the Cholesky factor of the
+sample design matrix with them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+from numba import njit, uint64
+
+__all__ = ["ModalForm", "draw_offsets", "compiled_offsets", "train_riccati", "riccati_numpy"]
+
+
+# ----------------------------------------------------------------------------------- samples
+_M64 = (1 << 64) - 1
+
+
+@njit(cache=True, nogil=True)
+def _splitmix(x):
+    x = x + uint64(0x9E3779B97F4A7C15)
+    z = x
+    z = (z ^ (z >> uint64(30))) * uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> uint64(27))) * uint64(0x94D049BB133111EB)
+    return x, z ^ (z >> uint64(31))
+
+
+@njit(cache=True, nogil=True)
+def _sfc64_next(st):
+    a, b, c, w = st[0], st[1], st[2], st[3]
+    tmp = a + b + w
+    st[3] = w + uint64(1)
+    st[0] = b ^ (b >> uint64(11))
+    st[1] = c + (c << uint64(3))
+    st[2] = ((c << uint64(24)) | (c >> uint64(40))) + tmp
+    return tmp
+
+
+@njit(cache=True, nogil=True)
+def _step_state(seed, k, st):
+    """SFC64 state of sample set ``k``: a, b, c from SplitMix64 of (seed, k), counter 1, then 12
+    discarded outputs (as NumPy seeds SFC64)."""
+    x = uint64(seed) * uint64(0xD1B54A32D192ED03) + uint64(k)
+    x, st[0] = _splitmix(x)
+    x, st[1] = _splitmix(x)
+    x, st[2] = _splitmix(x)
+    st[3] = uint64(1)
+    for _ in range(12):
+        _sfc64_next(st)
+
+
+def _step_state_py(seed: int, k: int) -> list[int]:
+    """Pure-Python twin of :func:`_step_state` (for the NumPy generator)."""
+    def mix(x):
+        x = (x + 0x9E3779B97F4A7C15) & _M64
+        z = x
+        z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _M64
+        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _M64
+        return x, z ^ (z >> 31)
+
+    x = (seed * 0xD1B54A32D192ED03 + k) & _M64
+    x, a = mix(x)
+    x, b = mix(x)
+    x, c = mix(x)
+    w = 1
+    for _ in range(12):
+        tmp = (a + b + w) & _M64
+        w += 1
+        a = b ^ (b >> 11)
+        b = (c + (c << 3)) & _M64
+        c = ((((c << 24) | (c >> 40)) & _M64) + tmp) & _M64
+    return [a, b, c, w]
+
+
+@njit(cache=True, nogil=True)
+def _draw_one(seed, set_id, refk, radius, Phi, Z):
+    """Fresh samples of one step: Phi (N, n+1) = [1, w] with w = 2u - 1, u the SFC64 stream of
+    sample set ``set_id`` (row by row), and z = r_k + radius * w in Z (N, n)."""
+    N, p = Phi.shape
+    n = p - 1
+    st = np.empty(4, dtype=np.uint64)
+    scale = 1.0 / 9007199254740992.0
+    _step_state(seed, set_id, st)
+    a, b, c, w = st[0], st[1], st[2], st[3]
+    for s in range(N):
+        Phi[s, 0] = 1.0
+        for i in range(n):
+            tmp = a + b + w
+            w += uint64(1)
+            a = b ^ (b >> uint64(11))
+            b = c + (c << uint64(3))
+            c = ((c << uint64(24)) | (c >> uint64(40))) + tmp
+            x = 2.0 * ((tmp >> uint64(11)) * scale) - 1.0
+            Phi[s, i + 1] = x
+            Z[s, i] = refk[i] + radius[i] * x
+
+
+@njit(cache=True, nogil=True)
+def _draw(seed, set_ids, ref, radius, Phi, Z):
+    """:func:`_draw_one` for every step j of a chunk (Phi (K, N, n+1), Z (K, N, n))."""
+    for j in range(set_ids.shape[0]):
+        _draw_one(seed, set_ids[j], ref[j], radius, Phi[j], Z[j])
+
+
+def draw_offsets(seed: int, set_ids, ns: int, n: int) -> np.ndarray:
+    """Offsets w in [-1, 1) (len(set_ids), ns, n) in plain NumPy: ``Generator(SFC64)`` with the
+    state of each set (the same numbers as the compiled trainer draws)."""
+    bg = np.random.SFC64(0)
+    gen = np.random.Generator(bg)
+    st = bg.state
+    out = np.empty((len(set_ids), ns, n))
+    for j, k in enumerate(set_ids):
+        st["state"]["state"] = np.array(_step_state_py(int(seed), int(k)), dtype=np.uint64)
+        st["has_uint32"] = 0
+        bg.state = st
+        out[j] = gen.random((ns, n))
+    out *= 2.0
+    out -= 1.0
+    return out
+
+
+def compiled_offsets(seed: int, set_ids, ns: int, radius) -> np.ndarray:
+    """radius * w (len(set_ids), ns, n) drawn by the compiled kernel (same numbers as
+    :func:`draw_offsets`)."""
+    set_ids = np.ascontiguousarray(set_ids, dtype=np.int64)
+    radius = np.ascontiguousarray(radius, dtype=float)
+    n = radius.shape[0]
+    K = set_ids.size
+    Phi = np.empty((K, ns, n + 1))
+    Z = np.empty((K, ns, n))
+    _draw(int(seed), set_ids, np.zeros((K, n)), radius, Phi, Z)
+    return Z
+
+
+# ----------------------------------------------------------------------------------- modal form
+class ModalForm:
+    """Real block-diagonal (modal) coordinates of a DHP problem's linear part.
+
+    Attributes
+    ----------
+    V, Vinv : ndarray (n, n)
+        A = V T V^-1 (identity when ``banded`` is False).
+    T : ndarray (n, n)
+        Block-diagonal (``banded``) or A itself.
+    td, tu, tl : ndarray (n,)
+        Diagonal, super-diagonal T[i, i+1] and sub-diagonal T[i+1, i] of the blocks.
+    banded : bool
+    cond : float
+        Condition number of V.
+    """
+
+    def __init__(self, A: np.ndarray, max_cond: float = 1e7):
+        n = A.shape[0]
+        self.banded = False
+        self.cond = 1.0
+        V = np.eye(n)
+        T = A.copy()
+        try:
+            w, Vc = np.linalg.eig(A)
+            # conjugate pairs adjacent, real eigenvalues as they come
+            wr, Vr = scipy.linalg.cdf2rdf(w, Vc)
+            Vr = Vr / np.linalg.norm(Vr, axis=0)
+            cond = float(np.linalg.cond(Vr))
+            if np.isfinite(cond) and cond < max_cond:
+                Vinv = np.linalg.inv(Vr)
+                Tm = Vinv @ A @ Vr
+                off = Tm.copy()
+                for i in range(n):
+                    for j in range(max(0, i - 1), min(n, i + 2)):
+                        off[i, j] = 0.0
+                if np.abs(off).max() <= 1e-9 * max(1.0, np.abs(A).max()):
+                    V, T, self.banded, self.cond = Vr, Tm, True, cond
+        except (np.linalg.LinAlgError, ValueError):
+            pass
+        if self.banded:
+            T = T.copy()
+            for i in range(n):
+                for j in range(n):
+                    if abs(i - j) > 1:
+                        T[i, j] = 0.0
+            # 1x1 blocks next to each other carry no coupling
+            self.Vinv = np.linalg.inv(V)
+        else:
+            self.Vinv = np.eye(n)
+        self.V, self.T = V, T
+        self.td = np.ascontiguousarray(np.diag(T))
+        self.tu = np.zeros(n)
+        self.tl = np.zeros(n)
+        if self.banded:
+            self.tu[:-1] = np.diag(T, 1)
+            self.tl[:-1] = np.diag(T, -1)
+
+
+# ----------------------------------------------------------------------------------- kernels
+@njit(cache=True, nogil=True)
+def _chol_upper_lapack(U):
+    """In place: U (symmetric positive definite) -> its upper Cholesky factor (G = U^T U) by
+    LAPACK's potrf. False if not positive definite."""
+    p = U.shape[0]
+    for j in range(p):
+        if not U[j, j] > 0.0:
+            return False
+    try:
+        L = np.linalg.cholesky(U)
+    except Exception:  # noqa: BLE001 - numba raises LinAlgError for a non-PD matrix
+        return False
+    for i in range(p):
+        for j in range(p):
+            U[i, j] = L[j, i]
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _solve_upper(U, B):
+    """B <- (U^T U)^-1 B for the upper Cholesky factor U (column-oriented, contiguous rows)."""
+    p = U.shape[0]
+    q = B.shape[1]
+    for k in range(p):                       # U^T y = b
+        inv = 1.0 / U[k, k]
+        for c in range(q):
+            B[k, c] *= inv
+        for i in range(k + 1, p):
+            f = U[k, i]
+            for c in range(q):
+                B[i, c] -= f * B[k, c]
+    for i in range(p - 1, -1, -1):           # U x = y
+        for k in range(i + 1, p):
+            f = U[i, k]
+            for c in range(q):
+                B[i, c] -= f * B[k, c]
+        inv = 1.0 / U[i, i]
+        for c in range(q):
+            B[i, c] *= inv
+
+
+@njit(cache=True, nogil=True)
+def _fit_one(Phi, F, Vr, c0, Y, U, B, refactor):
+    """Least-squares fit of one step: F (N, q) ~ c0 + w C_w on Phi = [1, w]; Y = C_w^T Vr
+    = C^T V (q, n). U (p, p) holds the Cholesky factor of Phi^T Phi (computed when
+    ``refactor``), B (p, q) is scratch. False when the design matrix is singular."""
+    q = F.shape[1]
+    if refactor:
+        np.dot(Phi.T, Phi, U)
+        if not _chol_upper_lapack(U):
+            return False
+    np.dot(Phi.T, F, B)
+    _solve_upper(U, B)
+    for c in range(q):
+        c0[c] = B[0, c]
+    np.dot(B[1:].T, Vr, Y)
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _fit(Phi, F, set_ids, Vr, c0, Y):
+    """:func:`_fit_one` for every step j of a chunk (the factor re-used while the sample set
+    repeats). Returns the first step whose design matrix is singular, or -1."""
+    K, N, p = Phi.shape
+    q = F.shape[2]
+    if q == 0:
+        return -1
+    U = np.empty((p, p))
+    B = np.empty((p, q))
+    for j in range(K):
+        if not _fit_one(Phi[j], F[j], Vr, c0[j], Y[j], U, B,
+                        j == 0 or set_ids[j] != set_ids[j - 1]):
+            return j
+    return -1
+
+
+@njit(cache=True, nogil=True)
+def _mu2(X):
+    m = X.shape[0]
+    if m == 1:
+        return abs(X[0, 0])
+    if m == 2:
+        tr = 0.5 * (X[0, 0] + X[1, 1])
+        det = X[0, 0] * X[1, 1] - X[0, 1] * X[1, 0]
+        disc = tr * tr - det
+        if disc >= 0.0:
+            sq = np.sqrt(disc)
+            return max(abs(tr + sq), abs(tr - sq))
+        return np.sqrt(abs(det))
+    ev = np.linalg.eigvals(X.astype(np.complex128))
+    r = 0.0
+    for e in ev:
+        if abs(e) > r:
+            r = abs(e)
+    return r
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp, R, Rinv, Vinv,
+              M, cn, kc, kd, mu_out, mu_max_ok, max_weight, keep_every, w_steps, w_Dp, w_cp,
+              w_count):
+    """Sequential backward pass over the K steps k_hi, k_hi - 1, ... of a chunk (modal form).
+
+    base (K, n): V^-1 (A r_k + g u_ff,k - r_{k+1}); c0 (K, q) fitted forces at the reference;
+    Y (K, q, n) = C^T V of the fitted slopes. M (n, n) and cn (n,) carry M'_k and c'_{k+1}
+    between chunks. Returns (status, step): 0 ok, 1 mu >= mu_max_ok, 2 non-finite/too large."""
+    K = base.shape[0]
+    n = M.shape[0]
+    m = gp.shape[1]
+    q = Gp.shape[1]
+    gpT = np.ascontiguousarray(gp.T)
+    Mg = np.empty((n, m))
+    gM = np.empty((m, n))
+    NM = np.empty((n, n))
+    D = np.empty((n, n))
+    X = np.empty((n, q))
+    XY = np.zeros((n, n))
+    e = np.empty(n)
+    v = np.empty(n)
+    a = np.empty(n)
+    W1 = np.empty((m, n))
+    RW = np.empty((m, n))
+    tdn = np.zeros(n + 1)
+    tun = np.zeros(n + 1)      # tun[c] = T[c-1, c]
+    tln = np.zeros(n + 1)      # tln[c] = T[c+1, c]
+    for c in range(n):
+        tdn[c] = td[c]
+        if c > 0:
+            tun[c] = tu[c - 1]
+        tln[c] = tl[c]
+    for j in range(K):
+        k = k_hi - j
+        if k == n_total - 1:
+            M[:, :] = Sp
+            a[:] = 0.0
+        elif banded:
+            for i in range(n):
+                s = td[i] * cn[i]
+                if i > 0:
+                    s += tu[i - 1] * cn[i - 1]
+                if i < n - 1:
+                    s += tl[i] * cn[i + 1]
+                a[i] = s
+        else:
+            np.dot(T.T, cn, a)
+        for l in range(m):                     # M'g', g'^T M' (m is small: loops, no BLAS)
+            gl = gpT[l]
+            gMl = gM[l]
+            for c in range(n):
+                gMl[c] = 0.0
+            for r in range(n):
+                Mr = M[r]
+                s = 0.0
+                f = gl[r]
+                for c in range(n):
+                    s += Mr[c] * gl[c]
+                    gMl[c] += f * Mr[c]
+                Mg[r, l] = s
+        gMg = gpT @ Mg
+        mu = _mu2(gMg @ Rinv)
+        mu_out[k] = mu
+        if mu >= mu_max_ok:
+            return 1, k
+        Sginv = np.linalg.inv(R + gMg)
+        MgS = Mg @ Sginv                       # (n, m)
+        for r in range(n):                     # N M' = M' - M'g' Sg^-1 g'^T M'
+            Mr = M[r]
+            NMr = NM[r]
+            for c in range(n):
+                NMr[c] = Mr[c]
+            for l in range(m):
+                f = MgS[r, l]
+                gl = gM[l]
+                for c in range(n):
+                    NMr[c] -= f * gl[c]
+        for i in range(n):                     # e' = base + Gam' c0
+            s = base[j, i]
+            for l in range(q):
+                s += Gp[i, l] * c0[j, l]
+            e[i] = s
+        np.dot(M, e, v)
+        for i in range(n):
+            v[i] += a[i]
+        t = Sginv @ (gpT @ v)
+        for i in range(n):                     # c' = N v
+            s = v[i]
+            for l in range(m):
+                s -= Mg[i, l] * t[l]
+            cn[i] = s
+        if q > 0:                              # (N M' Gam') Y
+            np.dot(NM, Gp, X)
+            np.dot(X, Y[j], XY)
+        if banded:                             # D' = N M' T + (N M' Gam') Y
+            for r in range(n):
+                NMr = NM[r]
+                Dr = D[r]
+                XYr = XY[r]
+                Dr[0] = NMr[0] * tdn[0] + XYr[0]
+                for c in range(1, n):
+                    Dr[c] = NMr[c] * tdn[c] + NMr[c - 1] * tun[c] + XYr[c]
+                for c in range(n - 1):
+                    Dr[c] += NMr[c + 1] * tln[c]
+        else:
+            np.dot(NM, T, D)
+            D += XY
+        for l in range(m):                     # gains: kd = R^-1 g'^T D' V^-1
+            W1l = W1[l]
+            for c in range(n):
+                W1l[c] = 0.0
+            for r in range(n):
+                f = gpT[l, r]
+                Dr = D[r]
+                for c in range(n):
+                    W1l[c] += f * Dr[c]
+        for l in range(m):
+            for c in range(n):
+                s = 0.0
+                for i in range(m):
+                    s += Rinv[l, i] * W1[i, c]
+                RW[l, c] = s
+        kdk = kd[k]
+        for l in range(m):
+            out = kdk[l]
+            for c in range(n):
+                out[c] = 0.0
+            for r in range(n):
+                f = RW[l, r]
+                Vr_ = Vinv[r]
+                for c in range(n):
+                    out[c] += f * Vr_[c]
+        kc[k] = Rinv @ (gpT @ cn)
+        for i in range(n):
+            if not abs(cn[i]) < max_weight:
+                return 2, k
+        for r in range(m):
+            for c in range(n):
+                if not abs(kd[k, r, c]) < max_weight:
+                    return 2, k
+        if keep_every > 0 and k % keep_every == 0:
+            w_steps[w_count[0]] = k
+            w_Dp[w_count[0]] = D
+            w_cp[w_count[0]] = cn
+            w_count[0] += 1
+        if banded:                             # M'_{k-1} = Q' + T^T D'
+            for r in range(n):
+                Mr = M[r]
+                Qr = Qp[r]
+                Dr = D[r]
+                f = td[r]
+                for c in range(n):
+                    Mr[c] = Qr[c] + f * Dr[c]
+                if r > 0:
+                    f = tu[r - 1]
+                    Dp = D[r - 1]
+                    for c in range(n):
+                        Mr[c] += f * Dp[c]
+                if r < n - 1:
+                    f = tl[r]
+                    Dn = D[r + 1]
+                    for c in range(n):
+                        Mr[c] += f * Dn[c]
+        else:
+            np.dot(T.T, D, NM)                 # NM is free here
+            for r in range(n):
+                for c in range(n):
+                    M[r, c] = Qp[r, c] + NM[r, c]
+    return 0, -1
+
+
+# ----------------------------------------------------------------------------------- driver
+def _prepare(problem, radius):
+    """Constant pieces of the modal Riccati form."""
+    model = problem.model
+    A = np.ascontiguousarray(model.linear)
+    g = np.ascontiguousarray(model.g)
+    n = A.shape[0]
+    mf = ModalForm(A)
+    if model.is_linear:
+        Gam = np.zeros((n, 0))
+    elif model.force_map is not None:
+        Gam = np.ascontiguousarray(model.force_map)
+    else:
+        rows = model.nonlinear_rows
+        Gam = np.zeros((n, rows.size))
+        Gam[rows, np.arange(rows.size)] = 1.0
+    Vinv, V = mf.Vinv, mf.V
+    ref, uff = problem.reference, problem.u_ff
+    lin = ref[:-1] @ A.T + uff @ g.T - ref[1:]
+    base = np.ascontiguousarray(lin @ Vinv.T)
+    return dict(mf=mf, gp=np.ascontiguousarray(Vinv @ g), Gp=np.ascontiguousarray(Vinv @ Gam),
+                Qp=np.ascontiguousarray(V.T @ problem.Q @ V),
+                Sp=np.ascontiguousarray(V.T @ problem.S @ V),
+                Vr=np.ascontiguousarray(V / radius[:, None]), base=base, Gam=Gam,
+                q=Gam.shape[1])
+
+
+def _forces(model, Zflat, q):
+    if q == 0:
+        return np.zeros((Zflat.shape[0], 0))
+    if model.force_map is not None:
+        return np.ascontiguousarray(model.forces(Zflat), dtype=float)
+    return np.ascontiguousarray(model.nonlinear(Zflat)[:, model.nonlinear_rows])
+
+
+class _Chunk:
+    """Fit results of one chunk of steps."""
+
+    def __init__(self, K, ns, n, q):
+        self.ns = ns
+        self.c0 = np.zeros((K, q))
+        self.Y = np.zeros((K, q, n))
+
+
+def _produce(model, seed, q, ref, radius, buf, ks, sid, a, b):
+    """Samples, forces and fits of the steps ks[a:b] into buf[a:b] (GIL released in kernels).
+
+    A model with a compiled ``sample_fit`` (e.g. the directional design model) does all three
+    per step in one kernel (the step's samples stay in cache); otherwise the samples of the
+    chunk are drawn, ``model.forces`` evaluated on them and the fits computed."""
+    if b <= a:
+        return -1
+    n = ref.shape[1]
+    ns = buf.ns
+    if q == 0:
+        return -1
+    fused = getattr(model, "sample_fit", None)
+    if fused is not None:
+        j = fused(seed, sid[a:b], ref[ks[a:b]], radius, ns, buf.Vr, buf.c0[a:b], buf.Y[a:b])
+        return -1 if j < 0 else a + j
+    Phi = np.empty((b - a, ns, n + 1))
+    Z = np.empty((b - a, ns, n))
+    _draw(seed, sid[a:b], ref[ks[a:b]], radius, Phi, Z)
+    F = _forces(model, Z.reshape((b - a) * ns, n), q).reshape(b - a, ns, q)
+    j = _fit(Phi, F, sid[a:b], buf.Vr, buf.c0[a:b], buf.Y[a:b])
+    return -1 if j < 0 else a + j
+
+
+def train_riccati(problem, settings, ns, radius, out, mu_ok, bar=None):
+    """Run the modal Riccati trainer; fills ``out`` (kc, kd, mu, w_steps, w_store, w_count).
+
+    Returns ``(status, step)``: 0 ok, 1 mu >= 1, 2 weights non-finite/too large, 3 singular
+    sample design matrix."""
+    model = problem.model
+    n = model.n_states
+    pre = _prepare(problem, radius)
+    mf, q = pre["mf"], pre["q"]
+    n_steps = problem.n_steps
+    kc, kd, mu = out["kc"], out["kd"], out["mu"]
+    stride = out["stride"]
+    n_keep = out["w_store"].shape[0]
+    w_steps, w_count = out["w_steps"], out["w_count"]
+    w_Dp = np.zeros((n_keep, n, n))
+    w_cp = np.zeros((n_keep, n))
+    Rinv = np.linalg.inv(problem.R)
+    M = np.zeros((n, n))
+    cn = np.zeros(n)
+    ref = problem.reference
+    re = settings.resample_every
+    seed = int(settings.seed)
+    threads = settings.threads
+    # chunk: ~2 MB of samples per thread when they are stored, at most settings.chunk steps
+    fused = getattr(model, "sample_fit", None) is not None
+    K0 = settings.chunk if fused else max(1, min(settings.chunk,
+                                                 threads * max(4, 262144 // (ns * n))))
+    bufs = [_Chunk(K0, ns, n, q) for _ in range(2 if threads > 1 else 1)]
+    for bf in bufs:
+        bf.Vr = pre["Vr"]
+    chunks = []
+    k_hi = n_steps - 1
+    while k_hi >= 0:
+        K = min(K0, k_hi + 1)
+        ks = np.arange(k_hi, k_hi - K, -1)
+        chunks.append((k_hi, ks, ((n_steps - 1 - ks) // re).astype(np.int64)))
+        k_hi -= K
+
+    def submit(pool, i):
+        k_hi, ks, sid = chunks[i]
+        buf = bufs[i % len(bufs)]
+        K = ks.size
+        cuts = np.linspace(0, K, threads + 1).round().astype(int)
+        if pool is None:
+            return [_produce(model, seed, q, ref, radius, buf, ks, sid, 0, K)]
+        return [pool.submit(_produce, model, seed, q, ref, radius, buf, ks, sid, cuts[t],
+                            cuts[t + 1]) for t in range(threads)]
+
+    pool = None
+    if threads > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        pool = ThreadPoolExecutor(threads)
+    status, kf = 0, -1
+    try:
+        pending = submit(pool, 0)
+        for i, (k_hi, ks, sid) in enumerate(chunks):
+            res = [f.result() if pool is not None else f for f in pending]
+            bad = [r for r in res if r >= 0]
+            if bad:
+                return 3, int(ks[min(bad)])
+            if i + 1 < len(chunks):
+                if pool is not None:
+                    pending = submit(pool, i + 1)
+            buf = bufs[i % len(bufs)]
+            K = ks.size
+            status, kf = _backward(k_hi, n_steps, pre["base"][ks], buf.c0[:K], buf.Y[:K], mf.T,
+                                   mf.td, mf.tu, mf.tl, mf.banded, pre["gp"], pre["Gp"],
+                                   pre["Qp"], pre["Sp"], problem.R, Rinv, mf.Vinv, M, cn, kc,
+                                   kd, mu, mu_ok, settings.max_weight, stride, w_steps, w_Dp,
+                                   w_cp, w_count)
+            if status:
+                break
+            if pool is None and i + 1 < len(chunks):
+                pending = submit(None, i + 1)
+            if bar:
+                bar[0].update(bar[1], advance=K)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+    # full weights W_k = [c - D r_k; D^T] of the snapshots, back in the original coordinates
+    for i in range(int(w_count[0])):
+        k = w_steps[i]
+        Dt = mf.Vinv.T @ w_Dp[i] @ mf.Vinv
+        c = mf.Vinv.T @ w_cp[i]
+        out["w_store"][i, 0] = c - Dt @ ref[k]
+        out["w_store"][i, 1:] = Dt.T
+    return status, kf
+
+
+# ----------------------------------------------------------------------------------- baseline
+def riccati_numpy(problem, settings=None):
+    """Plain-NumPy version of the same trainer (benchmark baseline, same samples and result).
+
+    The same algorithm as ``method="riccati"`` - fresh samples from the same SFC64 streams
+    (``numpy.random.Generator``), the force fit, the modal Riccati pass - written with NumPy
+    calls: the fits of a chunk of steps batched (``matmul`` / ``solve`` on stacks), the
+    backward pass a Python loop over steps. Returns ``(kc, kd, mu)``."""
+    from downhole.control.dhp.trainer import DHPSettings
+
+    settings = settings or DHPSettings()
+    model = problem.model
+    n, m = model.n_states, model.n_inputs
+    ns = settings.n_samples if settings.n_samples is not None else max(2 * (n + 1), 20)
+    radius = np.broadcast_to(np.asarray(settings.sample_radius, dtype=float), (n,)).copy()
+    pre = _prepare(problem, radius)
+    mf, q = pre["mf"], pre["q"]
+    gp, Gp, Qp, Sp, Vr, base = (pre[k] for k in ("gp", "Gp", "Qp", "Sp", "Vr", "base"))
+    R = problem.R
+    Rinv = np.linalg.inv(R)
+    ref = problem.reference
+    n_steps = problem.n_steps
+    kc = np.zeros((n_steps, m))
+    kd = np.zeros((n_steps, m, n))
+    mu = np.zeros(n_steps)
+    M = Sp.copy()
+    cn = np.zeros(n)
+    K0 = max(4, min(256, 262144 // (ns * n)))
+    T, Vinv = mf.T, mf.Vinv
+    k_hi = n_steps - 1
+    while k_hi >= 0:
+        K = min(K0, k_hi + 1)
+        ks = np.arange(k_hi, k_hi - K, -1)
+        W = draw_offsets(settings.seed, (n_steps - 1 - ks) // settings.resample_every, ns, n)
+        Z = ref[ks][:, None, :] + radius * W
+        if q:
+            F = _forces(model, Z.reshape(K * ns, n), q).reshape(K, ns, q)
+            Phi = np.concatenate([np.ones((K, ns, 1)), W], axis=2)
+            PhiT = Phi.transpose(0, 2, 1)
+            sol = np.linalg.solve(PhiT @ Phi, PhiT @ F)          # (K, p, q)
+            c0 = sol[:, 0, :]
+            Yk = sol[:, 1:, :].transpose(0, 2, 1) @ Vr            # (K, q, n)
+        for j, k in enumerate(ks):
+            last = k == n_steps - 1
+            Mk = Sp if last else M
+            a = np.zeros(n) if last else T.T @ cn
+            Mg = Mk @ gp
+            mu[k] = float(np.max(np.abs(np.linalg.eigvals(gp.T @ Mg @ Rinv))))
+            Sginv = np.linalg.inv(R + gp.T @ Mg)
+            NM = Mk - Mg @ (Sginv @ (gp.T @ Mk))
+            e = base[k] + (Gp @ c0[j] if q else 0.0)
+            v = Mk @ e + a
+            cn = v - Mg @ (Sginv @ (gp.T @ v))
+            D = NM @ T
+            if q:
+                D = D + (NM @ Gp) @ Yk[j]
+            kd[k] = Rinv @ (gp.T @ D) @ Vinv
+            kc[k] = Rinv @ (gp.T @ cn)
+            M = Qp + T.T @ D
+        k_hi -= K
+    return kc, kd, mu
