@@ -164,6 +164,7 @@ def run_on_plant(controller: DHPController, plant, duration: float, *, adapter=N
                                  f"{controller.dt}")
     n = _check_duration(duration, dt)
     obs = plant.reset()
+    controller.reset()
     rows, inputs, times = [], [], []
     keys = None
     for k in range(n + 1):

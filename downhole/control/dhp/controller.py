@@ -109,6 +109,10 @@ class DHPController:
         self._model = None
         self._ext_ref = None
         self._ext_uff = None
+        integ = self.meta.get("model", {}).get("metadata", {}).get("integral") \
+            if isinstance(self.meta.get("model"), dict) else None
+        self._integral = integ or self.meta.get("integral")
+        self.reset()
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -132,8 +136,61 @@ class DHPController:
         self._model = model
         return self
 
+    def calibrate_feed_forward(self, plant_model) -> "DHPController":
+        """Correct the feed-forward with the steady-state inputs of another model of the plant.
+
+        The design model's static map (the inputs that hold the string at the reference
+        velocities) differs from a finer plant's (e.g. the 68-state hybrid needs ~4% more
+        torque than the 24-state design FEM: the contact forces of the finer mesh). This adds
+        u_ff,plant,k - u_ff,design,k (both by :func:`~downhole.control.dhp.drilling.feed_forward`
+        along the same bit reference) to the commands, like calibrating a feed-forward on the
+        rig. The gains are unchanged. Saved with the controller (``arrays["u_ff_correction"]``).
+
+        Parameters
+        ----------
+        plant_model : ControlAffineModel
+            Control-affine model of the plant (e.g. ``directional_affine_model(hybrid68)``),
+            with the same inputs and dt.
+        """
+        from downhole.control.dhp.drilling import feed_forward, reference_states
+
+        if tuple(plant_model.input_names) != self.input_names or abs(plant_model.dt
+                                                                      - self.dt) > 1e-15:
+            raise DownholeInputError("plant_model must have the controller's inputs "
+                                     f"{self.input_names} and dt = {self.dt}")
+        v, w, x, a = self.reference.sample(self.n_steps, self.dt)
+        ref = reference_states(plant_model, v, w, x, a)
+        u_plant = feed_forward(plant_model, ref) * plant_model.input_scale
+        self.arrays["u_ff_correction"] = u_plant / self.input_scale - self.u_ff
+        self.meta["feed_forward_calibrated_on"] = plant_model.name
+        return self
+
     def reset(self) -> None:
-        """Nothing to reset (the law depends only on the step index); kept for the interface."""
+        """Restart the integrator states (integral action); otherwise the law is stateless."""
+        self._xi = None
+        self._xi_k = -1
+        self._xi_v = None
+        self._saturated = False
+
+    def _augment(self, k: int, z: np.ndarray) -> np.ndarray:
+        """Append the integrator states xi (sums of the bit velocities, physical) to ``z``.
+
+        The error xi - r_xi is frozen while an input saturated at the last command
+        (anti-windup); the integrator restarts at zero error at step 0 or a step backwards."""
+        nb = int(self._integral["n_base"])
+        iv, iw = (int(i) for i in self._integral["source"])
+        r_xi = self.step_terms(k)[0][nb:] * self.state_scale[nb:]
+        if self._xi is None or k <= 0 or k < self._xi_k:
+            self._xi = r_xi.copy()
+        elif k > self._xi_k:
+            if self._saturated:
+                r_prev = self.step_terms(self._xi_k)[0][nb:] * self.state_scale[nb:]
+                self._xi = self._xi + (r_xi - r_prev)
+            else:
+                self._xi = self._xi + (k - self._xi_k) * self.dt * self._xi_v
+        self._xi_k = k
+        self._xi_v = np.array([z[iv], z[iw]])
+        return np.concatenate([z, self._xi])
 
     # ------------------------------------------------------------------ reference beyond
     def _extend(self, k: int) -> None:
@@ -152,8 +209,8 @@ class DHPController:
             if kind in kinds:
                 r[:, i] = kinds[kind]
         r /= self.state_scale
-        if self._model is not None:
-            uff = feed_forward(self._model, r)
+        if self._model is not None and self.meta.get("use_feed_forward", True):
+            uff, r = feed_forward(self._model, r, return_reference=True)
         else:
             rate = self.u_ff[-1] - self.u_ff[-2] if self.n_steps > 1 else 0.0 * self.u_ff[-1]
             extra = np.arange(1, total - self.n_steps + 1)[:, None] * rate + self.u_ff[-1]
@@ -165,8 +222,10 @@ class DHPController:
         """(rbar_k, u_ff,k, kc_k, kd_k) for step ``k`` (>= 0), applying the past-horizon policy."""
         if k < 0:
             raise DownholeInputError(f"step index must be >= 0, got {k}")
+        corr = self.arrays.get("u_ff_correction")
         if k < self.n_steps:
-            return self.reference_nd[k], self.u_ff[k], self.kc[k], self.kd[k]
+            uff = self.u_ff[k] if corr is None else self.u_ff[k] + corr[k]
+            return self.reference_nd[k], uff, self.kc[k], self.kd[k]
         if self.past_horizon == "error":
             raise DownholeInputError(
                 f"step {k} (t = {k * self.dt:.6g} s) is past the trained horizon "
@@ -175,19 +234,24 @@ class DHPController:
         self._extend(k)
         j = k - self.n_steps
         ks = self.stationary_step
-        return self._ext_ref[j], self._ext_uff[j], np.zeros_like(self.kc[ks]), self.kd[ks]
+        uff = self._ext_uff[j] if corr is None else self._ext_uff[j] + corr[-1]
+        return self._ext_ref[j], uff, np.zeros_like(self.kc[ks]), self.kd[ks]
 
     # ------------------------------------------------------------------ the law
     def control(self, k: int, z) -> np.ndarray:
         """Physical input at step ``k`` for the physical state ``z`` (n,)."""
         z = np.asarray(z, dtype=float)
+        if self._integral is not None and z.shape == (int(self._integral["n_base"]),):
+            z = self._augment(k, z)
         if z.shape != (self.n_states,):
             raise DownholeInputError(f"state must have shape ({self.n_states},), got {z.shape}")
         r, uff, kc, kd = self.step_terms(k)
         ubar = uff - kc - kd @ (z / self.state_scale - r)
         u = ubar * self.input_scale
         if self.input_limits is not None:
-            u = np.clip(u, self.input_limits[:, 0], self.input_limits[:, 1])
+            uc = np.clip(u, self.input_limits[:, 0], self.input_limits[:, 1])
+            self._saturated = bool(np.any(uc != u))
+            u = uc
         return u
 
     def unclipped(self, k: int, z) -> np.ndarray:

@@ -34,7 +34,11 @@ def build_problem(model: ControlAffineModel, reference: BitReference, horizon: f
                                  f"(dt = {model.dt:g} s)")
     v, w, x, a = reference.sample(n_steps, model.dt)
     ref = reference_states(model, v, w, x, a)
-    uff = feed_forward(model, ref) if use_feed_forward else None
+    uff = None
+    if use_feed_forward:
+        # the steady deflected trajectory (static twist/stretch under the bit and contact
+        # forces) on which u_ff is an exact equilibrium; bit positions stay at int v_d, int w_d
+        uff, ref = feed_forward(model, ref, return_reference=True)
     Q, R, S = penalty_matrices(model, weights)
     return DHPProblem(model, Q, R, S, ref, uff)
 
@@ -75,6 +79,10 @@ def design_dhp(model: ControlAffineModel, reference: BitReference | None = None,
     reference = reference or BitReference.step()
     weights = weights or PenaltyWeights()
     settings = settings or DHPSettings()
+    if any(float(x) != 0.0 for x in weights.integral) and "integral" not in model.metadata:
+        from downhole.control.dhp.drilling import integral_augmented_model
+
+        model = integral_augmented_model(model)
     problem = build_problem(model, reference, horizon, weights, use_feed_forward)
     tr = train_dhp(problem, settings, progress=progress)
     limits = model.input_limits if input_limits is None else np.asarray(input_limits, float)

@@ -30,7 +30,8 @@ from downhole.params.bit import BitParams
 from downhole.params.lumped import LumpedParams
 
 __all__ = ["lumped_affine_model", "reference_states", "feed_forward", "PenaltyWeights",
-           "penalty_matrices", "table_4_1_weights", "zoh"]
+           "penalty_matrices", "table_4_1_weights", "zoh", "integral_augmented_model",
+           "INTEGRAL_STATE_NAMES"]
 
 
 def zoh(Ac: np.ndarray, Bc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -191,35 +192,63 @@ def reference_states(model: ControlAffineModel, v_d, omega_d, x_d, alpha_d) -> n
 
 
 def feed_forward(model: ControlAffineModel, reference: np.ndarray,
-                 regularization: float = 1e-6) -> np.ndarray:
+                 regularization: float = 1e-3, *, return_reference: bool = False,
+                 iterations: int = 3):
     """Steady-state feed-forward u_ff,k (non-dimensional) along a non-dimensional reference.
 
-    Solves, for every step, f(r_k + E d) + g u = r_{k+1} + E d for the input u and a position
-    offset d (E selects the position states: the string's static deflection under WOB/TOB),
-    in the least-squares sense with a small penalty on d (positions enter many models only
-    through differences with the inputs, which leaves d otherwise undetermined). The nonlinear
-    forces are evaluated at the reference velocities (they do not depend on positions in the
-    approximated-depth-of-cut models).
+    Solves, for every step, f(r_k + E d_k) + g u_k = r_{k+1} + E d_k for the input u_k and the
+    position offsets d_k (E selects the position states: the string's static deflection - twist
+    and stretch - under the bit and contact forces). The positions of a free string are
+    determined up to a rigid shift per field; the shift is fixed by asking for zero offset at
+    the bit (a tie-break weighted by ``regularization``, exact when the shift is free), so that
+    the bit positions keep following x_d = int v_d, alpha_d = int omega_d. The forces'
+    dependence on d (e.g. the contact tension) is included by ``iterations`` fixed-point passes.
+
+    Parameters
+    ----------
+    model : ControlAffineModel
+    reference : ndarray (n_steps + 1, n)
+        Non-dimensional reference (Eqs. 4.21-4.23).
+    regularization : float
+        Weight of the bit-offset tie-break relative to the size of the equations.
+    return_reference : bool
+        Also return the consistent reference r_k + E d_k (the steady deflected trajectory on
+        which the feed-forward is an exact equilibrium).
 
     Returns
     -------
-    ndarray (n_steps, m)
+    ndarray (n_steps, m), or (u_ff, reference) with ``return_reference``.
     """
     ref = np.asarray(reference, dtype=float)
     n = model.n_states
     pos = [i for i, k in enumerate(model.state_kinds) if k in ("axial_position",
                                                                "angular_position")]
-    E = np.zeros((n, len(pos)))
-    E[pos, np.arange(len(pos))] = 1.0
+    npos = len(pos)
+    E = np.zeros((n, npos))
+    E[pos, np.arange(npos)] = 1.0
     Mat = np.hstack([(model.linear - np.eye(n)) @ E, model.g])
-    scale = max(1.0, float(np.abs(Mat).max()))
-    reg = np.zeros((len(pos), Mat.shape[1]))
-    reg[:, :len(pos)] = np.eye(len(pos)) * math.sqrt(regularization) * scale
-    big = np.vstack([Mat, reg])
-    rhs = ref[1:] - model.f(ref[:-1])
-    rhs = np.hstack([rhs, np.zeros((rhs.shape[0], len(pos)))])
-    sol = np.linalg.lstsq(big, rhs.T, rcond=None)[0]
-    return np.ascontiguousarray(sol[len(pos):].T)
+    scale = max(1e-300, float(np.linalg.norm(Mat, 2)))
+    bit = [j for j, i in enumerate(pos) if model.state_nodes[i] == model.bit_node]
+    tie = np.zeros((len(bit), Mat.shape[1]))
+    tie[np.arange(len(bit)), bit] = regularization * scale
+    big = np.vstack([Mat, tie])
+    pinv = np.linalg.pinv(big, rcond=1e-12)
+    T = ref.shape[0] - 1
+    d = np.zeros((T + 1, npos))
+    sol = np.zeros((T, Mat.shape[1]))
+    AE = model.linear @ E
+    for _ in range(max(1, int(iterations))):
+        # G(d, u) = (A - I) E d + g u + [f(r + E d) - A E d - r_{k+1}] = 0: fixed point on the
+        # force part (the forces depend weakly on the deflection)
+        Ed = d[:-1] @ E.T
+        rhs = ref[1:] + d[:-1] @ AE.T - model.f(ref[:-1] + Ed)
+        sol = np.hstack([rhs, np.zeros((T, len(bit)))]) @ pinv.T
+        d[:-1] = sol[:, :npos]
+        d[-1] = d[-2]
+    uff = np.ascontiguousarray(sol[:, npos:])
+    if return_reference:
+        return uff, ref + d @ E.T
+    return uff
 
 
 # ------------------------------------------------------------------------------ weights
@@ -246,6 +275,10 @@ class PenaltyWeights:
         Optional explicit final weights with the same keys as above.
     r : (float, float)
         R diagonal.
+    integral : (float, float)
+        Weights of the integrator states (sums of the bit axial / angular velocity errors;
+        integral action, beyond the seed). Non-zero values make :func:`design_dhp` augment the
+        design model with :func:`integral_augmented_model`.
     """
 
     top_position: tuple = (0.0, 0.0)
@@ -256,6 +289,7 @@ class PenaltyWeights:
     final_scale: float = 1.0
     final: dict | None = None
     r: tuple = (1.0, 1.0)
+    integral: tuple = (0.0, 0.0)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -294,9 +328,22 @@ def _layout(model: ControlAffineModel, top, node, nodes, bitpos, bitvel) -> np.n
     return q
 
 
+def _integral_layout(model: ControlAffineModel, q: np.ndarray, w) -> np.ndarray:
+    integ = model.metadata.get("integral")
+    if integ is None:
+        if any(float(x) != 0.0 for x in w):
+            raise DownholeInputError("integral weights need a model with integrator states "
+                                     "(integral_augmented_model; design_dhp does it)")
+        return q
+    nb = int(integ["n_base"])
+    q[nb], q[nb + 1] = float(w[0]), float(w[1])
+    return q
+
+
 def penalty_matrices(model: ControlAffineModel, w: PenaltyWeights):
     """Q, R, S (diagonal matrices) of Eq. 4.45 for ``model``'s state layout."""
     q = _layout(model, w.top_position, w.node_position, w.nodes, w.bit_position, w.bit_velocity)
+    q = _integral_layout(model, q, w.integral)
     if w.final is None:
         s = w.final_scale * q
     else:
@@ -305,6 +352,7 @@ def penalty_matrices(model: ControlAffineModel, w: PenaltyWeights):
         f.update(w.final)
         s = _layout(model, f["top_position"], f["node_position"], w.nodes, f["bit_position"],
                     f["bit_velocity"])
+        s = _integral_layout(model, s, f.get("integral", w.integral))
     r = np.asarray(w.r, dtype=float)
     if r.shape != (model.n_inputs,):
         raise DownholeInputError(f"penalty r must have {model.n_inputs} entries, got {w.r}")
@@ -321,3 +369,66 @@ def table_4_1_weights(nodes: tuple = ()) -> PenaltyWeights:
                           final={"top_position": (1.0, 1.0), "node_position": (1.0, 1.0),
                                  "bit_position": (1e9, 1e7), "bit_velocity": (1e9, 1e7)},
                           r=(1e-11, 1e-11))
+
+
+# ------------------------------------------------------------------------------ integral action
+INTEGRAL_STATE_NAMES = ("bit_axial_velocity_integral", "bit_angular_velocity_integral")
+
+
+def integral_augmented_model(model: ControlAffineModel) -> ControlAffineModel:
+    """The design model with two integrator states (integral action; beyond the seed).
+
+    xi_ax,k+1 = xi_ax,k + dt v_bit,k and xi_ang,k+1 = xi_ang,k + dt omega_bit,k (physical m
+    and rad, Euler sums of the bit velocities, scaled like the bit positions). Their reference
+    is the integral of the velocity reference (they are of kind ``axial_position`` /
+    ``angular_position`` with node -1, so :func:`reference_states` gives them x_d and
+    alpha_d), hence xi - r_xi is the running sum of the bit-velocity errors. The controller
+    keeps xi itself (:class:`~downhole.control.dhp.controller.DHPController`, with
+    anti-windup: the error sum is frozen while an input saturates). The nonlinear forces act
+    on the original states only.
+
+    Returns
+    -------
+    ControlAffineModel
+        n + 2 states; ``metadata["integral"]`` describes the augmentation.
+    """
+    n, m = model.n_states, model.n_inputs
+    bn = model.bit_node
+    iv = model.index("axial_velocity", bn)
+    iw = model.index("angular_velocity", bn)
+    ix = model.index("axial_position", bn)
+    ia = model.index("angular_position", bn)
+    P = model.state_scale
+    Pxi = np.array([P[ix], P[ia]])
+    A = np.zeros((n + 2, n + 2))
+    A[:n, :n] = model.linear
+    A[n, n] = A[n + 1, n + 1] = 1.0
+    A[n, iv] = model.dt * P[iv] / Pxi[0]
+    A[n + 1, iw] = model.dt * P[iw] / Pxi[1]
+    g = np.vstack([model.g, np.zeros((2, m))])
+    kw = {}
+    if model.force_map is not None:
+        fm = np.vstack([model.force_map, np.zeros((2, model.force_map.shape[1]))])
+
+        def forces(zb, _f=model.forces, _n=n):
+            return _f(np.ascontiguousarray(np.asarray(zb)[:, :_n]))
+
+        kw = dict(force_map=fm, forces=forces)
+    elif not model.is_linear:
+        def nonlinear(zb, _h=model.nonlinear, _n=n):
+            zb = np.asarray(zb)
+            return np.hstack([_h(zb[:, :_n]), np.zeros((zb.shape[0], 2))])
+
+        kw = dict(nonlinear=nonlinear, nonlinear_rows=model.nonlinear_rows)
+    meta = dict(model.metadata)
+    meta["integral"] = {"n_base": n, "source": [int(iv), int(iw)], "scale": Pxi.tolist()}
+    return ControlAffineModel(
+        A, g, state_scale=np.concatenate([P, Pxi]), input_scale=model.input_scale,
+        dt=model.dt, state_names=list(model.state_names) + list(INTEGRAL_STATE_NAMES),
+        input_names=model.input_names,
+        state_kinds=list(model.state_kinds) + ["axial_position", "angular_position"],
+        state_nodes=list(model.state_nodes) + [-1, -1], bit_node=bn,
+        input_limits=model.input_limits, bit=model.bit,
+        hanging_hook_load=model.hanging_hook_load, node_depths=model.node_depths,
+        name=f"{model.name} + integral action", metadata=meta, outputs=None,
+        strict_inputs=False, **kw)
