@@ -87,6 +87,7 @@ def test_past_horizon_policies(model, ctrl):
         strict.control(200, np.zeros(4))
 
 
+@pytest.mark.slow
 def test_true_delayed_plant_lumped(ctrl):
     plant, adapter = lumped_true_plant("table_2_1", dt=1e-3, depth_of_cut="delayed")
     res = run_on_plant(ctrl, plant, 8.0, adapter=adapter, record_every=5)
@@ -94,3 +95,33 @@ def test_true_delayed_plant_lumped(ctrl):
     assert s["stuck_fraction"] == 0.0
     assert abs(s["mean_rop"] - 0.01) < 0.05 * 0.01
     assert abs(s["mean_bit_angular_velocity"] - 20.0) < 0.05 * 20.0
+
+
+def test_integral_action_removes_most_of_the_rop_offset_when_epsilon_triples():
+    """Beyond the seed: integrator states (augmented model, anti-windup in the controller)
+    bring the ROP back to the reference when the rock is 3x harder than designed for."""
+    import dataclasses
+
+    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
+    from downhole.control.dhp.drilling import INTEGRAL_STATE_NAMES
+
+    fem24, _ = table_5_1_models()
+    design = directional_affine_model(fem24)
+    hard = directional_affine_model(dataclasses.replace(
+        fem24, bit=fem24.bit.model_copy(update={"epsilon": fem24.bit.epsilon * 3})))
+    offsets = {}
+    for qi in (0.0, 300.0):
+        w = PenaltyWeights(bit_velocity=(100.0, 100.0), bit_position=(0.1, 0.1), r=(1.0, 1.0),
+                           integral=(qi, qi))
+        ctrl = design_dhp(design, BitReference.step(0.01, 20.0), horizon=14.0, weights=w,
+                          settings=DHPSettings(n_samples=60))
+        assert (ctrl.n_states == design.n_states + 2) == (qi > 0)
+        if qi > 0:
+            assert ctrl.state_names[-2:] == INTEGRAL_STATE_NAMES
+        nominal = run_design_model(ctrl, design, 10.0).summary((7.0, 10.0))
+        assert abs(nominal["mean_rop"] - 0.01) < 0.03 * 0.01
+        s = run_design_model(ctrl, hard, 10.0).summary((7.0, 10.0))
+        assert s["stuck_fraction"] == 0.0
+        offsets[qi] = abs(s["mean_rop"] - 0.01)
+    assert offsets[0.0] > 0.5 * 0.01                 # no integral action: > 50% off
+    assert offsets[300.0] < 0.25 * offsets[0.0]

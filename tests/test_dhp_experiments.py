@@ -5,7 +5,7 @@ import pytest
 from downhole.experiments import run_experiment
 
 IDS = ["fig4.5", "fig4.6", "fig4.7", "fig4.8", "fig4.9", "fig4.10", "fig4.11", "fig4.12",
-       "fig4.13", pytest.param("dhp.hybrid68", marks=pytest.mark.slow)]
+       "dhp.integral", pytest.param("dhp.hybrid68", marks=pytest.mark.slow)]
 
 
 @pytest.mark.parametrize("eid", IDS)
@@ -16,9 +16,17 @@ def test_experiment_quick_passes(tmp_path_factory, eid):
     assert (out / eid / f"{eid}.png").exists()
 
 
+def test_fig4_13_measures_the_cost_of_doubling_the_samples(tmp_path):
+    """Fig. 4.13's claim is about seconds: measured and reported, not asserted (timings)."""
+    claim = run_experiment("fig4.13", tmp_path, quick=True)
+    assert claim["measured"]["samples_200_over_100"] > 0.0
+    assert claim["measured"]["dhp24_seconds_for_40s"] < claim["measured"]["seed_dp_seconds"]
+    assert (tmp_path / "fig4.13" / "fig4.13.png").exists()
+
+
 def test_table_4_2_quick_measures_every_row(tmp_path):
-    """Table 4.2's >= 50x claim is measured, not asserted: on a shared 2-core machine the
-    24-state rows reach ~25-60x and the 80-state row ~10-20x (docs/dhp.md)."""
+    """Table 4.2's >= 50x claim is measured, not asserted (timings; docs/dhp.md has the
+    numbers: 24-state rows ~80-110x, the 80-state row ~35x on this shared 2-core machine)."""
     claim = run_experiment("table4.2", tmp_path, quick=True)
     rows = claim["measured"]
     assert set(rows) == {"DHP 24 states 100 samples", "DHP 24 states 200 samples",

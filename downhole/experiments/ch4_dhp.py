@@ -14,6 +14,7 @@ instead of 200) so that each experiment runs in seconds; the full mode follows T
 
 from __future__ import annotations
 
+import copy
 import csv
 import dataclasses
 import time
@@ -387,13 +388,20 @@ def _table_rows(quick):
         train_dhp(build_problem(model, BitReference.step(), 0.01,
                                 PenaltyWeights(**DESIGN_WEIGHTS)),
                   DHPSettings(n_samples=ns))  # compile outside the timing
+        train_dhp(build_problem(model, BitReference.step(), 0.01,
+                                PenaltyWeights(**DESIGN_WEIGHTS)),
+                  DHPSettings(n_samples=ns, threads=2))
         t0 = time.perf_counter()
-        train_dhp(pb, DHPSettings(n_samples=ns, method="riccati"))
+        train_dhp(pb, DHPSettings(n_samples=ns, method="riccati", threads=1))
+        sec1 = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        train_dhp(pb, DHPSettings(n_samples=ns, method="riccati", threads=2))
         sec = time.perf_counter() - t0
         sec40 = sec * 40.0 / T
         rows.append({"method": label, "time_interval_s": 1e-3, "states": model.n_states,
-                     "samples": ns, "horizon_s": T, "seconds": sec,
-                     "seconds_for_40s": sec40, "extrapolated": T != 40.0,
+                     "samples": ns, "horizon_s": T, "seconds": sec, "threads": 2,
+                     "seconds_for_40s": sec40, "seconds_for_40s_1_thread": sec1 * 40.0 / T,
+                     "extrapolated": T != 40.0,
                      "seed_seconds": SEED_TABLE_4_2[label],
                      "speedup_vs_seed": SEED_TABLE_4_2[label] / sec40})
     _CACHE[key] = rows
@@ -402,7 +410,9 @@ def _table_rows(quick):
 
 @experiment("table4.2", title="DHP training time (40 s horizon, dt = 1e-3) against the seed",
             chapter=4, claim="each DHP row of Table 4.2 trains >= 50x faster than the seed's "
-                             "seconds (quick mode: 1 s horizon, extrapolated linearly to 40 s)",
+                             "seconds (Riccati form, fresh samples every step, 2 threads on "
+                             "this 2-core machine; quick mode: 1 s horizon, extrapolated "
+                             "linearly to 40 s)",
             caption="Computational expenses using traditional dynamic programming and dual "
                     "heuristic programming")
 def table4_2(out_dir, quick):
@@ -413,7 +423,10 @@ def table4_2(out_dir, quick):
         w.writerows(rows)
     _bar(rows, out_dir / "table4.2.png")
     measured = {r["method"]: {"seconds_for_40s": r["seconds_for_40s"],
+                              "seconds_for_40s_1_thread": r["seconds_for_40s_1_thread"],
                               "speedup_vs_seed": r["speedup_vs_seed"],
+                              "speedup_vs_seed_1_thread":
+                                  r["seed_seconds"] / r["seconds_for_40s_1_thread"],
                               "extrapolated": r["extrapolated"]} for r in rows}
     return {"measured": measured, "passed": all(r["speedup_vs_seed"] >= 50 for r in rows)}
 
@@ -463,30 +476,110 @@ def fig4_13(out_dir, quick):
                                   "offline)", chapter=6,
             claim="the controller trained on the 24-state FEM keeps the bit free of stick-slip "
                   "on the 68-state hybrid (stuck_fraction = 0 after 5 s) with mean bit "
-                  "velocities within 5% of the step reference after 5 s (delayed depth of cut)")
+                  "velocities within 5% of the step reference after 5 s (delayed depth of cut); "
+                  "reported for the Ch. 4 claim weights (as designed, with the feed-forward "
+                  "calibrated on the hybrid, with integral action) and for softer weights")
 def dhp_hybrid68(out_dir, quick):
+    from downhole.control.dhp.directional import directional_affine_model
+
     _, hyb68, _ = _models()
     T = _horizon(quick) if not quick else 8.0
+    hyb_affine = directional_affine_model(hyb68)
+    variants = (("design_weights", DESIGN_WEIGHTS, False),
+                ("design_weights_calibrated_feed_forward", DESIGN_WEIGHTS, True),
+                ("design_weights_integral_calibrated", dict(DESIGN_WEIGHTS, integral=(10.0, 10.0)),
+                 True),
+                ("robust_weights", ROBUST_WEIGHTS, False))
     runs, labels, measured = [], [], {}
-    for name, w in (("design_weights", DESIGN_WEIGHTS), ("robust_weights", ROBUST_WEIGHTS)):
+    for name, w, calibrate in variants:
+        if quick and name.startswith("design_weights_"):
+            continue
         ctrl = _controller("step", quick, w) if not quick else _ctrl_quick(w)
+        if calibrate:
+            ctrl = copy.copy(ctrl)
+            ctrl.arrays = dict(ctrl.arrays)
+            ctrl.meta = dict(ctrl.meta)
+            ctrl.calibrate_feed_forward(hyb_affine)
+            _CACHE[("calibrated", name, quick)] = ctrl   # keeps id(ctrl) of _run's cache key
         res = _run(ctrl, hyb68, "delayed", T)
         s = res.summary((5.0, T))
+        late = res.summary((0.5 * T, T))
         measured[name] = {"weights": {k: list(v) for k, v in w.items()},
+                          "feed_forward_calibrated_on_hybrid": calibrate,
                           "stuck_fraction": s["stuck_fraction"],
                           "mean_rop_mm_s": s["mean_rop"] * 1e3,
                           "mean_bit_angular_velocity": s["mean_bit_angular_velocity"],
                           "tracking_rms_axial_mm_s": s["tracking_rms_axial"] * 1e3,
                           "tracking_rms_angular": s["tracking_rms_angular"],
+                          "second_half_mean_rop_mm_s": late["mean_rop"] * 1e3,
+                          "second_half_mean_bit_angular_velocity":
+                              late["mean_bit_angular_velocity"],
+                          "second_half_rms_angular": late["tracking_rms_angular"],
                           "bit_bounce_fraction": s["bit_bounce_fraction"]}
+        m = measured[name]
+        m["holds"] = bool(m["stuck_fraction"] == 0.0 and abs(m["mean_rop_mm_s"] - 10.0) <= 0.5
+                          and abs(m["mean_bit_angular_velocity"] - 20.0) <= 1.0)
         runs.append(res)
         labels.append(f"hybrid 68, {name.replace('_', ' ')}")
     _plot_velocities(runs, labels, out_dir / "dhp.hybrid68.png",
                      "24-state DHP on the 68-state hybrid (delayed depth of cut)")
-    r = measured["robust_weights"]
-    passed = (r["stuck_fraction"] == 0.0 and abs(r["mean_rop_mm_s"] - 10.0) <= 0.5
-              and abs(r["mean_bit_angular_velocity"] - 20.0) <= 1.0)
-    return {"measured": measured, "passed": bool(passed)}
+    measured["claim_weights_hold"] = any(v["holds"] for k, v in measured.items()
+                                         if k.startswith("design_weights"))
+    return {"measured": measured, "passed": bool(measured["robust_weights"]["holds"])}
+
+
+# ----------------------------------------------------------------------------------- integral
+@experiment("dhp.integral", title="DHP with integral action: epsilon 50-300% (beyond the seed)",
+            chapter=4, claim="with integrator states on the bit-velocity errors (weight 1000, "
+                             "anti-windup) the mean ROP is within 5% of 10 mm/s from 10 s on "
+                             "for epsilon from 50% to 300% of nominal, without stick-slip "
+                             "(quick mode: 12 s horizon, weight 300, offsets at least 3x "
+                             "smaller than without integral action)",
+            caption="Beyond the seed: Fig. 4.12 with integral action")
+def dhp_integral(out_dir, quick):
+    from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
+
+    fem24, _, design = _models()
+    T = 12.0 if quick else 40.0
+    run_T, t0 = (10.0, 6.0) if quick else (40.0, 10.0)
+    qi = 300.0 if quick else 1000.0
+    factors = (0.5, 3.0) if quick else (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
+    ctrls = {}
+    for label, w in (("integral", dict(DESIGN_WEIGHTS, integral=(qi, qi))),
+                     ("no_integral", DESIGN_WEIGHTS)):
+        key = ("integral_ctrl", label, quick)
+        if key not in _CACHE:
+            _CACHE[key] = design_dhp(design, BitReference.step(0.01, 20.0), horizon=T + 2.0,
+                                     weights=PenaltyWeights(**w),
+                                     settings=DHPSettings(n_samples=_samples(quick), threads=2))
+        ctrls[label] = _CACHE[key]
+    runs, labels, measured, ok = [], [], {}, True
+    for f in factors:
+        bit = fem24.bit.model_copy(update={"epsilon": fem24.bit.epsilon * f})
+        plant = dataclasses.replace(fem24, bit=bit)
+        row = {}
+        for label, ctrl in ctrls.items():
+            res = _run(ctrl, plant, "approximate", run_T)
+            s = res.summary((t0, run_T))
+            row[label] = {"stuck_fraction": s["stuck_fraction"],
+                          "mean_rop_mm_s": s["mean_rop"] * 1e3,
+                          "mean_bit_angular_velocity": s["mean_bit_angular_velocity"],
+                          "rop_offset_pct": (s["mean_rop"] / 0.01 - 1) * 100}
+            if label == "integral":
+                runs.append(res)
+                labels.append(f"integral action, epsilon = {f * 100:.0f}%")
+        measured[f"eps_{int(round(f * 100))}pct"] = row
+        ri, rn = row["integral"], row["no_integral"]
+        ok &= ri["stuck_fraction"] == 0.0
+        if quick:
+            ok &= abs(ri["rop_offset_pct"]) <= max(abs(rn["rop_offset_pct"]), 1.0) / 3.0
+        else:
+            ok &= abs(ri["rop_offset_pct"]) <= 5.0
+    measured["integral_weight"] = qi
+    measured["window_s"] = [t0, run_T]
+    _plot_velocities(runs, labels, out_dir / "dhp.integral.png",
+                     "DHP with integral action on the 24-state FEM, epsilon 50-300%")
+    return {"measured": measured, "passed": bool(ok)}
 
 
 def _ctrl_quick(weights):

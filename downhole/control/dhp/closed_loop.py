@@ -91,7 +91,10 @@ def run_design_model(controller: DHPController, model: ControlAffineModel, durat
     SimulationDiverged
         A state became non-finite; names the time and the state.
     """
-    if abs(model.dt - controller.dt) > 1e-12 * model.dt or model.n_states != controller.n_states:
+    n_ctrl = controller.n_states
+    if controller._integral is not None and model.n_states != n_ctrl:
+        n_ctrl = int(controller._integral["n_base"])   # the controller keeps its integrators
+    if abs(model.dt - controller.dt) > 1e-12 * model.dt or model.n_states != n_ctrl:
         raise DownholeInputError(f"model (n={model.n_states}, dt={model.dt}) does not match the "
                                  f"controller (n={controller.n_states}, dt={controller.dt})")
     n = _check_duration(duration, model.dt)
@@ -100,6 +103,7 @@ def run_design_model(controller: DHPController, model: ControlAffineModel, durat
     U = np.empty((n + 1, model.n_inputs))
     P, Us = model.state_scale, model.input_scale
     zb = z / P
+    controller.reset()
     for k in range(n + 1):
         zp = zb * P
         Z[k] = zp
