@@ -75,11 +75,13 @@ def _run(ctrl, plant_model, depth_of_cut, duration, record_every=10):
     if key not in _CACHE:
         _, _, design = _models()
         plant = DirectionalStatePlant(plant_model, design, ctrl.dt, depth_of_cut=depth_of_cut)
-        _CACHE[key] = run_on_plant(ctrl, plant, duration, record_every=record_every,
-                                   attrs={"bit_radius": plant_model.bit.radius,
-                                          "model": plant_model.name,
-                                          "depth_of_cut": depth_of_cut})
-    return _CACHE[key]
+        res = run_on_plant(ctrl, plant, duration, record_every=record_every,
+                           attrs={"bit_radius": plant_model.bit.radius,
+                                  "model": plant_model.name, "depth_of_cut": depth_of_cut})
+        # keep ctrl and plant_model alive with the result: the key holds their ids, which
+        # Python re-uses once an object is freed (e.g. a plant made per epsilon)
+        _CACHE[key] = (res, ctrl, plant_model)
+    return _CACHE[key][0]
 
 
 def _plot_velocities(res_list, labels, path, title):
