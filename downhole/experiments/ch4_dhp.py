@@ -518,6 +518,9 @@ def dhp_hybrid68(out_dir, quick):
                               late["mean_bit_angular_velocity"],
                           "second_half_rms_angular": late["tracking_rms_angular"],
                           "bit_bounce_fraction": s["bit_bounce_fraction"]}
+        tr = _tracking(res, 5.0)
+        measured[name]["max_abs_axial_error_after_5s_mm_s"] = tr["max_abs_axial_error_mm_s"]
+        measured[name]["max_abs_angular_error_after_5s"] = tr["max_abs_angular_error_rad_s"]
         m = measured[name]
         m["holds"] = bool(m["stuck_fraction"] == 0.0 and abs(m["mean_rop_mm_s"] - 10.0) <= 0.5
                           and abs(m["mean_bit_angular_velocity"] - 20.0) <= 1.0)
@@ -525,8 +528,10 @@ def dhp_hybrid68(out_dir, quick):
         labels.append(f"hybrid 68, {name.replace('_', ' ')}")
     _plot_velocities(runs, labels, out_dir / "dhp.hybrid68.png",
                      "24-state DHP on the 68-state hybrid (delayed depth of cut)")
-    measured["claim_weights_hold"] = any(v["holds"] for k, v in measured.items()
-                                         if k.startswith("design_weights"))
+    # "holds": no stick-slip and the *mean* bit velocities within 5% after 5 s; the stricter
+    # reading (every sample within 5% after 5 s) is in max_abs_*_error_after_5s
+    measured["claim_weights_means_hold"] = any(v["holds"] for k, v in measured.items()
+                                               if k.startswith("design_weights"))
     return {"measured": measured, "passed": bool(measured["robust_weights"]["holds"])}
 
 
