@@ -300,6 +300,8 @@ def _fit(Phi, F, set_ids, Vr, c0, Y):
 
 @njit(cache=True, nogil=True)
 def _mu2(X):
+    """Spectral radius of a small real matrix (closed form for m <= 2; for larger m the limit
+    of ||X^(2^j)||^(2^-j) over 30 squarings, normalized; no LAPACK, cheap to compile)."""
     m = X.shape[0]
     if m == 1:
         return abs(X[0, 0])
@@ -311,12 +313,58 @@ def _mu2(X):
             sq = np.sqrt(disc)
             return max(abs(tr + sq), abs(tr - sq))
         return np.sqrt(abs(det))
-    ev = np.linalg.eigvals(X.astype(np.complex128))
-    r = 0.0
-    for e in ev:
-        if abs(e) > r:
-            r = abs(e)
-    return r
+    Y = X.copy()
+    logr = 0.0
+    w = 1.0
+    for _ in range(30):
+        nrm = np.sqrt(np.sum(Y * Y))
+        if nrm == 0.0:
+            return 0.0
+        Y = Y / nrm
+        logr += w * np.log(nrm)
+        Y = Y @ Y
+        w *= 0.5
+    nrm = np.sqrt(np.sum(Y * Y))
+    if nrm > 0.0:
+        logr += w * np.log(nrm)
+    return np.exp(logr)
+
+
+@njit(cache=True, nogil=True)
+def _small_inv(A, out):
+    """Inverse of a small matrix into ``out`` (closed form for 1x1 and 2x2)."""
+    m = A.shape[0]
+    if m == 1:
+        out[0, 0] = 1.0 / A[0, 0]
+    elif m == 2:
+        det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+        out[0, 0] = A[1, 1] / det
+        out[1, 1] = A[0, 0] / det
+        out[0, 1] = -A[0, 1] / det
+        out[1, 0] = -A[1, 0] / det
+    else:                                   # Gauss-Jordan with partial pivoting
+        W = A.copy()
+        out[:, :] = 0.0
+        for i in range(m):
+            out[i, i] = 1.0
+        for c in range(m):
+            piv = c
+            for r in range(c + 1, m):
+                if abs(W[r, c]) > abs(W[piv, c]):
+                    piv = r
+            for j in range(m):
+                W[c, j], W[piv, j] = W[piv, j], W[c, j]
+                out[c, j], out[piv, j] = out[piv, j], out[c, j]
+            f = 1.0 / W[c, c]
+            for j in range(m):
+                W[c, j] *= f
+                out[c, j] *= f
+            for r in range(m):
+                if r != c:
+                    f = W[r, c]
+                    for j in range(m):
+                        W[r, j] -= f * W[c, j]
+                        out[r, j] -= f * out[c, j]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -344,6 +392,12 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
     a = np.empty(n)
     W1 = np.empty((m, n))
     RW = np.empty((m, n))
+    gMg = np.empty((m, m))
+    X2 = np.empty((m, m))
+    Sginv = np.empty((m, m))
+    MgS = np.empty((n, m))
+    gv = np.empty(m)
+    t = np.empty(m)
     tdn = np.zeros(n + 1)
     tun = np.zeros(n + 1)      # tun[c] = T[c-1, c]
     tln = np.zeros(n + 1)      # tln[c] = T[c+1, c]
@@ -366,7 +420,11 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
                     s += tl[i] * cn[i + 1]
                 a[i] = s
         else:
-            np.dot(T.T, cn, a)
+            for i in range(n):
+                acc = 0.0
+                for r in range(n):
+                    acc += T[r, i] * cn[r]
+                a[i] = acc
         for l in range(m):                     # M'g', g'^T M' (m is small: loops, no BLAS)
             gl = gpT[l]
             gMl = gM[l]
@@ -380,13 +438,29 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
                     s += Mr[c] * gl[c]
                     gMl[c] += f * Mr[c]
                 Mg[r, l] = s
-        gMg = gpT @ Mg
-        mu = _mu2(gMg @ Rinv)
+        for l1 in range(m):                    # g'^T M' g' (m x m, m small)
+            for l2 in range(m):
+                acc = 0.0
+                for r in range(n):
+                    acc += gpT[l1, r] * Mg[r, l2]
+                gMg[l1, l2] = acc
+        for l1 in range(m):
+            for l2 in range(m):
+                acc = 0.0
+                for i in range(m):
+                    acc += gMg[l1, i] * Rinv[i, l2]
+                X2[l1, l2] = acc
+        mu = _mu2(X2)
         mu_out[k] = mu
         if mu >= mu_max_ok:
             return 1, k
-        Sginv = np.linalg.inv(R + gMg)
-        MgS = Mg @ Sginv                       # (n, m)
+        _small_inv(R + gMg, Sginv)
+        for r in range(n):                     # M'g' Sg^-1 (n, m)
+            for l2 in range(m):
+                acc = 0.0
+                for i in range(m):
+                    acc += Mg[r, i] * Sginv[i, l2]
+                MgS[r, l2] = acc
         for r in range(n):                     # N M' = M' - M'g' Sg^-1 g'^T M'
             Mr = M[r]
             NMr = NM[r]
@@ -402,10 +476,22 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
             for l in range(q):
                 s += Gp[i, l] * c0[j, l]
             e[i] = s
-        np.dot(M, e, v)
         for i in range(n):
-            v[i] += a[i]
-        t = Sginv @ (gpT @ v)
+            Mi = M[i]
+            acc = a[i]
+            for c in range(n):
+                acc += Mi[c] * e[c]
+            v[i] = acc
+        for l in range(m):
+            acc = 0.0
+            for r in range(n):
+                acc += gpT[l, r] * v[r]
+            gv[l] = acc
+        for l in range(m):
+            acc = 0.0
+            for i in range(m):
+                acc += Sginv[l, i] * gv[i]
+            t[l] = acc
         for i in range(n):                     # c' = N v
             s = v[i]
             for l in range(m):
@@ -425,8 +511,12 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
                 for c in range(n - 1):
                     Dr[c] += NMr[c + 1] * tln[c]
         else:
-            np.dot(NM, T, D)
-            D += XY
+            for r in range(n):
+                for c in range(n):
+                    acc = XY[r, c]
+                    for i in range(n):
+                        acc += NM[r, i] * T[i, c]
+                    D[r, c] = acc
         for l in range(m):                     # gains: kd = R^-1 g'^T D' V^-1
             W1l = W1[l]
             for c in range(n):
@@ -452,7 +542,16 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
                 Vr_ = Vinv[r]
                 for c in range(n):
                     out[c] += f * Vr_[c]
-        kc[k] = Rinv @ (gpT @ cn)
+        for l in range(m):
+            acc = 0.0
+            for r in range(n):
+                acc += gpT[l, r] * cn[r]
+            gv[l] = acc
+        for l in range(m):
+            acc = 0.0
+            for i in range(m):
+                acc += Rinv[l, i] * gv[i]
+            kc[k, l] = acc
         for i in range(n):
             if not abs(cn[i]) < max_weight:
                 return 2, k
@@ -484,10 +583,12 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
                     for c in range(n):
                         Mr[c] += f * Dn[c]
         else:
-            np.dot(T.T, D, NM)                 # NM is free here
             for r in range(n):
                 for c in range(n):
-                    M[r, c] = Qp[r, c] + NM[r, c]
+                    acc = Qp[r, c]
+                    for i in range(n):
+                        acc += T[i, r] * D[i, c]
+                    M[r, c] = acc
     return 0, -1
 
 

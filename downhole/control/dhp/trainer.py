@@ -46,12 +46,9 @@ import numpy as np
 from numba import njit
 
 from downhole.control.affine import ControlAffineModel
-from downhole.control.dhp.riccati import (
-    compiled_offsets,
-    draw_offsets,
-    riccati_numpy,
-    train_riccati,
-)
+from downhole.control.dhp.riccati import (_chol_upper_lapack, _mu2, _small_inv, _solve_upper,
+                                          compiled_offsets, draw_offsets, riccati_numpy,
+                                          train_riccati)
 from downhole.errors import DownholeError, DownholeInputError
 
 __all__ = ["DHPSettings", "DHPProblem", "DHPTraining", "TrainingDiverged", "LinearBasis",
@@ -332,25 +329,7 @@ class DHPTraining:
 # ---------------------------------------------------------------------------------------- kernels
 @njit(cache=True)
 def _mu(g, M, Rinv):
-    X = g.T @ (M @ g) @ Rinv
-    m = X.shape[0]
-    if m == 1:
-        return abs(X[0, 0])
-    if m == 2:
-        tr = 0.5 * (X[0, 0] + X[1, 1])
-        det = X[0, 0] * X[1, 1] - X[0, 1] * X[1, 0]
-        disc = tr * tr - det
-        if disc >= 0.0:
-            sq = np.sqrt(disc)
-            return max(abs(tr + sq), abs(tr - sq))
-        return np.sqrt(abs(det))  # complex pair: |lambda|^2 = det
-    ev = np.linalg.eigvals(X.astype(np.complex128))
-    r = 0.0
-    for e in ev:
-        a = abs(e)
-        if a > r:
-            r = a
-    return r
+    return _mu2(g.T @ (M @ g) @ Rinv)
 
 
 @njit(cache=True)
@@ -361,9 +340,10 @@ def _centered_fit(delta, Y):
     Phi = np.empty((N, n + 1))
     Phi[:, 0] = 1.0
     Phi[:, 1:] = delta
-    Gm = Phi.T @ Phi
-    rhs = Phi.T @ Y
-    sol = np.linalg.solve(Gm, rhs)
+    U = Phi.T @ Phi
+    sol = Phi.T @ Y
+    _chol_upper_lapack(U)
+    _solve_upper(U, sol)
     return sol[0].copy(), sol[1:].copy()
 
 
@@ -389,7 +369,8 @@ def _closed_form_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, R, ref, n_total, M,
         if mu >= mu_max_ok:
             return 1, k
         Mg = Mk @ g
-        Sginv = np.linalg.inv(R + g.T @ Mg)
+        Sginv = np.empty((g.shape[1], g.shape[1]))
+        _small_inv(R + g.T @ Mg, Sginv)
         V = base[j] @ Mk.T + a                      # (N, n): M e + a per sample
         Y = V - (V @ g) @ Sginv.T @ Mg.T            # N v per sample (rows)
         c, Dt_T = _centered_fit(deltas[j], Y)       # Y ~ c + delta @ Dt_T ; D^T = Dt_T.T
@@ -453,7 +434,9 @@ def _alg1_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, ref, n_total, Dn, c_next, 
         Phi[:, 0] = 1.0
         Phi[:, 1:] = delta
         Gram = Phi.T @ Phi
-        L = np.linalg.cholesky(Gram)
+        U = Gram.copy()
+        if not _chol_upper_lapack(U):
+            return 2, k, 0
         if warm and k < n_total - 1:
             c = c_next.copy()
             Dt = Dn.copy()
@@ -473,8 +456,8 @@ def _alg1_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, ref, n_total, Dn, c_next, 
             E = base[j] - Y @ G                      # z_{k+1} - r_{k+1}
             T = E @ Mk.T + a
             rhs = Phi.T @ T
-            tmp = np.linalg.solve(L, rhs)
-            sol = np.linalg.solve(L.T, tmp)
+            sol = rhs
+            _solve_upper(U, sol)
             c = sol[0].copy()
             Dt = sol[1:].T.copy()
             Ynew = np.empty((N, n))
