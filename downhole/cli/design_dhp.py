@@ -47,6 +47,7 @@ where a unit is shown)::
     nodes = []
     final_scale = 1.0
     r = [1.0, 1.0]
+    integral = [0.0, 0.0]       # integral action (beyond the seed): > 0 adds integrator states
 
     [training]                  # DHPSettings + horizon
     horizon = 40.0              # s
@@ -58,6 +59,7 @@ where a unit is shown)::
     warm_start = true
     seed = 0
     resample_every = 1
+    threads = 1                 # threads for the per-step sample/force fits (riccati)
     use_feed_forward = true
     past_horizon = "stationary" # or "error"
 
@@ -84,7 +86,8 @@ __all__ = ["load_dhp_scenario", "parse_dhp_scenario", "design_dhp_cmd", "run_dhp
 _TABLES = {"model", "reference", "weights", "training", "simulation"}
 _MODEL_KEYS = {"kind", "n_elements", "preset", "dt", "input_limits", "friction"}
 _TRAIN_KEYS = {"horizon", "method", "n_samples", "n_iterations", "threshold", "sample_radius",
-               "warm_start", "seed", "resample_every", "use_feed_forward", "past_horizon"}
+               "warm_start", "seed", "resample_every", "use_feed_forward", "past_horizon",
+               "threads"}
 _SIM_KEYS = {"duration", "plant", "depth_of_cut"}
 _REF_UNITS = {"axial": "velocity", "angular": "angular_velocity", "t_final": "time",
               "frequency": "angular_velocity"}
