@@ -4,9 +4,11 @@ This is ``method="riccati"`` of :func:`downhole.control.dhp.trainer.train_dhp`: 
 as Algorithm 1 (seed Sec. 4.3.3) at its fixed point, with N_S fresh random samples at every
 step, computed as
 
-1. *samples* (fresh at every step): ``w = 2 u - 1``, ``u`` uniform from the SFC64 generator
-   (bit-identical to ``numpy.random.Generator(numpy.random.SFC64(seed))``, so the plain-NumPy
-   baseline and the reference methods draw the very same samples), ``z = r_k + radius * w``;
+1. *samples* (fresh at every step): ``w = 2 u - 1``, ``u`` uniform from an SFC64 stream of its
+   own per step (sample set), seeded from (seed, set) by SplitMix64; the compiled draw is
+   bit-identical to ``numpy.random.Generator`` over ``numpy.random.SFC64`` with that state
+   (:func:`draw_offsets`), so the plain-NumPy baseline and the reference methods draw the very
+   same samples, independent of chunking and threads; ``z = r_k + radius * w``;
 2. *the fit* of the nonlinear forces only (``h(z) = forces(z) @ force_map.T``): least squares
    of the q force columns on ``phi = [1, w]`` over the N_S samples (normal equations, Cholesky);
    steps are independent, so this runs chunk by chunk and, with ``threads > 1``, in parallel;
@@ -16,7 +18,8 @@ step, computed as
 
        N M' = M' - M'g' (R + g'^T M' g')^-1 g'^T M'
        D'   = N M' T + (N M' Gam') (C^T V)            (D' = V^T D_k^T V)
-       c'   = N [M' e'_k + T^T c'_{k+1}]               (e'_k = V^-1 (f_fit(r_k) + g u_ff - r_{k+1}))
+       c'   = N [M' e'_k + T^T c'_{k+1}]
+                  (e'_k = V^-1 (f_fit(r_k) + g u_ff - r_{k+1}))
        M'_{k-1} = Q' + T^T D'
        kd_k = R^-1 g'^T D' V^-1,  kc_k = R^-1 g'^T c'
 
