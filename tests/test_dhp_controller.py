@@ -1,4 +1,5 @@
-"""DHP controller tests: references, save/load, past-horizon policy, closed loop on the lumped model."""
+"""DHP controller tests: references, save/load, past-horizon policy, closed loops, integral
+action."""
 
 import math
 

@@ -122,7 +122,6 @@ def load_dhp_scenario(path) -> dict:
     ScenarioError
         Naming the file, the field and what was expected.
     """
-    from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights
 
     src = str(path)
     try:

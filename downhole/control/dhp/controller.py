@@ -195,7 +195,7 @@ class DHPController:
     # ------------------------------------------------------------------ reference beyond
     def _extend(self, k: int) -> None:
         """Continue reference and feed-forward up to step k (past-horizon policy)."""
-        from downhole.control.dhp.drilling import feed_forward, reference_states
+        from downhole.control.dhp.drilling import feed_forward
 
         have = self.n_steps if self._ext_uff is None else self.n_steps + self._ext_uff.shape[0]
         if k < have:

@@ -516,7 +516,8 @@ def _progress(total, enabled, label):
         TimeRemainingColumn,
     )
 
-    prog = Progress(TextColumn(label), BarColumn(), TextColumn("{task.completed}/{task.total} steps"),
+    prog = Progress(TextColumn(label), BarColumn(),
+                    TextColumn("{task.completed}/{task.total} steps"),
                     TimeElapsedColumn(), TimeRemainingColumn(), transient=True)
     prog.start()
     task = prog.add_task(label, total=total)
