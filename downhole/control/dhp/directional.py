@@ -117,7 +117,7 @@ def _directional_sample_fit(seed, set_ids, ref, radius, ns, Vr, c0, Y, P, bitp, 
     n = ref.shape[1]
     p = n + 1
     q = 2 * nodes.shape[0]
-    Phi = np.empty((ns, p))
+    Phi = np.empty((p, ns))
     Z = np.empty((ns, n))
     F = np.empty((ns, q))
     U = np.empty((p, p))

@@ -106,17 +106,18 @@ def _step_state_py(seed: int, k: int) -> list[int]:
 
 
 @njit(cache=True, nogil=True)
-def _draw_one(seed, set_id, refk, radius, Phi, Z):
-    """Fresh samples of one step: Phi (N, n+1) = [1, w] with w = 2u - 1, u the SFC64 stream of
-    sample set ``set_id`` (row by row), and z = r_k + radius * w in Z (N, n)."""
-    N, p = Phi.shape
+def _draw_one(seed, set_id, refk, radius, PhiT, Z):
+    """Fresh samples of one step: PhiT (n+1, N) = [1, w]^T with w = 2u - 1, u the SFC64 stream
+    of sample set ``set_id`` (sample by sample), and z = r_k + radius * w in Z (N, n). The
+    design matrix is stored transposed (one row per basis function) for the Gram products."""
+    p, N = PhiT.shape
     n = p - 1
     st = np.empty(4, dtype=np.uint64)
     scale = 1.0 / 9007199254740992.0
     _step_state(seed, set_id, st)
     a, b, c, w = st[0], st[1], st[2], st[3]
     for s in range(N):
-        Phi[s, 0] = 1.0
+        PhiT[0, s] = 1.0
         for i in range(n):
             tmp = a + b + w
             w += uint64(1)
@@ -124,13 +125,13 @@ def _draw_one(seed, set_id, refk, radius, Phi, Z):
             b = c + (c << uint64(3))
             c = ((c << uint64(24)) | (c >> uint64(40))) + tmp
             x = 2.0 * ((tmp >> uint64(11)) * scale) - 1.0
-            Phi[s, i + 1] = x
+            PhiT[i + 1, s] = x
             Z[s, i] = refk[i] + radius[i] * x
 
 
 @njit(cache=True, nogil=True)
 def _draw(seed, set_ids, ref, radius, Phi, Z):
-    """:func:`_draw_one` for every step j of a chunk (Phi (K, N, n+1), Z (K, N, n))."""
+    """:func:`_draw_one` for every step j of a chunk (Phi (K, n+1, N), Z (K, N, n))."""
     for j in range(set_ids.shape[0]):
         _draw_one(seed, set_ids[j], ref[j], radius, Phi[j], Z[j])
 
@@ -159,7 +160,7 @@ def compiled_offsets(seed: int, set_ids, ns: int, radius) -> np.ndarray:
     radius = np.ascontiguousarray(radius, dtype=float)
     n = radius.shape[0]
     K = set_ids.size
-    Phi = np.empty((K, ns, n + 1))
+    Phi = np.empty((K, n + 1, ns))
     Z = np.empty((K, ns, n))
     _draw(int(seed), set_ids, np.zeros((K, n)), radius, Phi, Z)
     return Z
@@ -267,16 +268,38 @@ def _solve_upper(U, B):
 
 
 @njit(cache=True, nogil=True)
-def _fit_one(Phi, F, Vr, c0, Y, U, B, refactor):
-    """Least-squares fit of one step: F (N, q) ~ c0 + w C_w on Phi = [1, w]; Y = C_w^T Vr
-    = C^T V (q, n). U (p, p) holds the Cholesky factor of Phi^T Phi (computed when
-    ``refactor``), B (p, q) is scratch. False when the design matrix is singular."""
+def _gram(PhiT, U):
+    """U = PhiT PhiT^T by three products on two row blocks (the symmetric block once)."""
+    p = PhiT.shape[0]
+    h = p // 2
+    G00 = np.empty((h, h))
+    G10 = np.empty((p - h, h))
+    G11 = np.empty((p - h, p - h))
+    np.dot(PhiT[:h], PhiT[:h].T, G00)
+    np.dot(PhiT[h:], PhiT[:h].T, G10)
+    np.dot(PhiT[h:], PhiT[h:].T, G11)
+    for i in range(h):
+        for j in range(h):
+            U[i, j] = G00[i, j]
+    for i in range(p - h):
+        for j in range(h):
+            U[h + i, j] = G10[i, j]
+            U[j, h + i] = G10[i, j]
+        for j in range(p - h):
+            U[h + i, h + j] = G11[i, j]
+
+
+@njit(cache=True, nogil=True)
+def _fit_one(PhiT, F, Vr, c0, Y, U, B, refactor):
+    """Least-squares fit of one step: F (N, q) ~ c0 + w C_w on the samples PhiT = [1, w]^T;
+    Y = C_w^T Vr = C^T V (q, n). U (p, p) holds the Cholesky factor of the Gram matrix
+    (computed when ``refactor``), B (p, q) is scratch. False when it is singular."""
     q = F.shape[1]
     if refactor:
-        np.dot(Phi.T, Phi, U)
+        _gram(PhiT, U)
         if not _chol_upper_lapack(U):
             return False
-    np.dot(Phi.T, F, B)
+    np.dot(PhiT, F, B)
     _solve_upper(U, B)
     for c in range(q):
         c0[c] = B[0, c]
@@ -288,7 +311,7 @@ def _fit_one(Phi, F, Vr, c0, Y, U, B, refactor):
 def _fit(Phi, F, set_ids, Vr, c0, Y):
     """:func:`_fit_one` for every step j of a chunk (the factor re-used while the sample set
     repeats). Returns the first step whose design matrix is singular, or -1."""
-    K, N, p = Phi.shape
+    K, p, N = Phi.shape
     q = F.shape[2]
     if q == 0:
         return -1
@@ -655,7 +678,7 @@ def _produce(model, seed, q, ref, radius, buf, ks, sid, a, b):
     if fused is not None:
         j = fused(seed, sid[a:b], ref[ks[a:b]], radius, ns, buf.Vr, buf.c0[a:b], buf.Y[a:b])
         return -1 if j < 0 else a + j
-    Phi = np.empty((b - a, ns, n + 1))
+    Phi = np.empty((b - a, n + 1, ns))
     Z = np.empty((b - a, ns, n))
     _draw(seed, sid[a:b], ref[ks[a:b]], radius, Phi, Z)
     F = _forces(model, Z.reshape((b - a) * ns, n), q).reshape(b - a, ns, q)
