@@ -226,7 +226,10 @@ def test_modal_riccati_matches_closed_form_numpy_and_threads_on_fem():
         gen = train_dhp(pb, st)
     finally:
         design.sample_fit = generic
-    np.testing.assert_array_equal(gen.kd, ric.kd)
+    # the fused kernel evaluates a state as P r + (P radius) w, the generic one as
+    # P (r + radius w): equal up to rounding, which the fits carry to ~1e-12 of the gains
+    assert np.abs(gen.kd - ric.kd).max() <= 1e-10 * scale
+    assert not np.array_equal(gen.kd, 0.0 * gen.kd)
     # the weight snapshots map back to the original coordinates: W = [c - D r; D^T]
     k = int(ric.weight_steps[-1])
     W = ric.weights[-1]

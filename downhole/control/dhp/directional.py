@@ -32,16 +32,20 @@ __all__ = ["directional_affine_model", "DirectionalStatePlant", "table_5_1_model
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _directional_forces(zb, P, bitp, tension, koff, elem, radius, mu, v_eps, contact, nodes,
-                        out):
+def _directional_forces(WT, P0, P1, bitp, tension, koff, elem, radius, mu, v_eps, contact,
+                        nodes, out):
     """Active nodal forces (N, q) of the bit and the wellbore friction.
 
+    The samples come transposed, one row per state: WT (n, N), and state i of sample s is
+    ``P0[i] + P1[i] * WT[i, s]`` in physical units (a non-dimensional batch zb: WT = zb^T,
+    P0 = 0, P1 = P; the trainer's samples z = r + radius * w: WT = w^T, P0 = P r,
+    P1 = P radius), so the loops over samples read contiguous rows.
     ``nodes`` (q/2,): the nodes whose force pair [axial, torque] is a column pair of ``out``
     (the bit node and the nodes of contact elements, in increasing order); ``contact`` (E,):
     the contact elements. The other nodes carry no nonlinear force (their columns would be
     identically zero), so the design model leaves them out. Samples are processed in blocks
     with the sample index innermost (vectorized square roots)."""
-    N = zb.shape[0]
+    N = WT.shape[1]
     n = radius.shape[0]
     ib = n - 1
     q2 = nodes.shape[0]
@@ -52,26 +56,31 @@ def _directional_forces(zb, P, bitp, tension, koff, elem, radius, mu, v_eps, con
     normal = np.empty((q2, BS))
     vax = np.empty(BS)
     vtr = np.empty(BS)
+    iva = 2 * n + 2 * ib
+    jb = slot[ib]
     for s0 in range(0, N, BS):
         nb = min(BS, N - s0)
         for t in range(nb):
             s = s0 + t
             for j in range(2 * q2):
                 out[s, j] = 0.0
-            va = zb[s, 2 * n + 2 * ib] * P[2 * n + 2 * ib]
-            vt = zb[s, 2 * n + 2 * ib + 1] * P[2 * n + 2 * ib + 1]
+            va = P0[iva] + P1[iva] * WT[iva, s]
+            vt = P0[iva + 1] + P1[iva + 1] * WT[iva + 1, s]
             d = approx_depth_of_cut(va, vt, bitp)
             w, tq = bit_forces(d, va, vt, bitp)
-            out[s, 2 * slot[ib]] = -w
-            out[s, 2 * slot[ib] + 1] = -tq
+            out[s, 2 * jb] = -w
+            out[s, 2 * jb + 1] = -tq
         if not (mu > 0.0 and contact.shape[0] > 0):
             continue
         normal[:, :nb] = 0.0
         for e in contact:
             i0 = 2 * e
             i1 = 2 * (e + 1)
-            p0 = P[i0]
-            p1 = P[i1]
+            w0 = WT[i0]
+            w1 = WT[i1]
+            d0 = P0[i1] - P0[i0]
+            p0 = P1[i0]
+            p1 = P1[i1]
             te = tension[e]
             ke = koff[e]
             k1, k2, k3 = elem[e, 1], elem[e, 2], elem[e, 3]
@@ -80,7 +89,7 @@ def _directional_forces(zb, P, bitp, tension, koff, elem, radius, mu, v_eps, con
             sa = slot[e]
             sb = slot[e + 1]
             for t in range(nb):
-                dx = zb[s0 + t, i1] * p1 - zb[s0 + t, i0] * p0
+                dx = d0 + w1[s0 + t] * p1 - w0[s0 + t] * p0
                 T = te - ke * dx
                 a0 = T * k1 + g1
                 a1 = T * k2 + g2
@@ -91,12 +100,14 @@ def _directional_forces(zb, P, bitp, tension, koff, elem, radius, mu, v_eps, con
         for j in range(q2):
             i = nodes[j]
             ia = 2 * n + 2 * i
-            pa = P[ia]
-            pt = P[ia + 1]
+            wa = WT[ia]
+            wt = WT[ia + 1]
+            oa, sa_ = P0[ia], P1[ia]
+            ot, st_ = P0[ia + 1], P1[ia + 1]
             r = radius[i]
             for t in range(nb):
-                vax[t] = zb[s0 + t, ia] * pa
-                vtr[t] = zb[s0 + t, ia + 1] * pt
+                vax[t] = oa + sa_ * wa[s0 + t]
+                vtr[t] = ot + st_ * wt[s0 + t]
             for t in range(nb):
                 den = math.sqrt(vax[t] * vax[t] + (r * vtr[t]) ** 2 + v_eps * v_eps)
                 c = mu * normal[j, t] / den
@@ -111,21 +122,28 @@ def _directional_forces(zb, P, bitp, tension, koff, elem, radius, mu, v_eps, con
 def _directional_sample_fit(seed, set_ids, ref, radius, ns, Vr, c0, Y, P, bitp, tension, koff,
                             elem, rnode, mu, v_eps, contact, nodes):
     """Fused DHP sample step for the directional model: for every step j, draw the step's fresh
-    samples, evaluate the forces on them and fit them (see :mod:`downhole.control.dhp.riccati`);
-    the samples of one step stay in cache. Returns the first singular step or -1."""
+    samples, evaluate the forces on them (read from the design matrix: z = r_k + radius w) and
+    fit them (see :mod:`downhole.control.dhp.riccati`); the samples of one step stay in cache.
+    Returns the first singular step or -1."""
     K = set_ids.shape[0]
     n = ref.shape[1]
     p = n + 1
     q = 2 * nodes.shape[0]
     Phi = np.empty((p, ns))
-    Z = np.empty((ns, n))
     F = np.empty((ns, q))
     U = np.empty((p, p))
     B = np.empty((p, q))
+    P0 = np.empty(n)
+    P1 = np.empty(n)
+    for i in range(n):
+        P1[i] = P[i] * radius[i]
     for j in range(K):
-        _draw_one(seed, set_ids[j], ref[j], radius, Phi, Z)
-        _directional_forces(Z, P, bitp, tension, koff, elem, rnode, mu, v_eps, contact, nodes,
-                            F)
+        refj = ref[j]
+        for i in range(n):
+            P0[i] = P[i] * refj[i]
+        _draw_one(seed, set_ids[j], Phi)
+        _directional_forces(Phi[1:], P0, P1, bitp, tension, koff, elem, rnode, mu, v_eps,
+                            contact, nodes, F)
         if not _fit_one(Phi, F, Vr, c0[j], Y[j], U, B, j == 0 or set_ids[j] != set_ids[j - 1]):
             return j
     return -1
@@ -203,11 +221,13 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
     cols = np.ravel(np.column_stack([2 * act, 2 * act + 1]))
     Gam = np.ascontiguousarray(Gam[:, cols])
 
+    zero = np.zeros(ns)
+
     def forces(zb):
-        zb = np.ascontiguousarray(zb, dtype=float)
+        zb = np.asarray(zb, dtype=float)
         out = np.empty((zb.shape[0], 2 * act.size))
-        _directional_forces(zb, P, bitp, tension, koff, elem, radius, mu, float(v_eps_design),
-                            contact, act, out)
+        _directional_forces(np.ascontiguousarray(zb.T), zero, P, bitp, tension, koff, elem,
+                            radius, mu, float(v_eps_design), contact, act, out)
         return out
 
     def sample_fit(seed, set_ids, ref, radius_s, ns, Vr, c0, Y):

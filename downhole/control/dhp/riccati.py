@@ -40,7 +40,9 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-from numba import njit, uint64
+from numba import int64, njit, uint64
+
+from downhole._blas import chol_solve_right, potrf_upper, syrk_gram
 
 __all__ = ["ModalForm", "draw_offsets", "compiled_offsets", "train_riccati", "riccati_numpy"]
 
@@ -106,34 +108,40 @@ def _step_state_py(seed: int, k: int) -> list[int]:
 
 
 @njit(cache=True, nogil=True)
-def _draw_one(seed, set_id, refk, radius, PhiT, Z):
+def _draw_one(seed, set_id, PhiT):
     """Fresh samples of one step: PhiT (n+1, N) = [1, w]^T with w = 2u - 1, u the SFC64 stream
-    of sample set ``set_id`` (sample by sample), and z = r_k + radius * w in Z (N, n). The
-    design matrix is stored transposed (one row per basis function) for the Gram products."""
+    of sample set ``set_id`` (sample by sample). The design matrix is stored transposed (one
+    row per basis function) for the Gram product; the samples are z = r_k + radius * w."""
     p, N = PhiT.shape
     n = p - 1
     st = np.empty(4, dtype=np.uint64)
-    scale = 1.0 / 9007199254740992.0
+    scale = 2.0 / 9007199254740992.0          # 2u - 1 = k 2^-52 - 1, exact as in NumPy
     _step_state(seed, set_id, st)
     a, b, c, w = st[0], st[1], st[2], st[3]
     for s in range(N):
         PhiT[0, s] = 1.0
+    for s in range(N):
         for i in range(n):
             tmp = a + b + w
             w += uint64(1)
             a = b ^ (b >> uint64(11))
             b = c + (c << uint64(3))
             c = ((c << uint64(24)) | (c >> uint64(40))) + tmp
-            x = 2.0 * ((tmp >> uint64(11)) * scale) - 1.0
-            PhiT[i + 1, s] = x
-            Z[s, i] = refk[i] + radius[i] * x
+            # the top 53 bits fit an int64: the signed conversion is exact and faster
+            PhiT[i + 1, s] = int64(tmp >> uint64(11)) * scale - 1.0
 
 
 @njit(cache=True, nogil=True)
 def _draw(seed, set_ids, ref, radius, Phi, Z):
-    """:func:`_draw_one` for every step j of a chunk (Phi (K, n+1, N), Z (K, N, n))."""
-    for j in range(set_ids.shape[0]):
-        _draw_one(seed, set_ids[j], ref[j], radius, Phi[j], Z[j])
+    """:func:`_draw_one` for every step j of a chunk (Phi (K, n+1, N)) and the samples
+    Z[j] = r_j + radius * w (K, N, n)."""
+    K, p, N = Phi.shape
+    for j in range(K):
+        _draw_one(seed, set_ids[j], Phi[j])
+        refj = ref[j]
+        for s in range(N):
+            for i in range(p - 1):
+                Z[j, s, i] = refj[i] + radius[i] * Phi[j, i + 1, s]
 
 
 def draw_offsets(seed: int, set_ids, ns: int, n: int) -> np.ndarray:
@@ -228,20 +236,10 @@ class ModalForm:
 # ----------------------------------------------------------------------------------- kernels
 @njit(cache=True, nogil=True)
 def _chol_upper_lapack(U):
-    """In place: U (symmetric positive definite) -> its upper Cholesky factor (G = U^T U) by
-    LAPACK's potrf. False if not positive definite."""
-    p = U.shape[0]
-    for j in range(p):
-        if not U[j, j] > 0.0:
-            return False
-    try:
-        L = np.linalg.cholesky(U)
-    except Exception:  # noqa: BLE001 - numba raises LinAlgError for a non-PD matrix
-        return False
-    for i in range(p):
-        for j in range(p):
-            U[i, j] = L[j, i]
-    return True
+    """In place: the upper triangle of U (symmetric positive definite) -> its upper Cholesky
+    factor (G = U^T U) by LAPACK's potrf, called directly (no copy); the lower triangle is
+    left as it was. False if not positive definite."""
+    return potrf_upper(U) == 0
 
 
 @njit(cache=True, nogil=True)
@@ -268,39 +266,17 @@ def _solve_upper(U, B):
 
 
 @njit(cache=True, nogil=True)
-def _gram(PhiT, U):
-    """U = PhiT PhiT^T by three products on two row blocks (the symmetric block once)."""
-    p = PhiT.shape[0]
-    h = p // 2
-    G00 = np.empty((h, h))
-    G10 = np.empty((p - h, h))
-    G11 = np.empty((p - h, p - h))
-    np.dot(PhiT[:h], PhiT[:h].T, G00)
-    np.dot(PhiT[h:], PhiT[:h].T, G10)
-    np.dot(PhiT[h:], PhiT[h:].T, G11)
-    for i in range(h):
-        for j in range(h):
-            U[i, j] = G00[i, j]
-    for i in range(p - h):
-        for j in range(h):
-            U[h + i, j] = G10[i, j]
-            U[j, h + i] = G10[i, j]
-        for j in range(p - h):
-            U[h + i, h + j] = G11[i, j]
-
-
-@njit(cache=True, nogil=True)
 def _fit_one(PhiT, F, Vr, c0, Y, U, B, refactor):
     """Least-squares fit of one step: F (N, q) ~ c0 + w C_w on the samples PhiT = [1, w]^T;
     Y = C_w^T Vr = C^T V (q, n). U (p, p) holds the Cholesky factor of the Gram matrix
     (computed when ``refactor``), B (p, q) is scratch. False when it is singular."""
     q = F.shape[1]
     if refactor:
-        _gram(PhiT, U)
-        if not _chol_upper_lapack(U):
+        syrk_gram(PhiT, U)                   # upper triangle of the Gram (BLAS dsyrk)
+        if potrf_upper(U) != 0:              # its Cholesky factor in place (LAPACK dpotrf)
             return False
     np.dot(PhiT, F, B)
-    _solve_upper(U, B)
+    chol_solve_right(U, B)                   # two BLAS dtrsm
     for c in range(q):
         c0[c] = B[0, c]
     np.dot(B[1:].T, Vr, Y)
