@@ -369,7 +369,28 @@ def _small_inv(A, out):
                         out[r, j] -= f * out[c, j]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _mg_rows(M, gpT, Mg, gM, r0, r1, clear):
+    """Rows r0..r1-1 of M'g' (n, m) into Mg and their share of g'^T M' (m, n) added to gM
+    (cleared first when ``clear``)."""
+    m, n = gpT.shape
+    for l in range(m):
+        gl = gpT[l]
+        gMl = gM[l]
+        if clear:
+            for c in range(n):
+                gMl[c] = 0.0
+        for r in range(r0, r1):
+            Mr = M[r]
+            s = 0.0
+            f = gl[r]
+            for c in range(n):
+                s += Mr[c] * gl[c]
+                gMl[c] += f * Mr[c]
+            Mg[r, l] = s
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc", "contract"})
 def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp, R, Rinv, Vinv,
               M, cn, kc, kd, mu_out, mu_max_ok, max_weight, keep_every, w_steps, w_Dp, w_cp,
               w_count):
@@ -408,10 +429,12 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
         if c > 0:
             tun[c] = tu[c - 1]
         tln[c] = tl[c]
+    fresh_mg = False                           # Mg, gM hold M'g', g'^T M' of the current M
     for j in range(K):
         k = k_hi - j
         if k == n_total - 1:
             M[:, :] = Sp
+            fresh_mg = False
             a[:] = 0.0
         elif banded:
             for i in range(n):
@@ -427,19 +450,8 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
                 for r in range(n):
                     acc += T[r, i] * cn[r]
                 a[i] = acc
-        for l in range(m):                     # M'g', g'^T M' (m is small: loops, no BLAS)
-            gl = gpT[l]
-            gMl = gM[l]
-            for c in range(n):
-                gMl[c] = 0.0
-            for r in range(n):
-                Mr = M[r]
-                s = 0.0
-                f = gl[r]
-                for c in range(n):
-                    s += Mr[c] * gl[c]
-                    gMl[c] += f * Mr[c]
-                Mg[r, l] = s
+        if not fresh_mg:                       # M'g', g'^T M' (m is small: loops, no BLAS)
+            _mg_rows(M, gpT, Mg, gM, 0, n, True)
         for l1 in range(m):                    # g'^T M' g' (m x m, m small)
             for l2 in range(m):
                 acc = 0.0
@@ -502,7 +514,9 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
         if q > 0:                              # (N M' Gam') Y
             np.dot(NM, Gp, X)
             np.dot(X, Y[j], XY)
-        if banded:                             # D' = N M' T + (N M' Gam') Y
+        if banded:                             # D' = N M' T + (N M' Gam') Y, and
+            for l in range(m):                 # W1 = g'^T D' in the same pass
+                W1[l, :] = 0.0
             for r in range(n):
                 NMr = NM[r]
                 Dr = D[r]
@@ -512,6 +526,11 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
                     Dr[c] = NMr[c] * tdn[c] + NMr[c - 1] * tun[c] + XYr[c]
                 for c in range(n - 1):
                     Dr[c] += NMr[c + 1] * tln[c]
+                for l in range(m):
+                    f = gpT[l, r]
+                    W1l = W1[l]
+                    for c in range(n):
+                        W1l[c] += f * Dr[c]
         else:
             for r in range(n):
                 for c in range(n):
@@ -519,16 +538,16 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
                     for i in range(n):
                         acc += NM[r, i] * T[i, c]
                     D[r, c] = acc
-        for l in range(m):                     # gains: kd = R^-1 g'^T D' V^-1
-            W1l = W1[l]
-            for c in range(n):
-                W1l[c] = 0.0
-            for r in range(n):
-                f = gpT[l, r]
-                Dr = D[r]
+            for l in range(m):                 # W1 = g'^T D'
+                W1l = W1[l]
                 for c in range(n):
-                    W1l[c] += f * Dr[c]
-        for l in range(m):
+                    W1l[c] = 0.0
+                for r in range(n):
+                    f = gpT[l, r]
+                    Dr = D[r]
+                    for c in range(n):
+                        W1l[c] += f * Dr[c]
+        for l in range(m):                     # gains: kd = R^-1 g'^T D' V^-1
             for c in range(n):
                 s = 0.0
                 for i in range(m):
@@ -566,7 +585,9 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
             w_Dp[w_count[0]] = D
             w_cp[w_count[0]] = cn
             w_count[0] += 1
-        if banded:                             # M'_{k-1} = Q' + T^T D'
+        if banded:                             # M'_{k-1} = Q' + T^T D', and the next
+            for l in range(m):                 # step's M'g', g'^T M' in the same pass
+                gM[l, :] = 0.0
             for r in range(n):
                 Mr = M[r]
                 Qr = Qp[r]
@@ -584,6 +605,8 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
                     Dn = D[r + 1]
                     for c in range(n):
                         Mr[c] += f * Dn[c]
+                _mg_rows(M, gpT, Mg, gM, r, r + 1, False)
+            fresh_mg = True
         else:
             for r in range(n):
                 for c in range(n):
@@ -662,6 +685,91 @@ def _produce(model, seed, q, ref, radius, buf, ks, sid, a, b):
     return -1 if j < 0 else a + j
 
 
+class _Feeder:
+    """Fits of the chunks, shared by ``workers`` threads and the main thread.
+
+    A chunk's steps are cut into blocks of :attr:`block` steps queued in chunk order. The
+    workers take blocks as they come; :meth:`wait` (the main thread, before the backward pass
+    of chunk i) takes the remaining blocks of chunk i itself and then waits for the ones in
+    flight. So with two threads in all the main thread computes fits whenever it is not in the
+    backward pass, and no more threads than cores run (kernels release the GIL)."""
+
+    block = 16
+
+    def __init__(self, produce, workers: int):
+        import collections
+        import threading
+
+        self._produce = produce
+        self._cv = threading.Condition()
+        self._queue = collections.deque()
+        self._left: dict[int, int] = {}
+        self._bad: dict[int, list[int]] = {}
+        self._error: BaseException | None = None
+        self._closed = False
+        self._threads = [threading.Thread(target=self._work, daemon=True,
+                                          name=f"dhp-fit-{w}") for w in range(workers)]
+        for t in self._threads:
+            t.start()
+
+    def add(self, i: int, K: int) -> None:
+        cuts = list(range(0, K, self.block)) + [K]
+        with self._cv:
+            self._left[i] = len(cuts) - 1
+            self._bad[i] = []
+            self._queue.extend((i, cuts[j], cuts[j + 1]) for j in range(len(cuts) - 1))
+            self._cv.notify_all()
+
+    def _run(self, item) -> None:
+        i, a, b = item
+        try:
+            r = self._produce(i, a, b)
+            err = None
+        except BaseException as exc:  # noqa: BLE001 - handed to the main thread
+            r, err = -1, exc
+        with self._cv:
+            if err is not None and self._error is None:
+                self._error = err
+            if r >= 0:
+                self._bad[i].append(r)
+            self._left[i] -= 1
+            self._cv.notify_all()
+
+    def _work(self) -> None:
+        while True:
+            with self._cv:
+                while not self._queue and not self._closed:
+                    self._cv.wait()
+                if self._closed:
+                    return
+                item = self._queue.popleft()
+            self._run(item)
+
+    def wait(self, i: int) -> list[int]:
+        """Finish the fits of chunk i (helping); the steps (chunk positions) that failed."""
+        while True:
+            with self._cv:
+                if self._error is not None:
+                    raise self._error
+                if self._left[i] == 0:
+                    return self._bad.pop(i)
+                item = None
+                if self._queue and self._queue[0][0] == i:
+                    item = self._queue.popleft()
+                else:
+                    self._cv.wait()
+            if item is not None:
+                self._run(item)
+
+    def close(self) -> None:
+        with self._cv:
+            self._closed = True
+            self._queue.clear()
+            self._cv.notify_all()
+        for t in self._threads:
+            t.join()
+
+
 def train_riccati(problem, settings, ns, radius, out, mu_ok, bar=None):
     """Run the modal Riccati trainer; fills ``out`` (kc, kd, mu, w_steps, w_store, w_count).
 
@@ -700,32 +808,19 @@ def train_riccati(problem, settings, ns, radius, out, mu_ok, bar=None):
         chunks.append((k_hi, ks, ((n_steps - 1 - ks) // re).astype(np.int64)))
         k_hi -= K
 
-    def submit(pool, i):
+    def produce(i, a, b):
         k_hi, ks, sid = chunks[i]
-        buf = bufs[i % len(bufs)]
-        K = ks.size
-        cuts = np.linspace(0, K, threads + 1).round().astype(int)
-        if pool is None:
-            return [_produce(model, seed, q, ref, radius, buf, ks, sid, 0, K)]
-        return [pool.submit(_produce, model, seed, q, ref, radius, buf, ks, sid, cuts[t],
-                            cuts[t + 1]) for t in range(threads)]
+        return _produce(model, seed, q, ref, radius, bufs[i % len(bufs)], ks, sid, a, b)
 
-    pool = None
-    if threads > 1:
-        from concurrent.futures import ThreadPoolExecutor
-
-        pool = ThreadPoolExecutor(threads)
     status, kf = 0, -1
+    feeder = _Feeder(produce, threads - 1)
     try:
-        pending = submit(pool, 0)
+        for i in range(min(len(bufs), len(chunks))):
+            feeder.add(i, chunks[i][1].size)
         for i, (k_hi, ks, sid) in enumerate(chunks):
-            res = [f.result() if pool is not None else f for f in pending]
-            bad = [r for r in res if r >= 0]
+            bad = feeder.wait(i)       # the main thread helps with the fits of chunk i
             if bad:
                 return 3, int(ks[min(bad)])
-            if i + 1 < len(chunks):
-                if pool is not None:
-                    pending = submit(pool, i + 1)
             buf = bufs[i % len(bufs)]
             K = ks.size
             status, kf = _backward(k_hi, n_steps, pre["base"][ks], buf.c0[:K], buf.Y[:K], mf.T,
@@ -735,13 +830,12 @@ def train_riccati(problem, settings, ns, radius, out, mu_ok, bar=None):
                                    w_cp, w_count)
             if status:
                 break
-            if pool is None and i + 1 < len(chunks):
-                pending = submit(None, i + 1)
+            if i + len(bufs) < len(chunks):     # buffer i % len(bufs) is free again
+                feeder.add(i + len(bufs), chunks[i + len(bufs)][1].size)
             if bar:
                 bar[0].update(bar[1], advance=K)
     finally:
-        if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
+        feeder.close()
     # full weights W_k = [c - D r_k; D^T] of the snapshots, back in the original coordinates
     for i in range(int(w_count[0])):
         k = w_steps[i]
