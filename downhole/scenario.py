@@ -21,7 +21,8 @@ from downhole.params.quantity import Q
 from downhole.units import UnitError, to_si
 
 __all__ = ["load_scenario", "parse_scenario", "run_scenario", "register_model_type",
-           "LumpedScenario", "MODEL_TYPES"]
+           "LumpedScenario", "MODEL_TYPES", "model_type", "is_lumped_type", "validate_data",
+           "validate_scenario", "build_lumped_model"]
 
 #: A profile: a constant, or breakpoints [[t, value], ...] interpolated linearly.
 Profile = Union[float, int, str, list]
@@ -142,7 +143,8 @@ def _raise_validation(source: str, exc: ValidationError, prefix: str = ""):
     raise ScenarioError(source, field, msg) from None
 
 
-def _build_lumped(sc: LumpedScenario, source: str):
+def build_lumped_model(sc: LumpedScenario, source: str):
+    """The lumped chain model of a parsed lumped scenario (raises :class:`ScenarioError`)."""
     from downhole.params import BitParams, LumpedParams, get_preset
     from downhole.string.lumped import lumped_model
 
@@ -172,7 +174,7 @@ def _run_lumped(data: dict, source: str, text: str):
     from downhole.sim.inputs import sample_signal
 
     sc = parse_scenario(data, source, LumpedScenario)
-    model = _build_lumped(sc, source)
+    model = build_lumped_model(sc, source)
     s = sc.surface
     if s.mode == "velocity":
         inputs = SurfaceInputs.velocity(s.axial_velocity, s.angular_velocity)
@@ -228,7 +230,8 @@ def load_scenario(path: str | Path) -> tuple[dict, str, str]:
     return data, source, text
 
 
-def _model_type(data: dict, source: str) -> str:
+def model_type(data: dict, source: str) -> str:
+    """The scenario's ``[model] type``, checked against the registered types."""
     model = data.get("model", {})
     if not isinstance(model, dict):
         raise ScenarioError(source, "model", "expected a table [model]")
@@ -243,13 +246,25 @@ def _model_type(data: dict, source: str) -> str:
     return mtype
 
 
+def is_lumped_type(mtype: str) -> bool:
+    """True for the built-in lumped types, whose full schema is :class:`LumpedScenario` (the
+    other types' schemas live with their runners)."""
+    return MODEL_TYPES.get(mtype) is _run_lumped
+
+
+def validate_data(data: dict, source: str) -> str:
+    """Validate a parsed scenario without running it: its model type always, lumped scenarios
+    against their full schema and model. Returns the model type."""
+    mtype = model_type(data, source)
+    if is_lumped_type(mtype):
+        build_lumped_model(parse_scenario(data, source, LumpedScenario), source)
+    return mtype
+
+
 def validate_scenario(path: str | Path) -> None:
     """Validate a scenario file without running it (raises :class:`ScenarioError`)."""
     data, source, _ = load_scenario(path)
-    mtype = _model_type(data, source)
-    if MODEL_TYPES[mtype] is _run_lumped:
-        sc = parse_scenario(data, source, LumpedScenario)
-        _build_lumped(sc, source)
+    validate_data(data, source)
 
 
 def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>") -> "Result":  # noqa: F821
@@ -260,7 +275,7 @@ def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>") -> "Re
         data, text = path_or_data, tomli_w.dumps(path_or_data)
     else:
         data, source, text = load_scenario(path_or_data)
-    mtype = _model_type(data, source)
+    mtype = model_type(data, source)
     return MODEL_TYPES[mtype](data, source, text)
 
 

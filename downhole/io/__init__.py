@@ -1,6 +1,6 @@
 """Result export to the formats drilling tools read: LAS 2.0 (time-indexed) and CSV.
 
-``import downhole.io`` also adds :meth:`Result.to_las`.
+:meth:`Result.to_las` (a method of every Result) calls :func:`write_las`.
 """
 
 from downhole.io.las import read_las, write_las

@@ -6,8 +6,7 @@ one curve per 1-D channel with its unit in the curve header (``WOB .N``, ``TOB .
 scalar metadata (dt, model, integrator, ...) in the ``~Parameter`` section and the summary
 metrics as parameters too.
 
-Importing this module also adds :meth:`Result.to_las` (the lead's ``Result`` class lives in
-``downhole/sim/result.py``; the method is attached here so the LAS code stays in one place).
+:meth:`Result.to_las <downhole.sim.result.Result.to_las>` calls :func:`write_las`.
 """
 
 from __future__ import annotations
@@ -151,17 +150,3 @@ def read_las(path: str | os.PathLike):
         channels[name] = np.asarray(c.data, float)
         units[name] = c.unit
     return Result(t, channels, units=units, attrs={"source": str(path)})
-
-
-def _install() -> None:
-    from downhole.sim.result import Result
-
-    if not hasattr(Result, "to_las"):
-        def to_las(self, path, **kwargs):
-            """Write this Result as a time-indexed LAS 2.0 file (see :func:`write_las`)."""
-            return write_las(self, path, **kwargs)
-
-        Result.to_las = to_las
-
-
-_install()

@@ -156,6 +156,14 @@ class Result:
         self.dataset[one_d].to_dataframe().to_csv(path)
         return Path(path)
 
+    def to_las(self, path: str | os.PathLike, **kwargs) -> Path:
+        """Write the 1-D channels as a time-indexed LAS 2.0 file (keywords: ``well``,
+        ``channels``, ``company``, ``field``, ``summary``; see
+        :func:`downhole.io.las.write_las`)."""
+        from downhole.io.las import write_las
+
+        return write_las(self, path, **kwargs)
+
     def __repr__(self) -> str:
         t = self.time
         span = f"{t[0]:.3g}..{t[-1]:.3g} s" if t.size else "empty"

@@ -247,13 +247,9 @@ def _cluster_workers(scheduler) -> int | None:
 
 def _validate_base(base: dict, source: str) -> None:
     """Validate the unswept scenario (lumped types fully; others by their model type only)."""
-    from downhole.scenario import MODEL_TYPES, _model_type, _run_lumped
+    from downhole.scenario import validate_data
 
-    mtype = _model_type(base, source)
-    if MODEL_TYPES[mtype] is _run_lumped:
-        from downhole.scenario import LumpedScenario, _build_lumped, parse_scenario
-
-        _build_lumped(parse_scenario(base, source, LumpedScenario), source)
+    validate_data(base, source)
 
 
 def _execute(args, cases, batches, metrics, window, scheduler, processes, workers, store,

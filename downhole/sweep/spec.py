@@ -353,25 +353,25 @@ def validate_path(base: dict, source: str, spec: ParamSpec) -> None:
     the file, e.g. ``model.string.mass`` set by the preset). Other model types accept only paths
     already present in the file (their schemas live with their runners).
     """
-    from downhole.scenario import MODEL_TYPES, _model_type, _run_lumped
+    from downhole.scenario import is_lumped_type, model_type
 
-    mtype = _model_type(base, source)
+    mtype = model_type(base, source)
     probe_values = [spec.low, spec.high]
-    if MODEL_TYPES[mtype] is not _run_lumped:
+    if not is_lumped_type(mtype):
         if get_path(base, spec.path, None) is None:
             raise DownholeInputError(
                 f"--param {spec.path}: unknown parameter path: {source} has no key "
                 f"{spec.path!r} (for model type {mtype!r} only keys written in the scenario "
                 "can be swept)")
         return
-    from downhole.scenario import LumpedScenario, _build_lumped, parse_scenario
+    from downhole.scenario import LumpedScenario, build_lumped_model, parse_scenario
 
     for value in probe_values:
         data = copy.deepcopy(base)
         set_path(data, spec.path, value)
         try:
             sc = parse_scenario(data, source, LumpedScenario)
-            _build_lumped(sc, source)
+            build_lumped_model(sc, source)
         except ScenarioError as exc:
             if "unknown key" in exc.message and spec.path.startswith(exc.field):
                 raise DownholeInputError(f"--param {spec.path}: unknown parameter path "
