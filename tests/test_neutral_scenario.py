@@ -2,7 +2,6 @@
 eid`` on the same files; bad fields give exit 2 naming the file and the dotted field."""
 
 import json
-import shutil
 import warnings
 from pathlib import Path
 

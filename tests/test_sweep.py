@@ -12,7 +12,7 @@ import pytest
 
 from downhole.errors import DownholeInputError
 from downhole.scenario import run_scenario
-from downhole.sweep import (classify_regimes, failed_cases, load_sweep, run_sweep, save_sweep,
+from downhole.sweep import (failed_cases, load_sweep, run_sweep, save_sweep,
                             stability_map)
 
 BASE = {

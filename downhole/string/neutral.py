@@ -26,7 +26,7 @@ from numba import njit
 
 from downhole.bit.detournay import approx_depth_of_cut, bit_force_slopes, bit_forces
 from downhole.bit.rock_surface import RockSurfaceSpec, rock_advance, rock_depth, rock_init
-from downhole.control.eid._kernel import NSIG, eid_arrays, eid_step
+from downhole.control.eid._kernel import eid_arrays, eid_step
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, NeutralStringParams, get_preset
 from downhole.sim.result import Result
