@@ -63,8 +63,14 @@ def test_wave_segment_delays_a_torque_step_by_tau_with_impedance_z():
                              hook=Hook(wob=0.0))
     for _ in range(i):
         plant.step()
-    omega_b = plant._st["state"][4, pl.node_b]
+    fields = plant.node_fields()
+    omega_b = fields["angular_velocity"][pl.node_b]
     assert plant._obs["torque_b"] == pytest.approx(Z * omega_b, rel=0.02)
+    obs = plant.step()
+    fields = plant.node_fields()
+    assert fields["angular_velocity"][-1] == obs["last_node_angular_velocity"]
+    assert fields["axial_velocity"][-1] == obs["last_node_axial_velocity"]
+    assert fields["angle"].shape == (len(pl.node_md),)
 
 
 def test_hybrid_bad_input():

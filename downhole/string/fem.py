@@ -966,6 +966,16 @@ class DirectionalPlant:
     def time(self) -> float:
         return float(self._st["misc"][0])
 
+    def node_fields(self) -> dict[str, np.ndarray]:
+        """The nodal state now (copies, one value per node of ``model.node_md``):
+        ``axial_position`` (m, along measured depth, downwards), ``axial_velocity`` (m/s),
+        ``axial_acceleration`` (m/s^2), ``angle`` (rad), ``angular_velocity`` (rad/s),
+        ``angular_acceleration`` (rad/s^2). State feedback and observers read these."""
+        s = self._st["state"]
+        return {"axial_position": s[0].copy(), "axial_velocity": s[1].copy(),
+                "axial_acceleration": s[2].copy(), "angle": s[3].copy(),
+                "angular_velocity": s[4].copy(), "angular_acceleration": s[5].copy()}
+
     def step(self, command: dict | None = None) -> dict:
         """Hold ``command`` over one step and advance ``dt``; returns the new observation."""
         if command:
