@@ -162,6 +162,32 @@ def test_quadratic_basis_reference_path_runs_and_matches_linear_plant():
     np.testing.assert_allclose(tr.kd, K, rtol=1e-5, atol=1e-8)
 
 
+def test_user_basis_object_plugs_in_and_matches_lqr_on_linear_plant():
+    """A user basis (here [1, z, z^3]) trains through Algorithm 1; on a linear plant the
+    co-state is linear, so the controls are the LQR ones."""
+
+    class CubicBasis:
+        is_linear = False
+        name = "cubic"
+
+        def size(self, n):
+            return 2 * n + 1
+
+        def __call__(self, Z):
+            return np.concatenate([np.ones((Z.shape[0], 1)), Z, Z ** 3], axis=1)
+
+    model, A, B, Q, R, S = _linear_plant()
+    pb = DHPProblem(model, Q, R, S, np.zeros((21, 6)))
+    tr = train_dhp(pb, DHPSettings(method="algorithm1_numpy", basis=CubicBasis(), n_samples=40,
+                                   threshold=1e-10, n_iterations=200))
+    K = finite_horizon_lqr(A, B, Q, R, S, 20)
+    np.testing.assert_allclose(tr.kd, K, rtol=1e-5, atol=1e-8)
+    with pytest.raises(DownholeInputError, match="needs size"):
+        DHPSettings(method="algorithm1_numpy", basis=object())
+    with pytest.raises(DownholeInputError, match="needs basis='linear'"):
+        DHPSettings(basis=CubicBasis())
+
+
 def test_directional_design_model_matches_fem_export():
     """The compiled structured design model equals the FEM engineer's control_affine export."""
     from downhole.control.dhp.directional import directional_affine_model, table_5_1_models

@@ -91,6 +91,9 @@ def design_dhp(model: ControlAffineModel, reference: BitReference | None = None,
                                  f"{np.asarray(limits).shape}")
     settings_d = {k: (list(v) if isinstance(v, tuple) else v)
                   for k, v in settings.__dict__.items()}
+    if not isinstance(settings.basis, str):       # a user basis object: record its name
+        settings_d["basis"] = str(getattr(settings.basis, "name",
+                                          type(settings.basis).__name__))
     meta = {"model": model.describe(), "settings": settings_d, "weights": weights.to_dict(),
             "horizon": problem.n_steps * model.dt, "use_feed_forward": use_feed_forward,
             "training_seconds": tr.seconds, "method": tr.method,

@@ -97,6 +97,14 @@ class QuadraticBasis:
 _BASES = {"linear": LinearBasis, "quadratic": QuadraticBasis}
 
 
+def _basis(spec):
+    """A basis from its name or a user object (``size(n)``, ``__call__(Z) -> (N, p)``,
+    ``is_linear``)."""
+    if isinstance(spec, str):
+        return _BASES[spec]()
+    return spec
+
+
 # ---------------------------------------------------------------------------------------- settings
 @dataclass(frozen=True)
 class DHPSettings:
@@ -119,8 +127,11 @@ class DHPSettings:
     jacobian : {"seed", "exact"}
         A_k in the co-state recursion: the seed's constant P^-1 A_d P, or with the derivative
         of the nonlinear forces (``algorithm1_numpy`` only).
-    basis : {"linear", "quadratic"}
-        phi; non-linear bases need ``algorithm1_numpy``.
+    basis : {"linear", "quadratic"} or object
+        phi; non-linear bases need ``algorithm1_numpy``. Any object with ``size(n) -> p``,
+        ``__call__(Z (N, n)) -> (N, p)`` (the first column constant) and ``is_linear = False``
+        plugs in (see :class:`QuadraticBasis`); its ``name`` (default: the class name) is what
+        a saved controller records.
     warm_start : bool
         Start Algorithm 1 at step k from W_{k+1} (True) or from zero (False, the seed's "initial
         guess").
@@ -154,7 +165,7 @@ class DHPSettings:
     sample_radius: float | tuple = 0.02
     method: str = "riccati"
     jacobian: str = "seed"
-    basis: str = "linear"
+    basis: object = "linear"
     warm_start: bool = True
     require_contraction: bool = True
     seed: int = 0
@@ -170,10 +181,17 @@ class DHPSettings:
             raise DownholeInputError(f"method must be one of {METHODS}, got {self.method!r}")
         if self.jacobian not in ("seed", "exact"):
             raise DownholeInputError(f"jacobian must be 'seed' or 'exact', got {self.jacobian!r}")
-        if self.basis not in _BASES:
-            raise DownholeInputError(f"basis must be one of {tuple(_BASES)}, got {self.basis!r}")
-        if self.method != "algorithm1_numpy" and (self.jacobian != "seed"
-                                                   or self.basis != "linear"):
+        if isinstance(self.basis, str):
+            if self.basis not in _BASES:
+                raise DownholeInputError(f"basis must be one of {tuple(_BASES)} or a basis "
+                                         f"object, got {self.basis!r}")
+        elif not (callable(self.basis) and callable(getattr(self.basis, "size", None))
+                  and hasattr(self.basis, "is_linear")):
+            raise DownholeInputError(f"basis object {self.basis!r} needs size(n), "
+                                     "__call__(Z) and is_linear")
+        linear = self.basis == "linear" or (not isinstance(self.basis, str)
+                                             and isinstance(self.basis, LinearBasis))
+        if self.method != "algorithm1_numpy" and (self.jacobian != "seed" or not linear):
             raise DownholeInputError(
                 f"method {self.method!r} needs basis='linear' and jacobian='seed'; use "
                 "method='algorithm1_numpy' for other bases or the exact Jacobian")
@@ -566,7 +584,7 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
         raise DownholeInputError(f"problem must be a DHPProblem, got {type(problem).__name__}")
     model = problem.model
     n, m = model.n_states, model.n_inputs
-    basis = _BASES[settings.basis]()
+    basis = _basis(settings.basis)
     p = basis.size(n)
     ns = settings.n_samples if settings.n_samples is not None else max(2 * (n + 1), 20)
     if ns < p:
@@ -762,7 +780,8 @@ def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, er
             kc[k] = Rinv @ g.T @ c
             kd[k] = Rinv @ g.T @ Dt
         else:
-            # linearise the policy at the reference (the online law evaluates phi itself)
+            # the online law is the policy linearized at the reference (storing W_k of a
+            # non-linear basis for every step would take p n 8 bytes per step)
             eps = 1e-6
             lam0 = basis(ref[k][None])[0] @ W
             J = np.empty((n, n))
