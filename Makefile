@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-$(shell cksum pyproject.toml | cut -d' ' -f1)
 
-.PHONY: run test test-slow bench clean chromium
+.PHONY: run test test-slow bench clean clean-cache chromium
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,3 +33,6 @@ bench: $(STAMP)
 clean:
 	rm -rf out .pytest_cache
 	find . -name __pycache__ -prune -exec rm -rf {} +
+
+clean-cache:
+	find downhole -path '*__pycache__*' \( -name '*.nbi' -o -name '*.nbc' \) -delete
