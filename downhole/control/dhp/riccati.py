@@ -370,6 +370,22 @@ def _small_inv(A, out):
 
 
 @njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _combine_rows(coef, X, out):
+    """out (m, c) = coef (m, r) @ X (r, c) as combinations of the rows of X (m small)."""
+    m, nr = coef.shape
+    nc = X.shape[1]
+    for l in range(m):
+        o = out[l]
+        for c in range(nc):
+            o[c] = 0.0
+        for r in range(nr):
+            f = coef[l, r]
+            Xr = X[r]
+            for c in range(nc):
+                o[c] += f * Xr[c]
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _mg_rows(M, gpT, Mg, gM, r0, r1, clear):
     """Rows r0..r1-1 of M'g' (n, m) into Mg and their share of g'^T M' (m, n) added to gM
     (cleared first when ``clear``)."""
@@ -538,31 +554,14 @@ def _backward(k_hi, n_total, base, c0, Y, T, td, tu, tl, banded, gp, Gp, Qp, Sp,
                     for i in range(n):
                         acc += NM[r, i] * T[i, c]
                     D[r, c] = acc
-            for l in range(m):                 # W1 = g'^T D'
-                W1l = W1[l]
-                for c in range(n):
-                    W1l[c] = 0.0
-                for r in range(n):
-                    f = gpT[l, r]
-                    Dr = D[r]
-                    for c in range(n):
-                        W1l[c] += f * Dr[c]
+            _combine_rows(gpT, D, W1)           # W1 = g'^T D'
         for l in range(m):                     # gains: kd = R^-1 g'^T D' V^-1
             for c in range(n):
                 s = 0.0
                 for i in range(m):
                     s += Rinv[l, i] * W1[i, c]
                 RW[l, c] = s
-        kdk = kd[k]
-        for l in range(m):
-            out = kdk[l]
-            for c in range(n):
-                out[c] = 0.0
-            for r in range(n):
-                f = RW[l, r]
-                Vr_ = Vinv[r]
-                for c in range(n):
-                    out[c] += f * Vr_[c]
+        _combine_rows(RW, Vinv, kd[k])
         for l in range(m):
             acc = 0.0
             for r in range(n):
