@@ -34,3 +34,31 @@ def test_table_4_2_quick_measures_every_row(tmp_path):
     for r in rows.values():
         assert r["speedup_vs_seed"] > 1.0 and r["extrapolated"]
     assert (tmp_path / "table4.2" / "table4.2.csv").exists()
+
+
+def test_string_velocity_weights_penalize_every_non_bit_node_velocity():
+    """The damping-injection weights of dhp.hybrid68's design sit on the axial / angular
+    velocities of every node but the bit; bit and position entries are unchanged."""
+    import numpy as np
+
+    from downhole.control.dhp import PenaltyWeights
+    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
+    from downhole.control.dhp.drilling import integral_augmented_model, penalty_matrices
+
+    design = directional_affine_model(table_5_1_models()[0])
+    base = PenaltyWeights(bit_velocity=(7.0, 9.0), bit_position=(0.3, 0.5))
+    damped = PenaltyWeights(bit_velocity=(7.0, 9.0), bit_position=(0.3, 0.5),
+                            string_velocity=(2.0, 3.0), integral=(4.0, 6.0))
+    model = integral_augmented_model(design)
+    q0 = np.diag(penalty_matrices(design, base)[0])
+    q, _, s = (np.diag(a) for a in penalty_matrices(model, damped))
+    bn = design.bit_node
+    for i, (kind, node) in enumerate(zip(model.state_kinds, model.state_nodes)):
+        if node == -1:                                   # integrator states
+            assert q[i] == (4.0 if kind == "axial_position" else 6.0)
+        elif kind.endswith("velocity") and node != bn:
+            assert q[i] == (2.0 if kind == "axial_velocity" else 3.0)
+        else:
+            assert q[i] == q0[i]
+    assert np.array_equal(s, q)                          # S = final_scale * Q
+    assert PenaltyWeights.from_dict(damped.to_dict()) == damped

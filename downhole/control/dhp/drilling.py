@@ -274,6 +274,10 @@ class PenaltyWeights:
         Optional explicit final weights with the same keys as above.
     r : (float, float)
         R diagonal.
+    string_velocity : (float, float)
+        Axial and angular velocity of every node other than the bit (deviations from the
+        velocity reference v_d, omega_d): damping injection for the string's own modes
+        (beyond the seed, whose Table 4.1 weights only positions away from the bit).
     integral : (float, float)
         Weights of the integrator states (sums of the bit axial / angular velocity errors;
         integral action, beyond the seed). Non-zero values make :func:`design_dhp` augment the
@@ -289,6 +293,7 @@ class PenaltyWeights:
     final: dict | None = None
     r: tuple = (1.0, 1.0)
     integral: tuple = (0.0, 0.0)
+    string_velocity: tuple = (0.0, 0.0)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -304,7 +309,8 @@ class PenaltyWeights:
         return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items()})
 
 
-def _layout(model: ControlAffineModel, top, node, nodes, bitpos, bitvel) -> np.ndarray:
+def _layout(model: ControlAffineModel, top, node, nodes, bitpos, bitvel,
+            strvel=(0.0, 0.0)) -> np.ndarray:
     q = np.zeros(model.n_states)
 
     def put(kind, nd, w):
@@ -320,6 +326,10 @@ def _layout(model: ControlAffineModel, top, node, nodes, bitpos, bitvel) -> np.n
                                      f"(nodes {model.nodes})")
         put("axial_position", nd, node[0])
         put("angular_position", nd, node[1])
+    for nd in model.nodes:
+        if nd != model.bit_node and nd >= 0:
+            put("axial_velocity", nd, strvel[0])
+            put("angular_velocity", nd, strvel[1])
     put("axial_position", model.bit_node, bitpos[0])
     put("angular_position", model.bit_node, bitpos[1])
     put("axial_velocity", model.bit_node, bitvel[0])
@@ -341,16 +351,18 @@ def _integral_layout(model: ControlAffineModel, q: np.ndarray, w) -> np.ndarray:
 
 def penalty_matrices(model: ControlAffineModel, w: PenaltyWeights):
     """Q, R, S (diagonal matrices) of Eq. 4.45 for ``model``'s state layout."""
-    q = _layout(model, w.top_position, w.node_position, w.nodes, w.bit_position, w.bit_velocity)
+    q = _layout(model, w.top_position, w.node_position, w.nodes, w.bit_position, w.bit_velocity,
+                w.string_velocity)
     q = _integral_layout(model, q, w.integral)
     if w.final is None:
         s = w.final_scale * q
     else:
         f = dict(top_position=w.top_position, node_position=w.node_position,
-                 bit_position=w.bit_position, bit_velocity=w.bit_velocity)
+                 bit_position=w.bit_position, bit_velocity=w.bit_velocity,
+                 string_velocity=w.string_velocity)
         f.update(w.final)
         s = _layout(model, f["top_position"], f["node_position"], w.nodes, f["bit_position"],
-                    f["bit_velocity"])
+                    f["bit_velocity"], f["string_velocity"])
         s = _integral_layout(model, s, f.get("integral", w.integral))
     r = np.asarray(w.r, dtype=float)
     if r.shape != (model.n_inputs,):
