@@ -44,6 +44,7 @@ where a unit is shown)::
     bit_position = [0.1, 0.1]
     top_position = [0.0, 0.0]
     node_position = [0.0, 0.0]
+    string_velocity = [0.0, 0.0]  # damping injection on the non-bit node velocities
     nodes = []
     final_scale = 1.0
     r = [1.0, 1.0]

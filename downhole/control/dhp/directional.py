@@ -299,15 +299,15 @@ class DirectionalStatePlant:
         self._ref = None
 
     def _state(self) -> np.ndarray:
-        s = self.plant._st["state"]  # rows: ua, va, aa, ut, vt, at (DirectionalPlant internals)
+        f = self.plant.node_fields()
         if self._ref is None:
-            self._ref = s[0].copy()
+            self._ref = f["axial_position"]
         n = self._dmd.size
         z = np.empty(4 * n)
-        z[0:2 * n:2] = np.interp(self._dmd, self._md, s[0] - self._ref)
-        z[1:2 * n:2] = np.interp(self._dmd, self._md, s[3])
-        z[2 * n::2] = np.interp(self._dmd, self._md, s[1])
-        z[2 * n + 1::2] = np.interp(self._dmd, self._md, s[4])
+        z[0:2 * n:2] = np.interp(self._dmd, self._md, f["axial_position"] - self._ref)
+        z[1:2 * n:2] = np.interp(self._dmd, self._md, f["angle"])
+        z[2 * n::2] = np.interp(self._dmd, self._md, f["axial_velocity"])
+        z[2 * n + 1::2] = np.interp(self._dmd, self._md, f["angular_velocity"])
         return z
 
     def reset(self) -> dict:
