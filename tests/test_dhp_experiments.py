@@ -26,7 +26,7 @@ def test_fig4_13_measures_the_cost_of_doubling_the_samples(tmp_path):
 
 def test_table_4_2_quick_measures_every_row(tmp_path):
     """Table 4.2's >= 50x claim is measured, not asserted (timings; docs/dhp.md has the
-    numbers: 24-state rows ~80-110x, the 80-state row ~35x on this shared 2-core machine)."""
+    numbers: 24-state rows ~160-230x, the 80-state row ~56x on this 2-core machine)."""
     claim = run_experiment("table4.2", tmp_path, quick=True)
     rows = claim["measured"]
     assert set(rows) == {"DHP 24 states 100 samples", "DHP 24 states 200 samples",
