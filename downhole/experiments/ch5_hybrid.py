@@ -240,7 +240,18 @@ def fig5_9(out_dir, quick):
                                                              6000.0, 8000.0, 10000.0]
     dur = 10.0 if quick else 30.0
     elem_len = 5094.4 / 107  # the seed's 432-state FEM element length, kept constant
-    t_h, t_f = [], []
+    t_h, t_f, n_h, n_f = [], [], [], []
+
+    def best_of(model, repeats):
+        # the minimum of a few runs: the cost of the model, not of whatever else the machine does
+        best = np.inf
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            simulate_directional(model, duration=dur, dt=1e-3)
+            best = min(best, time.perf_counter() - t0)
+        return best
+
+    repeats = 3
     for L in lengths:
         p = DirectionalWellParams(length_bc=L)
         well = WellPath.table_5_1(p)
@@ -249,12 +260,11 @@ def fig5_9(out_dir, quick):
         fm = fem_model(well, ds, n_elements=int(round(well.total_depth / elem_len)),
                        md_b=2000.0, md_c=2000.0 + L)
         simulate_directional(hm, duration=0.01, dt=1e-3)  # warm
-        t0 = time.perf_counter()
-        simulate_directional(hm, duration=dur, dt=1e-3)
-        t_h.append(time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        simulate_directional(fm, duration=dur, dt=1e-3)
-        t_f.append(time.perf_counter() - t0)
+        simulate_directional(fm, duration=0.01, dt=1e-3)
+        t_h.append(best_of(hm, repeats))
+        t_f.append(best_of(fm, repeats))
+        n_h.append(hm.n_states)
+        n_f.append(fm.n_states)
     fig, ax = plt.subplots(figsize=(8, 5))
     ax.plot(np.array(lengths) / 1e3, t_f, "ro-", label="FEM (constant element length)")
     ax.plot(np.array(lengths) / 1e3, t_h, "bs-", label="hybrid (68 states)")
@@ -266,6 +276,7 @@ def fig5_9(out_dir, quick):
     fig.savefig(out_dir / "fig5.9.png", dpi=110)
     plt.close(fig)
     measured = {"lengths_m": lengths, "hybrid_seconds": t_h, "fem_seconds": t_f,
+                "hybrid_states": n_h, "fem_states": n_f, "timing": f"best of {repeats} runs",
                 "simulated_seconds": dur, "fem_growth": t_f[-1] / t_f[0],
                 "hybrid_growth": t_h[-1] / t_h[0]}
     passed = bool(t_h[-1] / t_h[0] < 2.0 and t_f[-1] / t_f[0] > 2.0 and max(t_h) < 20.0
