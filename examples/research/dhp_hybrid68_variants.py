@@ -22,6 +22,9 @@ delayed). Training: N_S = 50, horizon 20 s (as the quick experiments). Variants:
 - torque limit: the online limit lowered from 60 to 30 kN m;
 - observer: the controller fed a steady-state Kalman predictor on the design model from the
   top and bit states instead of the node states;
+- top damper: a collocated inner loop -Z v_top on the hook and the top drive (the pipe's
+  impedances Z_a = 3.44e5 N s/m, Z_t = 481 N m s/rad: a wave-absorbing top), included in the
+  design model the DHP is trained on, the total command clipped to the limits;
 - truth plants: the same two designs on dense FEMs (100 and 300 elements) and on the hybrid
   with 1 lag per incoming wave for the line's beta0 damping.
 """
@@ -93,12 +96,15 @@ class SerepFEM:
     def __init__(self, base, n_el=200, td=500.0):
         self.base, self.td = base, td
         md0, L = base.node_md, base.node_md[-1] - base.node_md[0]
-        md = np.concatenate([md0[:1]] + [np.linspace(a, b, max(1, round(n_el * (b - a) / L)) + 1)[1:]
-                                         for a, b in zip(md0[:-1], md0[1:])])
+        md = np.concatenate([md0[:1]] + [
+            np.linspace(a, b, max(1, round(n_el * (b - a) / L)) + 1)[1:]
+            for a, b in zip(md0[:-1], md0[1:])])
         inf = base.info
-        d = fem_from_nodes(base.well, base.string, base.bit, md, rayleigh_alpha=inf["rayleigh_alpha"],
-                           rayleigh_beta=inf["rayleigh_beta"], friction=base.mu, v_eps=base.v_eps,
-                           mass=inf["mass"], md_b=md0[base.node_b], md_c=md0[base.node_c])
+        d = fem_from_nodes(base.well, base.string, base.bit, md,
+                           rayleigh_alpha=inf["rayleigh_alpha"],
+                           rayleigh_beta=inf["rayleigh_beta"], friction=base.mu,
+                           v_eps=base.v_eps, mass=inf["mass"], md_b=md0[base.node_b],
+                           md_c=md0[base.node_c])
         master = np.array([int(np.argmin(np.abs(md - x))) for x in md0])
         self.red = {}
         for f, mats in (("a", (d.Ma, d.Ka, d.Ca)), ("t", (d.Mt, d.Kt, d.Ct))):
@@ -140,7 +146,8 @@ class SerepFEM:
 # ----------------------------------------------------------------------------- references
 def _smooth(t, t0, t1):
     s = np.clip((t - t0) / max(t1 - t0, 1e-12), 0.0, 1.0)
-    return s * s * (3 - 2 * s), np.where((t > t0) & (t < t1), 6 * s * (1 - s) / max(t1 - t0, 1e-12), 0.0)
+    rate = np.where((t > t0) & (t < t1), 6 * s * (1 - s) / max(t1 - t0, 1e-12), 0.0)
+    return s * s * (3 - 2 * s), rate
 
 
 def ramped_deflection(Tr):
@@ -160,7 +167,57 @@ def ramped_deflection(Tr):
 
 def axial_delayed(a0, t1, t2):
     t = np.linspace(0.0, 30.0, 3001)
-    return BitReference.user(t, 0.01 * (a0 + (1 - a0) * _smooth(t, t1, t2)[0]), np.full(t.size, 20.0))
+    return BitReference.user(t, 0.01 * (a0 + (1 - a0) * _smooth(t, t1, t2)[0]),
+                             np.full(t.size, 20.0))
+
+
+# ----------------------------------------------------------------------------- top damper
+class DampedTopFEM:
+    """FEM24 with dashpots c_a (N s/m), c_t (N m s/rad) from the top node to ground: the
+    collocated inner loop of the controller, trained into the design model."""
+
+    def __init__(self, base, c_a, c_t):
+        self.base, self.c = base, (c_a, c_t)
+
+    def __getattr__(self, k):
+        return getattr(self.base, k)
+
+    def design_model(self, n_bc=1):
+        return self
+
+    def continuous_linear_model(self, top_drive_inertia=500.0):
+        A, B, names, Minv = self.base.continuous_linear_model(top_drive_inertia)
+        n2 = A.shape[0] // 2
+        A = A.copy()
+        A[n2:, n2:2 + n2] -= Minv[:, :2] * np.asarray(self.c)
+        return A, B, names, Minv
+
+    linear_model = SerepFEM.linear_model
+
+
+class DamperPlant:
+    """Adds the inner loop -c v_top to the DHP command; the total is clipped to the limits."""
+
+    def __init__(self, plant, c_a, c_t):
+        self.p, self.c, self.weight = plant, np.array([c_a, c_t]), plant.weight
+        self.iv = [DESIGN.index("axial_velocity", 0), DESIGN.index("angular_velocity", 0)]
+        self.lim = np.asarray(DESIGN.input_limits)
+
+    def reset(self):
+        self.obs = self.p.reset()
+        return self.obs
+
+    def step(self, command):
+        u = np.array([command["slack_off_force"], command["surface_torque"]])
+        u = np.clip(u - self.c * self.obs["state"][self.iv], self.lim[:, 0], self.lim[:, 1])
+        self.obs = self.p.step({"slack_off_force": u[0], "surface_torque": u[1]})
+        return self.obs
+
+
+def with_top_damper(W, c_a=3.44e5, c_t=481.0):
+    ctrl = train(W, design=directional_affine_model(DampedTopFEM(FEM24, c_a, c_t)))
+    ctrl.input_limits = None             # the limits apply to the total (DamperPlant)
+    return measure(ctrl, wrap=lambda p: DamperPlant(p, c_a, c_t))
 
 
 # ----------------------------------------------------------------------------- observer
@@ -204,6 +261,7 @@ def main():
                 ("axial-delayed reference 30% 1-2.5 s",
                  measure(train(W, reference=axial_delayed(0.3, 1.0, 2.5)))),
                 ("observer (top + bit states)", measure(base, wrap=ObserverPlant)),
+                ("top damper Z_a, Z_t (impedance-matched)", with_top_damper(W)),
                 ("truth plants", measure(base, plants=truth))]
         base.input_limits = np.array([[-5e4, 3e5], [-3e4, 3e4]])
         rows.insert(4, ("torque limit 30 kN m", measure(base)))
