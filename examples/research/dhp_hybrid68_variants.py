@@ -1,7 +1,7 @@
 """Research record: design variants tried for the strict "within 5% by 5 s" reading on the
 68-state hybrid (issue "Chapter 4 controller", docs/dhp.md, "The 68-state hybrid").
 
-Not part of the package and not a test: it re-measures, in about two minutes, the variants that
+Not part of the package and not a test: it re-measures, in about 15 s, the variants that
 docs/dhp.md reports as not reaching 5 s, so that the numbers there can be rerun:
 
     .venv/bin/python examples/research/dhp_hybrid68_variants.py
@@ -31,10 +31,8 @@ delayed). Training: N_S = 50, horizon 20 s (as the quick experiments). Variants:
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from scipy.linalg import eigh, expm, solve_discrete_are
+from scipy.linalg import eigh, solve_discrete_are
 
 from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp, run_on_plant
 from downhole.control.dhp.controller import DHPController
@@ -46,7 +44,7 @@ from downhole.control.dhp.drilling import (integral_augmented_model, penalty_mat
 from downhole.control.dhp.trainer import DHPProblem, train_dhp
 from downhole.experiments.ch4_dhp import (DESIGN_WEIGHTS, HYBRID_WEIGHTS, _settling_time,
                                           _tracking)
-from downhole.string.fem import _tri_dense, fem_from_nodes, fem_model
+from downhole.string.fem import DirectionalModel, _tri_dense, fem_from_nodes, fem_model
 from downhole.string.hybrid import hybrid_model
 
 STEP = BitReference.step(0.01, 20.0)
@@ -122,6 +120,7 @@ class SerepFEM:
         return self
 
     def continuous_linear_model(self, top_drive_inertia=500.0):
+        names = self.base.continuous_linear_model(top_drive_inertia)[2]
         n = self.base.n_nodes
         M, K, C = (np.zeros((2 * n, 2 * n)) for _ in range(3))
         for idx, f in ((np.arange(0, 2 * n, 2), "a"), (np.arange(1, 2 * n, 2), "t")):
@@ -131,16 +130,9 @@ class SerepFEM:
         A = np.block([[np.zeros((2 * n, 2 * n)), np.eye(2 * n)], [-Minv @ K, -Minv @ C]])
         Bu = np.zeros((2 * n, 2))
         Bu[0, 0] = Bu[1, 1] = 1.0
-        names = ([f"{'x' if j == 0 else 'alpha'}_{i + 1}" for i in range(n) for j in (0, 1)]
-                 + [f"{'v' if j == 0 else 'omega'}_{i + 1}" for i in range(n) for j in (0, 1)])
         return A, np.vstack([np.zeros((2 * n, 2)), Minv @ Bu]), names, Minv
 
-    def linear_model(self, dt, top_drive_inertia=500.0):
-        A, B, _, _ = self.continuous_linear_model(top_drive_inertia)
-        aug = np.zeros((A.shape[0] + 2,) * 2)
-        aug[:A.shape[0], :A.shape[0]], aug[:A.shape[0], A.shape[0]:] = A, B
-        E = expm(aug * dt)
-        return E[:A.shape[0], :A.shape[0]], E[:A.shape[0], A.shape[0]:]
+    linear_model = DirectionalModel.linear_model      # ZOH of continuous_linear_model
 
 
 # ----------------------------------------------------------------------------- references
@@ -192,7 +184,7 @@ class DampedTopFEM:
         A[n2:, n2:2 + n2] -= Minv[:, :2] * np.asarray(self.c)
         return A, B, names, Minv
 
-    linear_model = SerepFEM.linear_model
+    linear_model = DirectionalModel.linear_model
 
 
 class DamperPlant:
