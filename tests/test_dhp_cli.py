@@ -49,6 +49,9 @@ def test_design_dhp_writes_controller_report_and_result(tmp_path, capsys):
     ('[simulation]\nplant = "rig"\n', "simulation.plant"),
     ('[nonsense]\n', "unknown table"),
     ('[model]\nkind = "lumped"\npreset = "table_3_1"\n', "needs a lumped one"),
+    ('[plan]\nknots = 3\n', "plan.knots: unknown key"),
+    ('[plan]\nn_knots = 30\n', "plan: PlanSettings: the knots end at 12 s"),
+    ('[model]\nkind = "lumped"\n[plan]\n', "plan: a planned start-up needs a FEM design"),
 ])
 def test_bad_scenarios_exit_2_with_one_line(tmp_path, capsys, text, msg):
     sc = tmp_path / "bad.toml"
@@ -73,3 +76,30 @@ def test_downhole_simulate_runs_a_dhp_scenario_with_a_saved_controller(tmp_path)
     bad = tmp_path / "bad.toml"
     bad.write_text('[controller]\nfile = "nowhere"\n[model]\ntype = "dhp"\n')
     assert main(["simulate", str(bad), "--out", str(tmp_path / "b")]) == 2
+
+
+def test_design_dhp_with_a_plan_table_plans_the_start_up(tmp_path, capsys):
+    """A [plan] table: the start-up is planned on the design FEM; on the design FEM itself the
+    closed loop follows the plan (the bit at rest until the planned torque wave arrives, the
+    commands the planned knots), and the report records the plan."""
+    sc = tmp_path / "p.toml"
+    sc.write_text(SCEN.replace('plant = "design"', 'plant = "fem24"') + """
+[plan]
+duration = 3.0
+knot_spacing = 0.5
+n_knots = 5
+settle_from = 2.0
+late_from = 2.5
+steady_from = 2.5
+max_evaluations = 2
+""")
+    rc = main(["design", "dhp", str(sc), "--out", str(tmp_path / "o"), "--no-progress"])
+    assert rc == 0
+    assert "start-up planned on the design FEM" in capsys.readouterr().out
+    rep = json.loads((tmp_path / "o" / "report.json").read_text())
+    knots = np.array(rep["plan"]["knots"])
+    assert knots.shape == (5, 2)
+    ctrl = load_controller(tmp_path / "o" / "dhp_controller")
+    assert "reference_shift" in ctrl.arrays
+    # the saved feed-forward is the planned piecewise-linear input: the knot at 1.0 s
+    assert np.allclose(ctrl.u_ff[1000] * ctrl.input_scale, knots[1])

@@ -64,6 +64,15 @@ where a unit is shown)::
     use_feed_forward = true
     past_horizon = "stationary" # or "error"
 
+    [plan]                      # optional (FEM kinds): plan the start-up on the design FEM
+                                #   (two degrees of freedom, downhole.control.dhp.plan); any
+                                #   PlanSettings field, e.g.
+    duration = 7.0              # s, planned segment
+    knot_spacing = 0.4          # s
+    n_knots = 12
+    settle_from = 3.0           # s, bit-velocity errors count from here
+    max_evaluations = 80        # FEM runs of the least-squares solver
+
     [simulation]                # optional closed-loop check after training
     duration = 20.0             # s
     plant = "fem24"             # "design" (the control-affine model itself), "fem24",
@@ -82,9 +91,10 @@ import typer
 from downhole.cli.design import design_app
 from downhole.errors import DownholeInputError, ScenarioError
 
-__all__ = ["load_dhp_scenario", "parse_dhp_scenario", "design_dhp_cmd", "run_dhp_scenario"]
+__all__ = ["load_dhp_scenario", "parse_dhp_scenario", "design_from_scenario", "design_dhp_cmd",
+           "run_dhp_scenario"]
 
-_TABLES = {"model", "reference", "weights", "training", "simulation"}
+_TABLES = {"model", "reference", "weights", "training", "plan", "simulation"}
 _MODEL_KEYS = {"kind", "n_elements", "preset", "dt", "input_limits", "friction"}
 _TRAIN_KEYS = {"horizon", "method", "n_samples", "n_iterations", "threshold", "sample_radius",
                "warm_start", "seed", "resample_every", "use_feed_forward", "past_horizon",
@@ -219,6 +229,24 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
     except (DownholeInputError, TypeError) as exc:
         raise ScenarioError(src, "weights", str(exc)) from None
 
+    # --------------------------------------------------------------------- plan
+    plan = data.get("plan")
+    if plan is not None:
+        from dataclasses import fields
+
+        from downhole.control.dhp.plan import PlanSettings
+
+        if not isinstance(plan, dict):
+            raise ScenarioError(src, "plan", "expected a table of PlanSettings fields")
+        _check_keys(src, "plan", plan, {f.name for f in fields(PlanSettings)})
+        if plant_source[0] != "directional":
+            raise ScenarioError(src, "plan", f"a planned start-up needs a FEM design model "
+                                             f"(model.kind = 'fem24' or 'fem'), got {kind!r}")
+        try:
+            plan = PlanSettings(**plan)
+        except DownholeInputError as exc:
+            raise ScenarioError(src, "plan", str(exc)) from None
+
     # --------------------------------------------------------------------- simulation
     sim = data.get("simulation")
     if sim is not None:
@@ -240,7 +268,27 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
     return {"model": model, "plant_source": plant_source, "reference": ref, "weights": weights,
             "settings": settings, "horizon": horizon,
             "design": {"use_feed_forward": use_ff, "past_horizon": past},
-            "simulation": sim, "text": text, "controller_file": controller_file}
+            "simulation": sim, "text": text, "controller_file": controller_file,
+            "plan": plan}
+
+
+def design_from_scenario(sc: dict, progress: bool = False):
+    """Train the scenario's controller; with a ``[plan]`` table, plan the start-up on the design
+    FEM and return the two-degree-of-freedom controller (its plan in ``ctrl.plan``)."""
+    from downhole.control.dhp import design_dhp
+
+    ctrl = design_dhp(sc["model"], sc["reference"], horizon=sc["horizon"],
+                      weights=sc["weights"], settings=sc["settings"], progress=progress,
+                      **sc["design"])
+    if sc.get("plan") is not None:
+        from downhole.control.dhp.plan import plan_trajectory, planned_controller
+
+        plan = plan_trajectory(sc["plant_source"][1], sc["model"], sc["reference"], sc["plan"],
+                               progress=progress)
+        training = ctrl.training
+        ctrl = planned_controller(ctrl, plan)
+        ctrl.plan, ctrl.training = plan, training
+    return ctrl
 
 
 def _build_model(src, kind, mt, dt, bit_over, limits, friction):
@@ -343,8 +391,7 @@ def run_dhp_scenario(data: dict, source: str = "<dict>", text: str = ""):
             raise ScenarioError(source, "controller.file", f"the controller does not fit the "
                                                            f"scenario's model: {exc}") from None
     else:
-        ctrl = design_dhp(sc["model"], sc["reference"], horizon=sc["horizon"],
-                          weights=sc["weights"], settings=sc["settings"], **sc["design"])
+        ctrl = design_from_scenario(sc)
     return run_scenario_simulation(sc, ctrl)
 
 
@@ -363,13 +410,9 @@ def design_dhp_cmd(scenario: Path = typer.Argument(..., help="DHP design scenari
                    progress: bool = typer.Option(True, "--progress/--no-progress",
                                                  help="progress bar while training")):
     """Train a DHP (single-network adaptive critic) controller; optionally simulate it."""
-    from downhole.control.dhp import design_dhp
-
     sc = load_dhp_scenario(scenario)
     out.mkdir(parents=True, exist_ok=True)
-    ctrl = design_dhp(sc["model"], sc["reference"], horizon=sc["horizon"],
-                      weights=sc["weights"], settings=sc["settings"], progress=progress,
-                      **sc["design"])
+    ctrl = design_from_scenario(sc, progress=progress)
     npz, js = ctrl.save(out / "dhp_controller")
     tr = ctrl.training
     report = {"scenario": str(scenario), "model": sc["model"].name,
@@ -378,6 +421,8 @@ def design_dhp_cmd(scenario: Path = typer.Argument(..., help="DHP design scenari
               "max_iterations": int(tr.iterations.max()),
               "median_iterations": float(sorted(tr.iterations)[len(tr.iterations) // 2]),
               "max_mu": ctrl.meta["max_mu"], "controller": [str(npz), str(js)]}
+    if "plan" in ctrl.meta:
+        report["plan"] = ctrl.meta["plan"]
     if sc["simulation"] is not None:
         res = run_scenario_simulation(sc, ctrl)
         res.save(out / "closed_loop.nc")
@@ -389,6 +434,9 @@ def design_dhp_cmd(scenario: Path = typer.Argument(..., help="DHP design scenari
     (out / "report.json").write_text(json.dumps(report, indent=2, default=float))
     typer.echo(f"trained {sc['model'].name} over {ctrl.horizon:g} s in {tr.seconds:.2f} s "
                f"({tr.method}); controller: {npz}")
+    if "plan" in report:
+        typer.echo(f"start-up planned on the design FEM ({ctrl.plan.evaluations} FEM runs, "
+                   f"{ctrl.plan.seconds:.1f} s)")
     if "simulation" in report:
         s = report["simulation"]["summary"]
         typer.echo(f"closed loop: mean ROP {s['mean_rop'] * 1e3:.2f} mm/s, mean bit speed "

@@ -215,7 +215,8 @@ class DHPController:
             rate = self.u_ff[-1] - self.u_ff[-2] if self.n_steps > 1 else 0.0 * self.u_ff[-1]
             extra = np.arange(1, total - self.n_steps + 1)[:, None] * rate + self.u_ff[-1]
             uff = np.vstack([self.u_ff, extra])
-        self._ext_ref = r[self.n_steps + 1:]
+        shift = self.arrays.get("reference_shift")     # a planned start-up (plan.py)
+        self._ext_ref = r[self.n_steps + 1:] + (0.0 if shift is None else np.asarray(shift))
         self._ext_uff = uff[self.n_steps:total]
 
     def step_terms(self, k: int):
