@@ -276,19 +276,14 @@ def design_from_scenario(sc: dict, progress: bool = False):
     """Train the scenario's controller; with a ``[plan]`` table, plan the start-up on the design
     FEM and return the two-degree-of-freedom controller (its plan in ``ctrl.plan``)."""
     from downhole.control.dhp import design_dhp
+    from downhole.control.dhp.plan import design_dhp_planned
 
-    ctrl = design_dhp(sc["model"], sc["reference"], horizon=sc["horizon"],
-                      weights=sc["weights"], settings=sc["settings"], progress=progress,
-                      **sc["design"])
-    if sc.get("plan") is not None:
-        from downhole.control.dhp.plan import plan_trajectory, planned_controller
-
-        plan = plan_trajectory(sc["plant_source"][1], sc["model"], sc["reference"], sc["plan"],
-                               progress=progress)
-        training = ctrl.training
-        ctrl = planned_controller(ctrl, plan)
-        ctrl.plan, ctrl.training = plan, training
-    return ctrl
+    kw = dict(horizon=sc["horizon"], weights=sc["weights"], settings=sc["settings"],
+              progress=progress, **sc["design"])
+    if sc.get("plan") is None:
+        return design_dhp(sc["model"], sc["reference"], **kw)
+    return design_dhp_planned(sc["model"], sc["plant_source"][1], sc["reference"],
+                              plan_settings=sc["plan"], **kw)
 
 
 def _build_model(src, kind, mt, dt, bit_over, limits, friction):

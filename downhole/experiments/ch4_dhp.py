@@ -493,8 +493,15 @@ def fig4_13(out_dir, quick):
 #: cut); see docs/dhp.md, "The 68-state hybrid".
 HYBRID_WEIGHTS = dict(bit_velocity=(0.2, 70.0), bit_position=(0.4, 0.015),
                       string_velocity=(1.2, 0.1), r=(1.0, 1.4), integral=(60.0, 60.0))
-#: Settling time allowed in the dhp.hybrid68 reading of "reached within 5% by 5 s", s.
-HYBRID_SETTLE_S = 7.0
+#: The weights of dhp.hybrid68's controller since the planned start-up (two degrees of freedom:
+#: the start-up planned on the 24-state FEM, downhole.control.dhp.plan, and these DHP gains about
+#: it): found by a (1+1) evolution strategy scoring the worst settling time of the planned step
+#: on the three plants and the tracking at epsilon 50% and 300%
+#: (examples/research/dhp_planned_weight_search.py; docs/dhp.md, "The 68-state hybrid").
+PLANNED_WEIGHTS = dict(bit_velocity=(0.0114, 2.03), bit_position=(0.157, 0.0917),
+                       string_velocity=(0.446, 0.0194), r=(1.0, 2.07), integral=(87.1, 287.0))
+#: "reached within 5% by 5 s": the settling limit of dhp.hybrid68, s.
+HYBRID_SETTLE_S = 5.0
 
 
 def _settling_time(res, t_end=None):
@@ -510,8 +517,27 @@ def _settling_time(res, t_end=None):
     return out
 
 
+def _moving_mean(t, x, window=1.0):
+    """Centred moving mean over ``window`` s (shorter at the ends)."""
+    n = max(1, int(round(window / (t[1] - t[0]))))
+    k = np.ones(n)
+    return np.convolve(x, k, "same") / np.convolve(np.ones_like(x), k, "same")
+
+
+def _hybrid_plan(quick):
+    """The start-up planned on the 24-state FEM for the step (the same in quick mode)."""
+    from downhole.control.dhp import BitReference
+    from downhole.control.dhp.plan import plan_trajectory
+
+    if "hybrid_plan" not in _CACHE:
+        fem24, _, design = _models()
+        _CACHE["hybrid_plan"] = plan_trajectory(fem24, design, BitReference.step(0.01, 20.0))
+    return _CACHE["hybrid_plan"]
+
+
 def _hybrid_controller(kind, quick, run_T):
     from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
+    from downhole.control.dhp.plan import planned_controller
 
     key = ("hybrid_ctrl", kind, quick)
     if key not in _CACHE:
@@ -520,9 +546,12 @@ def _hybrid_controller(kind, quick, run_T):
                "sine": BitReference.sine()}[kind]
         # trained 10 s past the run: with integral action the gains relax towards the final
         # condition over the last ~8 s of the horizon
-        _CACHE[key] = design_dhp(design, ref, horizon=run_T + 10.0,
-                                 weights=PenaltyWeights(**HYBRID_WEIGHTS),
-                                 settings=DHPSettings(n_samples=_samples(quick)))
+        ctrl = design_dhp(design, ref, horizon=run_T + 10.0,
+                          weights=PenaltyWeights(**PLANNED_WEIGHTS),
+                          settings=DHPSettings(n_samples=_samples(quick)))
+        if kind == "step":       # the step starts from rest: planned start-up
+            ctrl = planned_controller(ctrl, _hybrid_plan(quick))
+        _CACHE[key] = ctrl
     return _CACHE[key]
 
 
@@ -532,14 +561,15 @@ _HYB_PLANTS = (("fem24_approximate", 0, "approximate"), ("hybrid68_approximate",
 
 @experiment("dhp.hybrid68", title="24-state DHP on the 68-state hybrid (Ch. 6 validation, "
                                   "offline)", chapter=6,
-            claim="one controller trained on the 24-state FEM (HYBRID_WEIGHTS: integral action, "
-                  "damping injection on the string velocities) on the 24-state FEM (approximate "
-                  "depth of cut) and on the 68-state hybrid (approximate and delayed depth of "
-                  "cut): (a) no stick-slip after 5 s; (b) step 10 mm/s, 20 rad/s: both bit "
-                  "velocities within 5% of the reference from 7 s on (the strict 5 s reading is "
-                  "reported, not met: ~6.3 s); (c) ramp and sine: RMS errors from 10 s on below "
-                  "1 mm/s and 2 rad/s; (d) epsilon 50-300%: stable, no stick-slip after 5 s "
-                  "(quick mode: 12 s runs, N_S = 50, RMS from 7 s, epsilon 50/100/300%)")
+            claim="one controller trained on the 24-state FEM (PLANNED_WEIGHTS: integral "
+                  "action, damping injection on the string velocities; the step's start-up "
+                  "planned on the 24-state FEM, two degrees of freedom) on the 24-state FEM "
+                  "(approximate depth of cut) and on the 68-state hybrid (approximate and "
+                  "delayed depth of cut): (a) no stick-slip after 5 s; (b) step 10 mm/s, 20 "
+                  "rad/s: both bit velocities within 5% of the reference from 5 s on; (c) ramp "
+                  "and sine: RMS errors from 10 s on below 1 mm/s and 2 rad/s; (d) epsilon "
+                  "50-300%: stable, no stick-slip after 5 s (quick mode: 12 s runs, N_S = 50, "
+                  "RMS from 7 s, epsilon 50/100/300%)")
 def dhp_hybrid68(out_dir, quick):
     import matplotlib
 
@@ -551,9 +581,14 @@ def dhp_hybrid68(out_dir, quick):
     T = 12.0 if quick else 40.0
     t_rms = 7.0 if quick else 10.0
     factors = (0.5, 1.0, 3.0) if quick else (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
-    measured = {"weights": {k: list(v) for k, v in HYBRID_WEIGHTS.items()},
+    plan = _hybrid_plan(quick)
+    _, _, design = _models()
+    measured = {"weights": {k: list(v) for k, v in PLANNED_WEIGHTS.items()},
                 "run_s": T, "trained_horizon_s": T + 10.0, "rms_from_s": t_rms,
-                "settle_limit_s": HYBRID_SETTLE_S}
+                "settle_limit_s": HYBRID_SETTLE_S,
+                "plan": {"cost": plan.cost, "fem_runs": plan.evaluations,
+                         "seconds": plan.seconds, "knots_N_and_Nm": plan.knots.tolist(),
+                         "settings": plan.settings.to_dict()}}
     ok = True
     fig, ax = plt.subplots(4, 2, figsize=(12, 11), sharex="col")
     for kind, col_ax in (("step", (ax[0, 0], ax[1, 0])), ("ramp", (ax[0, 1], ax[1, 1])),
@@ -563,16 +598,13 @@ def dhp_hybrid68(out_dir, quick):
         for i, (label, im, doc) in enumerate(_HYB_PLANTS):
             res = _run(ctrl, models[im], doc, T)
             if kind == "step":
-                tr = _tracking(res, 5.0)
-                late = _tracking(res, HYBRID_SETTLE_S)
-                row = {"after_5s": tr, f"after_{HYBRID_SETTLE_S:g}s": late,
-                       "settling_time_s": _settling_time(res),
+                tr = _tracking(res, HYBRID_SETTLE_S)
+                row = {"after_5s": tr, "settling_time_s": _settling_time(res),
                        "within_5pct_from_5s": bool(tr["max_abs_axial_error_mm_s"] <= 0.5
                                                    and tr["max_abs_angular_error_rad_s"] <= 1.0),
-                       "mean_rop_mm_s_after_5s": float(res.summary((5.0, T))["mean_rop"] * 1e3)}
-                row["holds"] = bool(tr["stuck_fraction"] == 0.0
-                                    and late["max_abs_axial_error_mm_s"] <= 0.5
-                                    and late["max_abs_angular_error_rad_s"] <= 1.0)
+                       "mean_rop_mm_s_after_5s": float(res.summary((5.0, T))["mean_rop"] * 1e3),
+                       "max_abs_torque_kNm": float(np.max(np.abs(res["surface_torque"])) / 1e3)}
+                row["holds"] = bool(tr["stuck_fraction"] == 0.0 and row["within_5pct_from_5s"])
             else:
                 tr = _tracking(res, t_rms)
                 row = {f"after_{t_rms:g}s": tr, "stuck_fraction_after_5s":
@@ -588,6 +620,12 @@ def dhp_hybrid68(out_dir, quick):
         col_ax[0].plot(res.time, res["reference_axial_velocity"] * 1e3, "k--", lw=0.8,
                        label="reference")
         col_ax[1].plot(res.time, res["reference_angular_velocity"], "k--", lw=0.8)
+        if kind == "step":
+            pv, pw = plan.bit_velocities(design)
+            col_ax[0].plot(plan.time, pv * 1e3, "k:", lw=1.0, label="plan (24-state FEM)")
+            col_ax[1].plot(plan.time, pw, "k:", lw=1.0)
+            for a in col_ax:
+                a.axvline(HYBRID_SETTLE_S, color="0.5", lw=0.6)
         col_ax[0].set_title(f"{kind} reference")
         col_ax[0].set_ylabel("bit axial velocity (mm/s)")
         col_ax[1].set_ylabel("bit angular velocity (rad/s)")
@@ -610,12 +648,15 @@ def dhp_hybrid68(out_dir, quick):
                 "settling_time_s": _settling_time(res)}
             ok &= tr["stuck_fraction"] == 0.0 and finite
             if label == "hybrid68_delayed":
-                ax[2, 1].plot(res.time, res["bit_axial_velocity"] * 1e3, lw=0.9,
-                              label=f"epsilon {f * 100:.0f}%")
-                ax[3, 1].plot(res.time, res["bit_angular_velocity"], lw=0.9)
+                # 1 s moving means: at epsilon >= 150% the delayed depth of cut sets off an
+                # axial bit-bounce (~10 Hz, no stick-slip) that would hide every other curve
+                ax[2, 1].plot(res.time, _moving_mean(res.time, res["bit_axial_velocity"]) * 1e3,
+                              lw=0.9, label=f"epsilon {f * 100:.0f}%")
+                ax[3, 1].plot(res.time, _moving_mean(res.time, res["bit_angular_velocity"]),
+                              lw=0.9)
         eps[label] = row
     measured["epsilon"] = eps
-    ax[2, 1].set_title("step, hybrid 68 (delayed depth of cut), epsilon 50-300%")
+    ax[2, 1].set_title("step, hybrid 68 (delayed cut), epsilon 50-300%, 1 s means")
     for a in ax.ravel():
         a.grid(alpha=0.3)
     ax[0, 0].set_ylim(0, 25)
@@ -629,8 +670,8 @@ def dhp_hybrid68(out_dir, quick):
     ax[2, 1].legend(fontsize=7)
     ax[3, 0].set_xlabel("time (s)")
     ax[3, 1].set_xlabel("time (s)")
-    fig.suptitle("one 24-state DHP design (HYBRID_WEIGHTS) on the 24-state FEM and the "
-                 "68-state hybrid")
+    fig.suptitle("one 24-state DHP design (PLANNED_WEIGHTS, planned step start-up) on the "
+                 "24-state FEM and the 68-state hybrid")
     fig.tight_layout()
     fig.savefig(out_dir / "dhp.hybrid68.png", dpi=100)
     plt.close(fig)

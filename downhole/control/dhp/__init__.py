@@ -12,6 +12,8 @@
 - :mod:`~downhole.control.dhp.closed_loop`: closed-loop runs returning Results.
 - :mod:`~downhole.control.dhp.directional`: the directional FEM/hybrid design model (compiled
   forces) and a plant adapter that reports the design model's full state.
+- :mod:`~downhole.control.dhp.plan`: a start-up planned on the design FEM and the DHP gains
+  about it (two degrees of freedom, beyond the seed).
 
 Example
 -------
@@ -31,6 +33,8 @@ from downhole.control.dhp.directional import (DirectionalStatePlant, directional
 from downhole.control.dhp.drilling import (PenaltyWeights, feed_forward, lumped_affine_model,
                                            penalty_matrices, reference_states,
                                            table_4_1_weights)
+from downhole.control.dhp.plan import (PlannedTrajectory, PlanSettings, design_dhp_planned,
+                                       plan_trajectory, planned_controller)
 from downhole.control.dhp.references import BitReference
 from downhole.control.dhp.trainer import (METHODS, DHPProblem, DHPSettings, DHPTraining,
                                           LinearBasis, QuadraticBasis, TrainingDiverged,
@@ -42,4 +46,5 @@ __all__ = ["METHODS", "DHPProblem", "DHPSettings", "DHPTraining", "LinearBasis",
            "PenaltyWeights", "penalty_matrices", "table_4_1_weights", "feed_forward",
            "reference_states", "lumped_affine_model", "run_design_model", "run_on_plant",
            "lumped_true_plant", "DisplacementToVelocity", "directional_affine_model",
-           "DirectionalStatePlant", "table_5_1_models"]
+           "DirectionalStatePlant", "table_5_1_models", "PlanSettings", "PlannedTrajectory",
+           "plan_trajectory", "planned_controller", "design_dhp_planned"]

@@ -396,15 +396,16 @@ def planned_controller(gains: DHPController, plan: PlannedTrajectory) -> DHPCont
 
 def design_dhp_planned(design: ControlAffineModel, dmodel, reference: BitReference | None = None,
                        *, horizon: float = 40.0, weights=None, settings=None,
-                       plan_settings: PlanSettings | None = None,
-                       progress: bool = False) -> DHPController:
-    """:func:`~downhole.control.dhp.design_dhp` on ``design``, then :func:`plan_trajectory` on
-    ``dmodel`` and :func:`planned_controller`; the plan is kept in ``ctrl.plan``."""
+                       plan_settings: PlanSettings | None = None, progress: bool = False,
+                       **design_kwargs) -> DHPController:
+    """:func:`~downhole.control.dhp.design_dhp` on ``design`` (``design_kwargs`` passed on),
+    then :func:`plan_trajectory` on ``dmodel`` and :func:`planned_controller`. The plan is kept
+    in ``ctrl.plan`` and the training in ``ctrl.training``."""
     from downhole.control.dhp.design import design_dhp
 
     reference = reference or BitReference.step()
     gains = design_dhp(design, reference, horizon=horizon, weights=weights, settings=settings,
-                       progress=progress)
+                       progress=progress, **design_kwargs)
     plan = plan_trajectory(dmodel, design, reference, plan_settings, progress=progress)
     ctrl = planned_controller(gains, plan)
     ctrl.plan = plan
