@@ -85,6 +85,22 @@ def test_planned_reference_joins_the_trained_one_and_survives_save_load(setup, t
     assert np.allclose(back.step_terms(ctrl.n_steps + 5)[0], ctrl.step_terms(ctrl.n_steps + 5)[0])
 
 
+def test_integral_controller_takes_named_observations_of_the_model_states(setup):
+    """With integral action the controller keeps its integrators: a plant that reports the
+    24 model states by name (the SIL runtime) gets the same command as with ``state``."""
+    _, design, plan, gains = setup
+    ctrl = planned_controller(gains, plan)
+    z = ctrl.reference_nd[500, :24] * ctrl.state_scale[:24] + 0.01
+    named = {n: float(v) for n, v in zip(design.state_names, z)}
+    ctrl.reset()
+    a = ctrl.command(0.5, named)
+    ctrl.reset()
+    b = ctrl.command(0.5, {"state": z})
+    assert a == b
+    with pytest.raises(DownholeInputError, match="observation lacks state 'v_6'"):
+        ctrl.command(0.5, {k: v for k, v in named.items() if k != "v_6"})
+
+
 def test_plan_settings_and_inputs_are_checked(setup):
     fem24, design, plan, gains = setup
     with pytest.raises(DownholeInputError, match="knot_spacing must be a positive"):
@@ -117,3 +133,19 @@ def test_default_plan_takes_the_design_fem_into_the_5_percent_band_by_3_5_s(setu
     assert np.max(np.abs(v[late] - 0.01)) < 5e-4
     assert np.max(np.abs(w[late] - 20.0)) < 1.0
     assert np.max(np.abs(plan.inputs[:, 1])) < 60e3          # inside the torque limit
+
+
+@pytest.mark.slow
+def test_sil_ch6_scenario_with_planned_weights_settles_the_hybrid_by_5_s(tmp_path):
+    """examples/sil_dhp_hybrid68.toml (weights = "planned"): the runtime, unpaced, drives the
+    68-state hybrid (delayed depth of cut) into the 5% band of the step by 5 s."""
+    from downhole.cli import main
+    from downhole.sim.result import load_result
+
+    out = tmp_path / "run.nc"
+    assert main(["sil", "examples/sil_dhp_hybrid68.toml", "--duration", "7", "--unpaced",
+                 "--out", str(out)]) == 0
+    res = load_result(out)
+    late = res.time >= 5.0
+    assert np.max(np.abs(res["bit_axial_velocity"][late] - 0.01)) < 5e-4
+    assert np.max(np.abs(res["bit_angular_velocity"][late] - 20.0)) < 1.0

@@ -76,7 +76,7 @@ class DHPSection(_Strict):
     reference: Literal["step", "sine", "ramp"] = "step"
     horizon: Q["time"] = Field(8.0, gt=0)
     samples: int = Field(50, ge=2)
-    weights: Literal["robust", "design"] = "robust"
+    weights: Literal["robust", "design", "planned"] = "robust"
 
 
 class ControllerSection(_Strict):
@@ -175,12 +175,20 @@ def _dhp(sc: SilScenario, plant):
     from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
 
     d = sc.controller.dhp
+    ref = {"step": BitReference.step(sc.reference.axial, sc.reference.angular),
+           "sine": BitReference.sine(), "ramp": BitReference.ramp(t_final=d.horizon)}[d.reference]
+    if d.weights == "planned":
+        # the start-up planned on the design FEM, soft gains about it (docs/dhp.md)
+        from downhole.control.dhp.plan import PLANNED_WEIGHTS, design_dhp_planned
+        from downhole.string.hybrid import hybrid_model
+
+        return design_dhp_planned(plant.plant.design, hybrid_model(sc.plant.design).design_model(),
+                                  ref, horizon=d.horizon, weights=PenaltyWeights(**PLANNED_WEIGHTS),
+                                  settings=DHPSettings(n_samples=d.samples))
     if d.weights == "robust":
         w = dict(bit_velocity=(10.0, 10.0), bit_position=(1.0, 10.0), r=(1.0, 1.0))
     else:
         w = dict(bit_velocity=(100.0, 100.0), bit_position=(0.1, 0.1), r=(1.0, 1.0))
-    ref = {"step": BitReference.step(sc.reference.axial, sc.reference.angular),
-           "sine": BitReference.sine(), "ramp": BitReference.ramp(t_final=d.horizon)}[d.reference]
     return design_dhp(plant.plant.design, ref, horizon=d.horizon,
                       weights=PenaltyWeights(**w), settings=DHPSettings(n_samples=d.samples))
 

@@ -274,12 +274,16 @@ class DHPController:
         if "state" in observation:
             z = np.asarray(observation["state"], dtype=float)
         else:
+            # with integral action the controller keeps its integrator states itself: the
+            # plant reports the model's states only
+            names = self.state_names if self._integral is None else \
+                self.state_names[:int(self._integral["n_base"])]
             try:
-                z = np.array([float(observation[n]) for n in self.state_names])
+                z = np.array([float(observation[n]) for n in names])
             except KeyError as exc:
                 raise DownholeInputError(
                     f"observation lacks state {exc.args[0]!r}: the DHP controller needs the full "
-                    f"state ({', '.join(self.state_names)}) or an entry 'state'") from None
+                    f"state ({', '.join(names)}) or an entry 'state'") from None
         k = int(round(t / self.dt))
         u = self.control(k, z)
         return {name: float(val) for name, val in zip(self.input_names, u)}
