@@ -16,9 +16,10 @@ DHP weights (log scale, the first input weight fixed at 1), the start-up planned
     .venv/bin/python examples/research/dhp_planned_weight_search.py [SEED] [ITERATIONS]
 
 About 3 s per candidate on this 2-core machine; the best point so far is printed and written
-to out/research/dhp_planned_weight_search_SEED.json. Two runs of 300 candidates (seeds 3 and
-4, started from the weights of a first search without the epsilon terms) gave
-PLANNED_WEIGHTS; the settling times plateau at 3.08 / 4.22 / 4.52 s.
+to out/research/dhp_planned_weight_search_SEED.json. PLANNED_WEIGHTS came from a first search
+without the epsilon terms (~230 candidates from HYBRID_WEIGHTS) and two short ones with them
+(~70 candidates each, seeds 3 and 4); the settling times plateaued at 3.08 / 4.22 / 4.52 s in
+all three. This script starts from PLANNED_WEIGHTS.
 """
 
 from __future__ import annotations
