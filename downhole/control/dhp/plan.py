@@ -42,7 +42,7 @@ import numpy as np
 from downhole.control.affine import ControlAffineModel
 from downhole.control.dhp.controller import DHPController
 from downhole.control.dhp.references import BitReference
-from downhole.errors import DownholeInputError
+from downhole.errors import DownholeInputError, SimulationDiverged
 
 __all__ = ["PlanSettings", "PlannedTrajectory", "plan_trajectory", "planned_controller",
            "design_dhp_planned", "PLANNED_WEIGHTS"]
@@ -294,12 +294,20 @@ def plan_trajectory(dmodel, design: ControlAffineModel, reference: BitReference 
     count = [0]
 
     def residuals(p):
-        _, Z, _ = _run_plan(dmodel, design, p, st)
         count[0] += 1
         if bar is not None:
             bar[0].update(bar[1], advance=1)
-        if not np.all(np.isfinite(Z)):
-            return np.full(res_size[0], 1e6)
+        try:
+            _, Z, _ = _run_plan(dmodel, design, p, st)
+        except SimulationDiverged:
+            Z = None
+        if Z is None or not np.all(np.isfinite(Z)):
+            if not res_size[0]:
+                raise DownholeInputError(
+                    f"the planned start-up's initial guess (a {st.knot_spacing:g} s ramp to "
+                    "the steady inputs) diverges on the planning model; check the model and "
+                    "the reference") from None
+            return np.full(res_size[0], 1e6)     # a diverging trial: a large residual
         out = [wsel * (Z[sel, 2 * N + bx] - vd[sel]) / st.axial_tolerance,
                wsel * (Z[sel, 2 * N + ba] - wd[sel]) / st.angular_tolerance]
         rel = Z[ss, :2 * N].copy()
@@ -323,12 +331,16 @@ def plan_trajectory(dmodel, design: ControlAffineModel, reference: BitReference 
         sol = least_squares(residuals, p0, diff_step=1e-3, max_nfev=st.max_evaluations,
                             x_scale=0.2)
     finally:
-        if bar is not None:
+        if bar is not None:       # the total is an upper bound (the solver may stop earlier)
+            bar[0].update(bar[1], total=count[0], completed=count[0])
             bar[0].stop()
     seconds = time.perf_counter() - t0
-    tt, Z, u = _run_plan(dmodel, design, sol.x, st)
-    if not np.all(np.isfinite(Z)):
-        raise DownholeInputError("the planned start-up diverged on the design FEM; try a "
+    try:
+        tt, Z, u = _run_plan(dmodel, design, sol.x, st)
+    except SimulationDiverged:
+        Z = None
+    if Z is None or not np.all(np.isfinite(Z)):
+        raise DownholeInputError("the planned start-up diverged on the planning model; try a "
                                  "larger smoothness or a later settle_from")
     return PlannedTrajectory(tt, Z, u, sol.x.reshape(-1, 2) * design.input_scale,
                              float(sol.cost), count[0], seconds, st)
