@@ -14,6 +14,7 @@ DHP weights (log scale, the first input weight fixed at 1), the start-up planned
     + 10 * any stuck fraction.
 
     .venv/bin/python examples/research/dhp_planned_weight_search.py [SEED] [ITERATIONS]
+    .venv/bin/python examples/research/dhp_planned_weight_search.py check   # unseen plants
 
 About 3 s per candidate on this 2-core machine; the best point so far is printed and written
 to out/research/dhp_planned_weight_search_SEED.json. PLANNED_WEIGHTS came from a first search
@@ -110,5 +111,33 @@ def main(seed=3, iterations=300):
         sigma = float(np.clip(sigma, 0.05, 1.0))
 
 
+def check_other_plants():
+    """PLANNED_WEIGHTS and the default plan on plants the search never saw: the 108-state
+    hybrid, the 68-state hybrid with one lag per wave for the line's damping, dense FEMs."""
+    from downhole.string.fem import fem_model
+    from downhole.string.hybrid import hybrid_model
+
+    plan = plan_trajectory(FEM24, DESIGN, STEP)
+    ctrl = planned_controller(design_dhp(DESIGN, STEP, horizon=20.0,
+                                         weights=PenaltyWeights(**PLANNED_WEIGHTS),
+                                         settings=DHPSettings(n_samples=50)), plan)
+    h108 = hybrid_model("hybrid108")
+    for label, model, doc in (("hybrid108 approximate", h108, "approximate"),
+                              ("hybrid108 delayed", h108, "delayed"),
+                              ("hybrid68 1 lag", hybrid_model("hybrid68", n_lags=1),
+                               "approximate"),
+                              ("FEM 100 elements", fem_model(n_elements=100), "approximate"),
+                              ("FEM 300 elements", fem_model(n_elements=300), "approximate")):
+        res = run_on_plant(ctrl, DirectionalStatePlant(model, DESIGN, ctrl.dt, depth_of_cut=doc),
+                           10.0, record_every=10)
+        tr = _tracking(res, 5.0)
+        print(f"{label:22s} settling {_settling_time(res):5.2f} s, max error after 5 s "
+              f"{tr['max_abs_axial_error_mm_s']:.2f} mm/s {tr['max_abs_angular_error_rad_s']:.2f}"
+              f" rad/s, stuck {tr['stuck_fraction']:.3f}", flush=True)
+
+
 if __name__ == "__main__":
-    main(*(int(a) for a in sys.argv[1:3]))
+    if sys.argv[1:2] == ["check"]:
+        check_other_plants()
+    else:
+        main(*(int(a) for a in sys.argv[1:3]))
