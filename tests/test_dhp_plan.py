@@ -76,7 +76,8 @@ def test_planned_reference_joins_the_trained_one_and_survives_save_load(setup, t
     r_past = ctrl.step_terms(ctrl.n_steps + 5)[0] * P
     r_last = ctrl.reference_nd[-1] * P
     ia = design.index("angular_position", design.bit_node)
-    assert abs(r_past[ia] - r_last[ia] - 20.0 * 6 * design.dt) < 1e-6     # reference_nd[-1] is step n_steps
+    # reference_nd[-1] is step n_steps, step_terms(n_steps + 5) is 6 steps on
+    assert abs(r_past[ia] - r_last[ia] - 20.0 * 6 * design.dt) < 1e-6
     ctrl.save(tmp_path / "c")
     back = load_controller(tmp_path / "c")
     back.attach_model(ctrl._model)

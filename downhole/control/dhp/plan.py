@@ -186,12 +186,16 @@ def _check_pair(dmodel, design):
     if nd.max() > md.max() + 1e-6 or nd.min() < md.min() - 1e-6:
         raise DownholeInputError("the design model's node depths lie outside the planning "
                                  "model's nodes")
-    expected = ("axial_position", "angular_position") * nd.size + \
-        ("axial_velocity", "angular_velocity") * nd.size
-    base = tuple(design.state_kinds[:4 * nd.size])
-    if base != expected:
-        raise DownholeInputError("the design model's state layout is not the directional one "
-                                 "(positions then velocities, axial/angular per node)")
+    _check_layout(design.state_kinds, nd.size, "the design model's")
+
+
+def _check_layout(kinds, n_nodes, whose):
+    """The directional state layout: positions then velocities, axial/angular per node."""
+    expected = ("axial_position", "angular_position") * n_nodes + \
+        ("axial_velocity", "angular_velocity") * n_nodes
+    if tuple(kinds[:4 * n_nodes]) != expected:
+        raise DownholeInputError(f"{whose} state layout is not the directional one (positions "
+                                 "then velocities, axial/angular per node)")
 
 
 def _knot_inputs(p, t, spacing, scale):
@@ -234,14 +238,13 @@ def _run_plan(dmodel, design, p, st: PlanSettings, depth_of_cut="approximate"):
 
 
 def _steady(design, reference, duration):
-    """Steady feed-forward (non-dimensional) and the consistent reference (physical)."""
-    from downhole.control.dhp.drilling import feed_forward, reference_states
+    """Steady feed-forward (non-dimensional) and the consistent reference (physical): the
+    tracking problem's own (:func:`~downhole.control.dhp.design.build_problem`)."""
+    from downhole.control.dhp.design import build_problem
+    from downhole.control.dhp.drilling import PenaltyWeights
 
-    n = int(round(duration / design.dt))
-    v, w, x, a = reference.sample(n, design.dt)
-    uff, ref = feed_forward(design, reference_states(design, v, w, x, a),
-                            return_reference=True)
-    return uff, ref * design.state_scale
+    prob = build_problem(design, reference, duration, PenaltyWeights())
+    return prob.u_ff, prob.reference * design.state_scale
 
 
 def plan_trajectory(dmodel, design: ControlAffineModel, reference: BitReference | None = None,
@@ -352,8 +355,9 @@ def planned_controller(gains: DHPController, plan: PlannedTrajectory) -> DHPCont
     ``u_k = u_plan,k - kd_k (z_k - r_plan,k)`` over the plan (kc = 0: the plan is a trajectory
     of the design FEM), then the trained reference and feed-forward, shifted rigidly (positions
     only) so that they join the plan. Integrator states (integral action) get the Euler sums of
-    the plan's bit velocities (what the controller's integrators add up) as reference. The controller's arrays keep the shift (``reference_shift``) so that
-    the past-horizon continuation and :func:`~downhole.control.dhp.load_controller` agree.
+    the plan's bit velocities (what the controller's integrators add up) as reference. The
+    controller's arrays keep the shift (``reference_shift``) so that the past-horizon
+    continuation and :func:`~downhole.control.dhp.load_controller` agree.
     """
     if not isinstance(gains, DHPController):
         raise DownholeInputError(f"gains must be a DHPController, got {type(gains).__name__}")
@@ -372,9 +376,7 @@ def planned_controller(gains: DHPController, plan: PlannedTrajectory) -> DHPCont
     kinds = gains.state_kinds
     N = nb // 4
     bx, ba = 2 * (N - 1), 2 * (N - 1) + 1
-    if tuple(kinds[:nb]) != ("axial_position", "angular_position") * N + \
-            ("axial_velocity", "angular_velocity") * N:
-        raise DownholeInputError("the controller's state layout does not match the plan's")
+    _check_layout(kinds, N, "the controller's")
     ref = gains.reference_nd * P                      # physical
     shift = np.zeros(gains.n_states)
     dx = plan.states[-1, bx] - ref[npl, bx]
