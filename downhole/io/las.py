@@ -111,11 +111,11 @@ def write_las(result, path: str | os.PathLike, well: str = "downhole simulation"
             s = result.summary()
         except Exception:  # noqa: BLE001 - a summary needs the standard channels
             s = {}
-        from downhole.sweep.spec import METRICS
+        from downhole.signals import metric_unit
 
         for k, v in s.items():
             if isinstance(v, float) and math.isfinite(v):
-                unit = METRICS[k].units if k in METRICS else ""
+                unit = metric_unit(k)
                 las.params.append(lasio.HeaderItem(_mnemonic(k), unit=unit.replace("-", ""),
                                                    value=float(f"{v:.8g}"),
                                                    descr=f"summary: {k} (second half)"))

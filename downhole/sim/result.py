@@ -13,30 +13,17 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from downhole.signals import SIGNALS, STANDARD_CHANNELS
+
 __all__ = ["Result", "CHANNEL_UNITS", "load_result"]
 
-#: Units and descriptions of the standard channels. Models may add their own channels.
+#: Units and descriptions of the standard channels (a view of :data:`downhole.signals.SIGNALS`).
 CHANNEL_UNITS: dict[str, tuple[str, str]] = {
-    "bit_axial_position": ("m", "bit axial displacement from the start, positive downward"),
-    "bit_axial_velocity": ("m/s", "bit axial velocity, positive into the rock"),
-    "bit_angle": ("rad", "bit rotation angle"),
-    "bit_angular_velocity": ("rad/s", "bit angular velocity"),
-    "depth_of_cut": ("m", "total depth of cut per revolution (all blades)"),
-    "wob": ("N", "weight on bit"),
-    "tob": ("N*m", "torque on bit"),
-    "hook_load": ("N", "hook load (string weight minus slack-off)"),
-    "surface_torque": ("N*m", "torque delivered by the top drive to the string"),
-    "top_drive_axial_velocity": ("m/s", "top drive axial velocity, positive downward"),
-    "top_drive_angular_velocity": ("rad/s", "top drive angular velocity"),
-    "reference_axial_velocity": ("m/s", "reference bit axial velocity (ROP)"),
-    "reference_angular_velocity": ("rad/s", "reference bit angular velocity"),
+    n: (SIGNALS[n].unit, SIGNALS[n].description)
+    for n in STANDARD_CHANNELS + ("reference_axial_velocity", "reference_angular_velocity")
 }
 
-REQUIRED_CHANNELS = (
-    "bit_axial_position", "bit_axial_velocity", "bit_angle", "bit_angular_velocity",
-    "depth_of_cut", "wob", "tob", "hook_load", "surface_torque", "top_drive_axial_velocity",
-    "top_drive_angular_velocity",
-)
+REQUIRED_CHANNELS = STANDARD_CHANNELS
 
 
 class Result:
@@ -49,7 +36,8 @@ class Result:
     channels : dict of str to array_like
         Named signals, each of the same length as ``time``.
     units : dict of str to str, optional
-        Units of non-standard channels.
+        Units of channels not declared in :mod:`downhole.signals` (declared ones take the
+        registry's unit unless given here).
     attrs : dict, optional
         Metadata (``scenario`` TOML text, ``model``, ``dt``, ``downhole_version``, ...).
 
@@ -70,7 +58,8 @@ class Result:
             if values.shape[0] != time.shape[0]:
                 raise ValueError(f"channel {name!r} has {values.shape[0]} samples, "
                                  f"time has {time.shape[0]}")
-            unit, desc = CHANNEL_UNITS.get(name, (units.get(name, ""), ""))
+            sig = SIGNALS.get(name)
+            unit, desc = (sig.unit, sig.description) if sig else (units.get(name, ""), "")
             dims = ("time",) if values.ndim == 1 else ("time",) + tuple(
                 f"{name}_dim{i}" for i in range(1, values.ndim))
             data_vars[name] = xr.Variable(dims, values,

@@ -27,6 +27,7 @@ from typing import Any, Callable
 import numpy as np
 
 from downhole.errors import DownholeInputError, ScenarioError
+from downhole.signals import METRICS as _REGISTERED_METRICS
 
 __all__ = ["ParamSpec", "parse_param", "METRICS", "metric_names", "compute_metrics",
            "set_path", "get_path", "validate_path", "parse_window"]
@@ -53,29 +54,21 @@ def _min(ch):
     return lambda res, sel: float(np.min(res[ch][sel]))
 
 
-#: Metrics a sweep can record: name -> (units, description, how). The ``summarize`` ones follow
-#: :func:`downhole.analysis.metrics.summarize`; the others are plain means/extremes of channels
-#: over the same window.
+#: How a sweep computes a metric that :func:`downhole.analysis.metrics.summarize` does not give:
+#: plain means/extremes of channels over the same window.
+_CHANNEL_METRICS = {
+    "mean_wob": _mean("wob"), "max_wob": _max("wob"), "mean_tob": _mean("tob"),
+    "max_tob": _max("tob"), "mean_hook_load": _mean("hook_load"),
+    "mean_surface_torque": _mean("surface_torque"), "max_surface_torque": _max("surface_torque"),
+    "min_bit_angular_velocity": _min("bit_angular_velocity"),
+    "max_bit_angular_velocity": _max("bit_angular_velocity"),
+}
+
+#: Metrics a sweep can record: name -> (units, description, how), units and descriptions from
+#: the one registry :data:`downhole.signals.METRICS`.
 METRICS: dict[str, _Metric] = {
-    "stick_slip_severity": _Metric("-", "(max - min) / (2 mean) of the bit angular velocity"),
-    "stuck_fraction": _Metric("-", "fraction of samples with |bit angular velocity| < 0.1 rad/s"),
-    "bit_bounce_fraction": _Metric("-", "fraction of samples with WOB <= 0 or depth of cut <= 0"),
-    "mean_rop": _Metric("m/s", "mean bit axial velocity (rate of penetration)"),
-    "mean_bit_angular_velocity": _Metric("rad/s", "mean bit angular velocity"),
-    "mse": _Metric("Pa", "mechanical specific energy at the bit (Teale)"),
-    "tracking_rms_axial": _Metric("m/s", "RMS error of bit axial velocity to the reference"),
-    "tracking_rms_angular": _Metric("rad/s", "RMS error of bit angular velocity to the reference"),
-    "mean_wob": _Metric("N", "mean weight on bit", _mean("wob")),
-    "max_wob": _Metric("N", "maximum weight on bit", _max("wob")),
-    "mean_tob": _Metric("N*m", "mean torque on bit", _mean("tob")),
-    "max_tob": _Metric("N*m", "maximum torque on bit", _max("tob")),
-    "mean_hook_load": _Metric("N", "mean hook load", _mean("hook_load")),
-    "mean_surface_torque": _Metric("N*m", "mean surface torque", _mean("surface_torque")),
-    "max_surface_torque": _Metric("N*m", "maximum surface torque", _max("surface_torque")),
-    "min_bit_angular_velocity": _Metric("rad/s", "minimum bit angular velocity",
-                                        _min("bit_angular_velocity")),
-    "max_bit_angular_velocity": _Metric("rad/s", "maximum bit angular velocity",
-                                        _max("bit_angular_velocity")),
+    name: _Metric(m.unit, m.description, _CHANNEL_METRICS.get(name))
+    for name, m in _REGISTERED_METRICS.items()
 }
 
 
