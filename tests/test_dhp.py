@@ -230,7 +230,7 @@ def test_modal_riccati_matches_closed_form_numpy_and_threads_on_fem():
     gives Algorithm 1's fixed point: the closed form in the original coordinates on the same
     samples, and the plain-NumPy version of the same trainer."""
     from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
-    from downhole.control.dhp.riccati import riccati_numpy
+    from downhole.control.dhp.baseline import riccati_numpy
 
     design = directional_affine_model(table_5_1_models()[0])
     pb = build_problem(design, BitReference.step(), 0.12, PenaltyWeights())

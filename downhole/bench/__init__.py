@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
-import time
 from dataclasses import dataclass, field
 from typing import Callable
+
+from downhole._timing import timed
 
 __all__ = ["BenchOutcome", "bench_case", "all_cases", "run_bench", "timed"]
 
@@ -69,16 +70,6 @@ def _load_all():
 def all_cases() -> list[_Case]:
     _load_all()
     return list(_CASES.values())
-
-
-def timed(fn, *args, repeat: int = 1, **kwargs) -> tuple[float, object]:
-    """Best wall time of ``repeat`` calls of ``fn`` (seconds) and the last return value."""
-    best, out = float("inf"), None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn(*args, **kwargs)
-        best = min(best, time.perf_counter() - t0)
-    return best, out
 
 
 def run_bench(quick: bool = False, names: list[str] | None = None, progress=None) -> dict:

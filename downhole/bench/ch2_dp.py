@@ -15,38 +15,9 @@ interpolation) on the same grid in the same run.
 from __future__ import annotations
 
 from downhole.bench import BenchOutcome, bench_case, timed
+from downhole.experiments.ch2_dp import _WIDE, TABLE_2_2, _grid, table_problem
 
-__all__ = ["TABLE_2_2", "table_problem"]
-
-#: (type, horizon s, search grid, index grid, seed minutes) -- seed Table 2.2
-TABLE_2_2 = [
-    ("customized", 20, 5, 5, 0.2232), ("customized", 20, 10, 5, 1.7482),
-    ("customized", 20, 10, 10, 2.1657), ("customized", 20, 20, 10, 29.2758),
-    ("customized", 50, 5, 5, 0.5643), ("customized", 50, 10, 5, 3.9637),
-    ("customized", 50, 10, 10, 4.2417), ("customized", 50, 20, 10, 64.5777),
-    ("robust", 20, 5, 5, 7.7443), ("robust", 20, 10, 5, 30.6139),
-    ("robust", 20, 10, 10, 32.0118), ("robust", 20, 20, 10, 170.5410),
-    ("robust", 50, 5, 5, 17.5077), ("robust", 50, 10, 5, 73.6872),
-    ("robust", 50, 10, 10, 76.6379), ("robust", 50, 20, 10, 435.2070),
-]
-
-_WIDE = {"force": (-1.0e6, 1.0e6), "torque": (-1.0e6, 1.0e6)}
-
-
-def _grid(target: float, points: int) -> dict:
-    """A grid from 0 with ``points`` points that has ``target`` on it (near the middle)."""
-    k = (points - 1) // 2
-    return {"min": 0.0, "max": target * (points - 1) / k, "points": points}
-
-
-def table_problem(horizon: float, search: int, index: int | None, step: float = 0.05,
-                  bounds: dict | None = None):
-    """The DP problem of a Table 2.2 row (search grid for x2 and x4, index grid for x1/x3)."""
-    from downhole.control.dp import DPProblem
-
-    return DPProblem(horizon=horizon, step=step, x2=_grid(0.01, search), x4=_grid(10.0, search),
-                     x1_regions=index, x3_regions=index, bounds=bounds or _WIDE,
-                     robust={"epsilon_scales": (0.9, 1.0, 1.1), "substep": 0.0125})
+__all__: list[str] = []
 
 
 def _warm():

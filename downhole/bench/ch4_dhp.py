@@ -7,7 +7,7 @@ sequential backward pass overlapped with it; BLAS pinned to one thread per worke
 
 - the seed's published seconds (MATLAB, i7-9750H),
 - a plain-NumPy version of the same trainer in the same run
-  (:func:`downhole.control.dhp.riccati.riccati_numpy`: same SFC64 sample streams, same samples,
+  (:func:`downhole.control.dhp.baseline.riccati_numpy`: same SFC64 sample streams, same samples,
   same gains to ~1e-12; BLAS pinned to one thread, which is its fastest setting here).
 
 Extra fields: the single-thread time (``seconds_1_thread``), the CPU seconds, the largest
@@ -40,7 +40,7 @@ def _design(n_states: int):
 def _numpy_baseline(pb, st):
     from threadpoolctl import threadpool_limits
 
-    from downhole.control.dhp.riccati import riccati_numpy
+    from downhole.control.dhp.baseline import riccati_numpy
 
     with threadpool_limits(limits=1, user_api="blas"):
         return riccati_numpy(pb, st)

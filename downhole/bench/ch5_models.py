@@ -10,12 +10,12 @@ ODE solver cannot integrate the delay line directly.
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.linalg import solve_banded
 
+from downhole._timing import best_time
 from downhole.bench import BenchOutcome, bench_case, timed
 
 __all__ = ["lsoda_seconds", "best_time"]
@@ -84,23 +84,6 @@ def lsoda_seconds(model, horizon: float) -> float:
     rhs, y0 = _ode_rhs(model)
     sec, _ = timed(solve_ivp, rhs, (0.0, horizon), y0, method="LSODA", rtol=1e-6, atol=1e-9)
     return sec
-
-
-def best_time(fn, *args, repeat=5, budget=1.0, **kwargs):
-    """Best wall time and best thread CPU time of at least ``repeat`` calls, more for short
-    calls (up to ``budget`` seconds in all, at most 50 calls), after the caller warmed the
-    compiled code up: the machine is shared, so the minimum is the least disturbed run."""
-    wall, cpu = float("inf"), float("inf")
-    done, spent = 0, 0.0
-    while done < repeat or (spent < budget and done < 50):
-        done += 1
-        t0, c0 = time.perf_counter(), time.thread_time()
-        fn(*args, **kwargs)
-        w = time.perf_counter() - t0
-        spent += w
-        wall = min(wall, w)
-        cpu = min(cpu, time.thread_time() - c0)
-    return wall, cpu
 
 
 def _row(make, dt, quick, horizon):

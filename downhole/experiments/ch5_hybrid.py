@@ -306,7 +306,7 @@ def table_rows():
             caption="Computational expenses comparison between finite element model and hybrid "
                     "model with different degrees of freedom and sampling time")
 def table5_2(out_dir, quick):
-    from downhole.bench.ch5_models import best_time
+    from downhole._timing import best_time
     from downhole.string.fem import simulate_directional
 
     out = []

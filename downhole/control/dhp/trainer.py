@@ -21,7 +21,7 @@ see :mod:`downhole.control.dhp` for the feed-forward). Three methods compute the
     (h(z) ~ c0 + H (z - r_k)), then D_k^T = N M (A + H), c_k = N [M(f_r + g u_ff - r_{k+1}) + a]
     with N = (I + M G)^-1 = I - M g (R + g^T M g)^-1 g^T. For a linear plant this is the
     finite-horizon LQR Riccati recursion. Computed in the modal basis of A with compiled
-    kernels (:mod:`downhole.control.dhp.riccati`); ``riccati_numpy`` is the same trainer in
+    kernels (:mod:`downhole.control.dhp.riccati`); ``downhole.control.dhp.baseline.riccati_numpy`` is the same trainer in
     plain NumPy (benchmark baseline, same samples).
 
 All methods draw the samples from one SFC64 stream (``settings.seed``), so for the same
@@ -47,12 +47,12 @@ from numba import njit
 
 from downhole.control.affine import ControlAffineModel
 from downhole.control.dhp.riccati import (_chol_upper_lapack, _mu2, _small_inv, _solve_upper,
-                                          compiled_offsets, draw_offsets, riccati_numpy,
+                                          compiled_offsets, draw_offsets,
                                           train_riccati)
 from downhole.errors import DownholeError, DownholeInputError
 
 __all__ = ["DHPSettings", "DHPProblem", "DHPTraining", "TrainingDiverged", "LinearBasis",
-           "QuadraticBasis", "train_dhp", "METHODS", "finite_horizon_lqr", "riccati_numpy"]
+           "QuadraticBasis", "train_dhp", "METHODS", "finite_horizon_lqr"]
 
 METHODS = ("riccati", "closed_form", "algorithm1", "algorithm1_numpy")
 
