@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["RockSurfaceSpec", "rock_init", "rock_depth", "rock_advance"]
+__all__ = ["RockSurfaceSpec", "rock_init", "rock_init_helix", "rock_depth", "rock_advance"]
 
 
 class RockSurfaceSpec:
@@ -128,3 +128,19 @@ def rock_advance(surf, istate, rp, theta_prev, x_prev, theta_new, x_new):
                 surf[j & mask] = xj
     if j_hi + 1 > j_next:
         istate[0] = j_hi + 1
+
+
+def rock_init_helix(spec: RockSurfaceSpec, x0: float, theta0: float, depth_of_cut: float):
+    """State of a bit cutting steadily: a helical hole bottom with total depth of cut
+    ``depth_of_cut`` (m per revolution, all blades) under the bit at ``x0`` (m), ``theta0`` (rad).
+
+    The surface recorded one pitch back lies ``depth_of_cut / n`` above the bit, so
+    :func:`rock_depth` returns ``depth_of_cut`` at (x0, theta0). Returns ``(surf, istate, rp)``.
+    """
+    surf, istate, rp = rock_init(spec, x0, theta0)
+    rise = depth_of_cut / (2.0 * math.pi) * spec.h  # axial advance per grid point
+    j = np.arange(spec.cap)
+    past = j - spec.cap  # grid indices -cap .. -1 map onto the whole ring
+    surf[past & (spec.cap - 1)] = x0 + past * rise
+    surf[0] = x0
+    return surf, istate, rp

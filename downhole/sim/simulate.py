@@ -10,10 +10,12 @@ import math
 
 import numpy as np
 
-from downhole.bit.rock_surface import RockSurfaceSpec, rock_init
+from downhole.bit.detournay import bit_forces
+from downhole.bit.rock_surface import RockSurfaceSpec, rock_init, rock_init_helix
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.sim.chain_kernel import CHANNELS, run_chain
 from downhole.sim.inputs import SurfaceInputs
+from downhole.sim.plant import Plant, check_start, steady_depth_of_cut
 from downhole.sim.result import Result
 from downhole.string.lumped import ChainModel
 
@@ -39,7 +41,8 @@ def _check(duration, dt, depth_of_cut, integrator, record_dt):
 def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration: float = 20.0,
              dt: float = 5e-4, depth_of_cut: str = "delayed", integrator: str = "euler",
              record_dt: float | None = None, rock_points_per_pitch: int = 512,
-             rock_memory: bool = True, attrs: dict | None = None) -> Result:
+             rock_memory: bool = True, attrs: dict | None = None, start: str = "rest",
+             clearance: float = 0.05) -> Result:
     """Simulate a lumped drill-string model with fixed steps.
 
     Parameters
@@ -67,6 +70,12 @@ def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration
         True: depth of cut against the hole bottom (SPEC correction). False: printed Eq. 2.9.
     attrs : dict, optional
         Extra metadata stored in the Result (e.g. the scenario TOML text).
+    start : {"rest", "off_bottom", "steady"}
+        Initial state (:data:`downhole.sim.plant.START_MODES`): at rest; moving steadily at the
+        inputs' values at t = 0 with the bit ``clearance`` m off bottom; or the steady drilling
+        state at those values. The last two need velocity inputs.
+    clearance : float
+        Bit height above the hole bottom for ``start="off_bottom"``, m.
 
     Returns
     -------
@@ -103,9 +112,11 @@ def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration
     pos, vel = inputs.sample(t)
     if inputs.mode == "force":
         pos[0] = model.weight - pos[0]  # net axial force on the top DOF (weight pre-balanced)
-    state = _initial_state(model)
     spec = RockSurfaceSpec(model.bit.n_blades, rock_points_per_pitch, rock_memory)
-    surf, istate, rp = rock_init(spec, 0.0, 0.0)
+    check_start(start)
+    q0, v0, surf, istate, rp = _start_state(model, start, inputs.mode, float(vel[0, 0]),
+                                            float(vel[1, 0]), spec, clearance)
+    state = (q0, v0)
     nrec = nsteps // every + 1 + (1 if nsteps % every else 0)
     out = np.empty((nrec, len(CHANNELS)))
     arrays = model.packed()
@@ -118,7 +129,7 @@ def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration
     channels = {name: out[:, i] for i, name in enumerate(CHANNELS) if name != "time"}
     meta = {"model": model.name, "dt": dt, "depth_of_cut": depth_of_cut,
             "integrator": integrator, "input_mode": inputs.mode,
-            "bit_radius": model.bit.radius, "n_blades": model.bit.n_blades}
+            "bit_radius": model.bit.radius, "n_blades": model.bit.n_blades, "start": start}
     meta.update(attrs or {})
     return Result(out[:, 0], channels, attrs=meta)
 
@@ -130,8 +141,42 @@ def _initial_state(model: ChainModel):
     return q, v
 
 
-class LumpedPlant:
-    """Step-by-step plant over a lumped model: ``reset() -> obs``, ``step(command) -> obs``.
+def _start_state(model: ChainModel, start: str, mode: str, v0: float, w0: float,
+                 spec: RockSurfaceSpec, clearance: float = 0.05):
+    """Chain state and rock surface for ``start`` at top velocities (v0, w0).
+
+    ``rest``: zeros, bit on a flat bottom. ``off_bottom``: every DOF moving at (v0, w0), the
+    chain deflected by its absolute damping only, the bit ``clearance`` m above a flat bottom.
+    ``steady``: the same plus the steady bit forces at depth of cut d = 2 pi v0 / w0 (string
+    compressed and wound up), on a helical bottom. Positions are deviations from the hanging
+    equilibrium with the top drive at 0 (as for ``rest``). Returns ``(q, v, surf, istate, rp)``.
+    """
+    check_start(start)
+    q, v = _initial_state(model)
+    if start == "rest":
+        return (q, v) + rock_init(spec, 0.0, 0.0)
+    if mode != "velocity":
+        raise DownholeInputError(f"start={start!r} needs a velocity-driven top (the set-point "
+                                 "is a velocity); a force-driven lumped plant starts from 'rest'")
+    if not (isinstance(clearance, (int, float)) and math.isfinite(clearance) and clearance > 0):
+        raise DownholeInputError(f"clearance must be a positive distance in m, got {clearance!r}")
+    wob = tob = 0.0
+    d0 = steady_depth_of_cut(v0, w0) if start == "steady" else 0.0
+    if start == "steady":
+        wob, tob = bit_forces(d0, v0, w0, model.bit.to_array())
+    for f, (field, vel, load) in enumerate(((model.axial, v0, wob), (model.torsional, w0, tob))):
+        rhs = np.asarray(field.gravity, float) - np.asarray(field.c_abs, float) * vel
+        rhs[-1] -= load
+        q[f] = np.linalg.solve(field.stiffness_matrix(), rhs)
+        v[f] = vel
+    x_bit = q[0, -1]
+    if start == "steady":
+        return (q, v) + rock_init_helix(spec, x_bit, q[1, -1], d0)
+    return (q, v) + rock_init(spec, x_bit + clearance, q[1, -1])
+
+
+class LumpedPlant(Plant):
+    """Step-by-step plant over a lumped model (the :class:`~downhole.sim.plant.Plant` contract).
 
     Commands (named): ``top_drive_axial_velocity`` (m/s) and ``top_drive_angular_velocity``
     (rad/s) for a velocity-driven top, or ``hook_load`` (N) and ``surface_torque`` (N m) when
@@ -145,7 +190,18 @@ class LumpedPlant:
     mode : {"velocity", "force"}
     depth_of_cut, integrator : str
         As in :func:`simulate`.
+
+    Examples
+    --------
+    >>> from downhole.string.lumped import lumped_model
+    >>> plant = LumpedPlant(lumped_model("table_2_1"), dt=5e-4)
+    >>> obs = plant.reset(start="steady", set_point={"top_drive_axial_velocity": 0.01,
+    ...                                              "top_drive_angular_velocity": 20.0})
+    >>> round(obs["bit_angular_velocity"], 6)
+    20.0
     """
+
+    observation_names = tuple(c for c in CHANNELS)
 
     def __init__(self, model: ChainModel, dt: float = 5e-4, mode: str = "velocity",
                  depth_of_cut: str = "delayed", integrator: str = "euler"):
@@ -164,15 +220,20 @@ class LumpedPlant:
         return (("top_drive_axial_velocity", "top_drive_angular_velocity") if self.mode == "velocity"
                 else ("hook_load", "surface_torque"))
 
-    def reset(self) -> dict:
-        self._q, self._v = _initial_state(self.model)
+    def default_command(self) -> dict:
+        """Velocity mode: at rest; force mode: the hook carries the whole string, no torque."""
+        if self.mode == "force":
+            return {"hook_load": self.model.weight, "surface_torque": 0.0}
+        return {n: 0.0 for n in self.command_names}
+
+    def _reset(self, start: str, set_point: dict, clearance: float = 0.05) -> dict:
         spec = RockSurfaceSpec(self.model.bit.n_blades)
-        self._surf, self._istate, self._rp = rock_init(spec, 0.0, 0.0)
+        cmd = np.array([set_point[n] for n in self.command_names])
+        self._q, self._v, self._surf, self._istate, self._rp = _start_state(
+            self.model, start, self.mode, float(cmd[0]), float(cmd[1]), spec, clearance)
         self._k = 0
         self._top = np.zeros(2)  # top-drive displacement
-        self._cmd = np.zeros(2)
-        if self.mode == "force":
-            self._cmd[0] = self.model.weight
+        self._cmd = cmd
         return self._observe()
 
     def _inputs(self, cmd_now, cmd_next):
@@ -197,12 +258,8 @@ class LumpedPlant:
                   surf, ist, self._rp, 1, self._out, 0)
         return {name: float(self._out[0, i]) for i, name in enumerate(CHANNELS)}
 
-    def step(self, command: dict) -> dict:
-        """Apply ``command`` (held over the step) and advance one ``dt``; returns observations."""
-        try:
-            new = np.array([float(command[n]) for n in self.command_names])
-        except KeyError as exc:
-            raise DownholeInputError(f"command lacks {exc.args[0]!r}; expected {self.command_names}") from None
+    def _step(self, new: np.ndarray) -> dict:
+        """Apply ``new`` (held over the step) and advance one ``dt``; returns observations."""
         pos, vel = self._inputs(new, new)
         status, _, c = run_chain(*self._arrays, self._bitp, self._q, self._v, self.mode == "force",
                                  pos, vel, self.model.weight, self._k, 1, self.dt,
