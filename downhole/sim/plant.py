@@ -20,8 +20,8 @@ slave and the Gymnasium environment — use only this contract:
         2 pi v / omega).
 
     ``set_point`` maps the plant's set-point signals to values (default: the plant's default
-    command). A plant that cannot start in a mode raises :class:`~downhole.errors.DownholeInputError`
-    naming the mode and why.
+    command). A plant that cannot start in a mode raises
+    :class:`~downhole.errors.DownholeInputError` naming the mode and why.
 ``step(command) -> observation``
     Hold ``command`` over one step and advance ``dt``. Every declared command must be present;
     non-finite or out-of-range values raise :class:`~downhole.errors.DownholeInputError` and are
