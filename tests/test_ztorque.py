@@ -1,0 +1,101 @@
+"""Z-torque through the controller contract: the law itself, and stick-slip suppression on
+plants of several fidelities built from one description."""
+
+import math
+
+import numpy as np
+import pytest
+
+from downhole.control.base import Controller, check_pair, run_closed_loop
+from downhole.control.ztorque import ZTorque, torsional_impedance
+from downhole.errors import DownholeInputError
+from downhole.params.rig import Hook, TopDrive
+from downhole.sim import LumpedPlant
+from downhole.string.fem import DirectionalPlant
+from downhole.system import DrillingSystem
+
+
+class _Stiff(Controller):
+    commands = ("top_drive_angular_velocity",)
+
+    def __init__(self, w):
+        self.w = w
+
+    def command(self, t, observation, reference=None):
+        return {"top_drive_angular_velocity": self.w}
+
+
+@pytest.fixture(scope="module")
+def system():
+    return DrillingSystem.table_5_1(friction=0.0)
+
+
+def test_the_law_is_speed_minus_torque_deviation_over_impedance(system):
+    sec = system.string.segments[0].section
+    z = torsional_impedance(sec)
+    assert z == pytest.approx(sec.polar_moment * math.sqrt(sec.density * sec.shear_modulus))
+    c = ZTorque(z, speed=6.0, tau=2.0, dt=0.01)
+    c.reset()
+    assert c.command(0.0, {"surface_torque": 4000.0})["top_drive_angular_velocity"] == 6.0
+    # a torque rise of 240 N m: the mean moves by dt/tau of it, the speed yields by the rest / Z
+    w = c.command(0.01, {"surface_torque": 4240.0})["top_drive_angular_velocity"]
+    assert w == pytest.approx(6.0 - 240.0 * (1 - 0.01 / 2.0) / z)
+    # never reverses the string, never above twice the set-point
+    assert c.command(0.02, {"surface_torque": 1e7})["top_drive_angular_velocity"] == 0.0
+    assert c.command(0.03, {"surface_torque": -1e7})["top_drive_angular_velocity"] == 12.0
+    ref = ZTorque(z, dt=0.01)
+    assert ref.command(0.0, {"surface_torque": 0.0},
+                       {"reference_angular_velocity": 8.0})["top_drive_angular_velocity"] == 8.0
+    with pytest.raises(DownholeInputError, match="reference_angular_velocity"):
+        ZTorque(z, dt=0.01).command(0.0, {"surface_torque": 0.0}, {})
+    with pytest.raises(DownholeInputError, match="impedance"):
+        ZTorque(-1.0)
+
+
+def _severity(w):
+    return (w.max() - w.min()) / (2 * abs(w.mean())), float(np.mean(np.abs(w) < 0.1))
+
+
+def test_ztorque_reduces_stick_slip_on_the_lumped_chain(system):
+    m = system.build("lumped4")
+    z = torsional_impedance(system.string.segments[0].section)
+    out = {}
+    for name, c in (("stiff", _Stiff(3.0)), ("z", ZTorque(z, speed=3.0, tau=2.0, dt=5e-4))):
+        plant = LumpedPlant(m, dt=5e-4, integrator="newmark")
+        assert check_pair(c, plant) is None
+        r = run_closed_loop(plant, c, 60.0, start="steady",
+                            set_point={"top_drive_axial_velocity": 0.005,
+                                       "top_drive_angular_velocity": 3.0})
+        out[name] = _severity(r["bit_angular_velocity"][r["time"] > 30.0])
+    assert out["stiff"][1] > 0.3          # sticks a third of the time
+    assert out["z"][1] < 0.5 * out["stiff"][1]
+    assert out["z"][0] < out["stiff"][0]
+
+
+def test_ztorque_removes_the_stuck_phases_on_the_fem(system):
+    m = system.build("fem")
+    z = torsional_impedance(system.string.segments[0].section)
+    out = {}
+    for name, c in (("stiff", _Stiff(6.0)), ("z", ZTorque(z, speed=6.0, tau=2.0, dt=1e-3))):
+        plant = DirectionalPlant(m, 1e-3, top_drive=TopDrive(speed=6.0), hook=Hook(wob=100e3))
+        obs = plant.reset()
+        c.reset()
+        w = []
+        for k in range(40000):
+            obs = plant.step(c.command(k * 1e-3, obs, None))
+            w.append(obs["bit_angular_velocity"])
+        out[name] = _severity(np.array(w[20000:]))
+    assert out["stiff"][1] > 0.2 and out["stiff"][0] > 1.0
+    assert out["z"][1] == 0.0 and out["z"][0] < 0.6 * out["stiff"][0]
+
+
+def test_check_pair_names_what_does_not_fit(system):
+    plant = LumpedPlant(system.build("lumped4"), mode="force")
+
+    class NeedsBitTorque(Controller):
+        needs = ("no_such_observation",)
+
+    assert "does not observe" in check_pair(NeedsBitTorque(), plant)
+    assert "takes" in check_pair(ZTorque(480.0), plant)  # force mode: no speed command
+    with pytest.raises(DownholeInputError, match="takes"):
+        run_closed_loop(plant, ZTorque(480.0), 1.0)
