@@ -66,8 +66,9 @@ class ZTorque(Controller):
                                     ("gain", gain, False), ("dt", dt, True)):
             if not (isinstance(value, (int, float)) and math.isfinite(value)
                     and (value > 0 if strict else value >= 0)):
-                raise DownholeInputError(f"ZTorque {name} must be a {'positive' if strict else 'non-negative'} "
-                                         f"number, got {value!r}")
+                kind = "positive" if strict else "non-negative"
+                raise DownholeInputError(f"ZTorque {name} must be a {kind} number, got "
+                                         f"{value!r}")
         if speed is not None and not math.isfinite(float(speed)):
             raise DownholeInputError(f"ZTorque speed must be finite, got {speed!r}")
         self.impedance, self.tau, self.gain, self.dt = (float(impedance), float(tau),
