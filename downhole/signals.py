@@ -45,7 +45,10 @@ class Signal:
         One line, with the sign convention where it matters.
     low, high : float
         Admissible range of the signal as a *command* (values outside are refused, never
-        applied); infinite for signals that are never commanded.
+        applied); infinite for signals that are never commanded. The bounds are finite and
+        physically sane for a drilling rig (they catch a wrong unit, a corrupted or hostile
+        packet, an absurd set-point), not the rig's operating envelope. The bit velocities
+        have ranges because a hardware-in-the-loop rig sends them as commands.
     """
 
     name: str
@@ -148,26 +151,28 @@ def _declare_standard() -> None:
     s("time", "s", "time", "simulated time")
     s("bit_axial_position", "m", "length", "bit axial displacement from the start, positive "
       "downward")
-    s("bit_axial_velocity", "m/s", "velocity", "bit axial velocity, positive into the rock")
+    s("bit_axial_velocity", "m/s", "velocity", "bit axial velocity, positive into the rock",
+      low=-1.0, high=1.0)
     s("bit_angle", "rad", "angle", "bit rotation angle")
-    s("bit_angular_velocity", "rad/s", "angular_velocity", "bit angular velocity")
+    s("bit_angular_velocity", "rad/s", "angular_velocity", "bit angular velocity",
+      low=-100.0, high=100.0)
     s("depth_of_cut", "m", "length", "total depth of cut per revolution (all blades)")
     s("wob", "N", "force", "weight on bit")
     s("tob", "N*m", "torque", "torque on bit")
     # --- surface (rig) ---
     s("hook_load", "N", "force", "hook load (string weight minus slack-off)", low=0.0,
-      high=2.0e7)
+      high=1.0e7)
     s("surface_torque", "N*m", "torque", "torque delivered by the top drive to the string",
       low=-2.0e5, high=2.0e5)
     s("top_drive_axial_velocity", "m/s", "velocity", "top drive axial velocity, positive "
-      "downward", low=-5.0, high=5.0)
+      "downward", low=-1.0, high=1.0)
     s("top_drive_angular_velocity", "rad/s", "angular_velocity", "top drive angular velocity",
       low=-100.0, high=100.0)
     s("top_drive_angle", "rad", "angle", "top drive rotation angle")
     s("top_drive_set_point", "rad/s", "angular_velocity", "top drive speed set-point of its "
       "drive controller", low=-100.0, high=100.0)
     s("slack_off_force", "N", "force", "hook force taken off the string (slack-off), "
-      "positive lowers the string", low=-2.0e7, high=2.0e7)
+      "positive lowers the string", low=-1.0e7, high=1.0e7)
     # --- references ---
     s("reference_axial_velocity", "m/s", "velocity", "reference bit axial velocity (ROP)",
       low=-1.0, high=1.0)
