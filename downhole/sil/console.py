@@ -4,8 +4,8 @@
 (the DHP trainer's own rich progress bars), waiting for the other end of the UDP link
 (:func:`wait_with_countdown`) and the run itself (:class:`RunProgress`). Both helpers write to
 stderr, so that stdout keeps only the JSON summary. On a terminal they redraw one line in place
-(``\\r``); otherwise (a log file, a pipe, a test) they print a plain line at the start, every
-``every`` seconds and at the end.
+(``\\r`` and an ANSI erase-line); otherwise (a log file, a pipe, a test) they print a plain line
+at the start, every ``every`` seconds and at the end.
 
 The running display is deliberately cheap (one short formatted string, at most twice a second):
 it shares the interpreter with a 1 kHz loop, and a heavy redraw would cost deadlines.
@@ -80,7 +80,7 @@ def wait_with_countdown(attempt, timeout: float, *, what: str, out=None, slice_s
         nonlocal last_line
         text = final or f"waiting for {what}: {format_seconds(left)} left (Ctrl-C to stop)"
         if tty:
-            out.write("\r" + text.ljust(78) + ("\n" if final else ""))
+            out.write("\r\x1b[K" + text + ("\n" if final else ""))
             out.flush()
         elif final or last_line is None or clock() - last_line >= every:
             out.write(text + "\n")
@@ -91,7 +91,7 @@ def wait_with_countdown(attempt, timeout: float, *, what: str, out=None, slice_s
         now = clock()
         left = end - now
         if left <= 0:
-            show(0.0, f"waiting for {what}: gave up after {format_seconds(timeout)}")
+            show(0.0, f"waiting for {what}: gave up after {timeout:g} s")
             return False
         show(left)
         if attempt(min(slice_s, left)):
@@ -146,14 +146,14 @@ class RunProgress:
             head = f"running {sim:7.2f} s"
         misses = int(st.get("deadline_misses", 0))
         pct = 100.0 * misses / steps if steps else 0.0
-        rtf = sim / wall if wall > 0 else 0.0
+        rtf = st.get("real_time_factor") or (sim / wall if wall > 0 else 0.0)  # final: exact
         return (f"{head}  {steps} steps  misses {misses} ({pct:.2f} %)  late "
                 f"{int(st.get('late_commands', 0))}  x{rtf:.2f} real time")
 
     def _write(self, final: bool = False) -> None:
         text = self.line()
         if self.tty:
-            self.out.write("\r" + text + ("\n" if final else ""))
+            self.out.write("\r\x1b[K" + text + ("\n" if final else ""))
         else:
             self.out.write(text + "\n")
         self.out.flush()
