@@ -401,3 +401,41 @@ attack();
         assert session.refused["origin"] >= 4 and session.refused["host"] >= 1
     finally:
         session.stop()
+
+
+@pytest.mark.parametrize("toml, field", [
+    ('[reference]\naxial = "60 mm/s"\n', "reference.axial"),
+    ('[reference]\nangular_min = "30 rad/s"\nangular_max = "10 rad/s"\n',
+     "reference.angular_min"),
+    ('[reference]\naxial_max = "nan m/s"\n', "reference.axial"),
+    ('[dashboard]\ntoken = "two words"\n', "dashboard.token"),
+    ('[dashboard]\ntoken = ""\n', "dashboard.token"),
+    ('[dashboard]\nallowed_origins = ["evil.example"]\n', "dashboard.allowed_origins"),
+    ('[dashboard]\nallowed_origins = ["http://hmi.example/"]\n', "dashboard.allowed_origins"),
+    ('[dashboard]\nallowed_hosts = "rig-pc"\n', "dashboard.allowed_hosts"),
+])
+def test_scenario_dashboard_and_range_fields_are_validated(tmp_path, toml, field):
+    from downhole.errors import ScenarioError
+    from downhole.sil.scenario import load_sil_scenario
+
+    sc = tmp_path / "s.toml"
+    sc.write_text(toml)
+    with pytest.raises(ScenarioError) as exc:
+        load_sil_scenario(sc)
+    assert field in str(exc.value) and str(sc) in str(exc.value)
+
+
+def test_declared_ranges_reach_the_dashboard(tmp_path):
+    """The scenario's [reference] ranges are what /api/reference enforces."""
+    from downhole.cli.sil import _reference_limits
+    from downhole.sil.scenario import load_sil_scenario
+
+    sc = tmp_path / "s.toml"
+    sc.write_text('[reference]\nangular_max = "30 rad/s"\naxial_max = "20 mm/s"\n')
+    limits = _reference_limits(load_sil_scenario(sc))
+    assert limits == {"axial": (0.0, pytest.approx(0.02)), "angular": (0.0, 30.0)}
+    session, c = _client(reference_limits=limits)
+    assert c.post("/api/reference", json={"angular": 35.0}).status_code == 422
+    assert c.post("/api/reference", json={"axial": 0.019, "angular": 30.0}).status_code == 200
+    with pytest.raises(Exception, match="reference_limits"):
+        make_app(session, reference_limits={"axial": (1.0, 0.0)})

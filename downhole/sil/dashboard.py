@@ -384,7 +384,7 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
     host : str
         The address the server binds (decides the default allowed Host names).
     port : int, optional
-        The server's port: a ``Host`` header must name it (None: any port).
+        The server's port: a ``Host`` header must name it (None or 0: any port).
     allowed_hosts : iterable of str
         Extra Host names (e.g. the name of a rig PC the dashboard is browsed by).
     allowed_origins : iterable of str
@@ -411,7 +411,7 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
 
     app = FastAPI(title="downhole SIL dashboard")
     app.add_middleware(_Guard, session=session, token=token, allowed_hosts=hosts,
-                       allowed_origins=origins, port=port)
+                       allowed_origins=origins, port=port or None)
 
     async def json_object(request: Request) -> dict:
         raw = await request.body()
