@@ -214,6 +214,26 @@ def test_both_ends_give_up_after_their_wait_with_a_clear_error(tmp_path):
     assert main(["sil", str(sc), "--remote", "--wait", "0"]) == 2
 
 
+def test_ctrl_c_while_waiting_is_a_clean_error(tmp_path):
+    import signal
+
+    sc = _pi_scenario(tmp_path, free_port())
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    plant = subprocess.Popen([*CLI, "sil", str(sc), "--remote"], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, env=env,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    seen = []
+    while not any("waiting for the controller" in line for line in seen):
+        line = plant.stderr.readline()
+        assert line, "".join(seen)
+        seen.append(line)
+    plant.send_signal(signal.SIGINT)
+    rc, _, err = _finish(plant, timeout=30)
+    assert rc == 130
+    assert err.strip().splitlines()[-1] == "error: interrupted while waiting for the controller"
+    assert "Traceback" not in err
+
+
 def test_controller_that_got_nothing_to_answer_exits_1(tmp_path):
     from downhole.sil.link import PlantLink
     from downhole.sil.protocol import Layout

@@ -100,14 +100,18 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         if use_link:
             h, p = runner.link.address
             peer = "rig" if hil else "controller"
+            how = (f"--rig --port {p}" if hil else f"--scenario {scenario}"
+                   + ("" if port is None else f" --port {p}"))
             typer.echo(f"plant listening on udp://{h}:{p}; start the {peer} now, e.g. "
-                       f"`downhole sil-controller --scenario {scenario}"
-                       f"{'' if port is None else f' --port {p}'}`", err=True)
-            if progress:
-                ok = wait_with_countdown(runner.wait_for_controller, patience,
-                                         what=f"the {peer} on udp://{h}:{p}")
-            else:
-                ok = runner.wait_for_controller(patience)
+                       f"`downhole sil-controller {how}`", err=True)
+            try:
+                if progress:
+                    ok = wait_with_countdown(runner.wait_for_controller, patience,
+                                             what=f"the {peer} on udp://{h}:{p}")
+                else:
+                    ok = runner.wait_for_controller(patience)
+            except KeyboardInterrupt:
+                fail(f"interrupted while waiting for the {peer}", code=130)
             if not ok:
                 fail(f"no {peer} answered on udp://{h}:{p} within {patience:g} s "
                      "([link] connect_timeout or --wait)")
@@ -217,10 +221,13 @@ def sil_controller(port: Optional[int] = typer.Option(
         return True
 
     try:
-        if progress:
-            ok = wait_with_countdown(attempt, wait, what=f"the plant on udp://{host}:{port}")
-        else:
-            ok = attempt(wait)
+        try:
+            if progress:
+                ok = wait_with_countdown(attempt, wait, what=f"the plant on udp://{host}:{port}")
+            else:
+                ok = attempt(wait)
+        except KeyboardInterrupt:
+            fail("interrupted while waiting for the plant", code=130)
         if not ok:
             fail(f"no plant answered on udp://{host}:{port} within {wait:g} s (start `downhole "
                  "sil SCENARIO --remote` first, or give --wait)")
