@@ -23,7 +23,7 @@ import pytest
 
 from downhole.cli import main
 from downhole.errors import DownholeInputError
-from downhole.sil.console import RunProgress, format_seconds, wait_with_countdown
+from downhole.sil.console import RunProgress, ServeProgress, format_seconds, wait_with_countdown
 from downhole.sil.testing import free_port
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "sil_dhp_hybrid68.toml"
@@ -132,6 +132,22 @@ def test_run_progress_line_and_plain_output():
     assert lines[-1].endswith("x1.25 real time")
 
 
+def test_serve_progress_shows_the_link_counters_on_a_terminal():
+    class _Client:
+        counters = {"rx": 0, "tx": 0, "stale": 0, "malformed": 0, "foreign": 0}
+
+    cl, out = _Client(), io.StringIO()
+    with ServeProgress(cl, out=out, interval=0.05, interactive=True):
+        time.sleep(0.2)
+        cl.counters.update(rx=1001, tx=1000, stale=3)
+        time.sleep(0.2)
+    text = out.getvalue()
+    assert text.count("\r\x1b[K") >= 3 and text.endswith("\n")
+    last = text.split("\r\x1b[K")[-1]
+    assert "1001 received  1000 sent  stale 3  malformed 0  foreign 0" in last
+    assert "0 received" in text.split("\r\x1b[K")[1]
+
+
 # ------------------------------------------------------------------ the recipe, cheap controller
 def test_recipe_plant_first_then_a_late_controller(tmp_path):
     port = free_port()
@@ -146,6 +162,7 @@ def test_recipe_plant_first_then_a_late_controller(tmp_path):
     assert f"plant listening on udp://127.0.0.1:{port}" in err_p
     assert "waiting for the controller on udp://127.0.0.1" in err_p and "left" in err_p
     assert "ready after" in err_p and "running [####################]" in err_p
+    assert "serving the plant" in err_c and "sent" in err_c.splitlines()[-1]
     stats = json.loads(out_p)["stats"]
     assert stats["steps"] == 1000 and stats["safe_actions"] == 0
     assert 950 <= json.loads(out_c.splitlines()[-1])["commands_sent"] <= 1000

@@ -176,7 +176,7 @@ def sil_controller(port: Optional[int] = typer.Option(
     The controller is built (a DHP scenario is designed, with progress) before the plant is
     contacted, so that it answers the plant's first observation at once."""
     from downhole.errors import DownholeInputError
-    from downhole.sil.console import wait_with_countdown
+    from downhole.sil.console import ServeProgress, wait_with_countdown
     from downhole.sil.controllers import load_controller_file
     from downhole.sil.link import ControllerClient
 
@@ -245,7 +245,11 @@ def sil_controller(port: Optional[int] = typer.Option(
         ctrl.reset()
         typer.echo(f"connected: {len(layout.observations)} observations, commands "
                    f"{', '.join(layout.commands)}, dt = {layout.dt:g} s; serving...", err=True)
-        n = client.serve(ctrl, idle_timeout=idle_timeout, realtime=realtime)
+        if progress:
+            with ServeProgress(client):
+                n = client.serve(ctrl, idle_timeout=idle_timeout, realtime=realtime)
+        else:
+            n = client.serve(ctrl, idle_timeout=idle_timeout, realtime=realtime)
     finally:
         client.close()
     typer.echo(json.dumps({"commands_sent": n, "counters": client.counters}))

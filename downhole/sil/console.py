@@ -2,7 +2,8 @@
 
 ``downhole sil`` and ``downhole sil-controller`` have three long phases: the controller design
 (the DHP trainer's own rich progress bars), waiting for the other end of the UDP link
-(:func:`wait_with_countdown`) and the run itself (:class:`RunProgress`). Both helpers write to
+(:func:`wait_with_countdown`) and the run itself (:class:`RunProgress`, and
+:class:`ServeProgress` on the controller's end). These helpers write to
 stderr, so that stdout keeps only the JSON summary. On a terminal they redraw one line in place
 (``\\r`` and an ANSI erase-line); otherwise (a log file, a pipe, a test) they print a plain line
 at the start, every ``every`` seconds and at the end.
@@ -18,7 +19,7 @@ import sys
 import threading
 import time
 
-__all__ = ["wait_with_countdown", "RunProgress", "format_seconds"]
+__all__ = ["wait_with_countdown", "RunProgress", "ServeProgress", "format_seconds"]
 
 
 def format_seconds(s: float) -> str:
@@ -99,7 +100,58 @@ def wait_with_countdown(attempt, timeout: float, *, what: str, out=None, slice_s
             return True
 
 
-class RunProgress:
+class _Ticker:
+    """A progress line redrawn by a daemon thread while the ``with`` body runs."""
+
+    header = ""
+
+    def __init__(self, *, out=None, interval: float = 0.5, every: float = 10.0,
+                 interactive: bool | None = None):
+        self.out = sys.stderr if out is None else out
+        self.tty = _is_tty(self.out) if interactive is None else interactive
+        self.interval = max(0.05, float(interval))
+        self.every = float(every)
+        self._done = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._t0 = None
+
+    def line(self) -> str:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def _write(self, final: bool = False) -> None:
+        text = self.line()
+        if self.tty:
+            self.out.write("\r\x1b[K" + text + ("\n" if final else ""))
+        else:
+            self.out.write(text + "\n")
+        self.out.flush()
+
+    def _loop(self) -> None:
+        last = time.monotonic()
+        while not self._done.wait(self.interval):
+            if self.tty or time.monotonic() - last >= self.every:
+                self._write()
+                last = time.monotonic()
+
+    def __enter__(self):
+        self._t0 = time.monotonic()
+        if not self.tty and self.header:
+            self.out.write(self.header + "\n")
+            self.out.flush()
+        self._thread = threading.Thread(target=self._loop, name="downhole-sil-progress",
+                                        daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._done.set()
+        if self._thread is not None:
+            self._thread.join(2.0)
+        self._write(final=True)
+        return False
+
+
+class RunProgress(_Ticker):
     """A progress line for a running :class:`~downhole.sil.runtime.RealTimeRunner`.
 
     Use as a context manager around ``runner.run(duration)``: a daemon thread shows simulated
@@ -120,17 +172,12 @@ class RunProgress:
         Redraw in place (default: ``out`` is a terminal).
     """
 
-    def __init__(self, runner, duration: float | None, *, out=None, interval: float = 0.5,
-                 every: float = 10.0, interactive: bool | None = None):
+    def __init__(self, runner, duration: float | None, **kw):
+        super().__init__(**kw)
         self.runner = runner
         self.duration = duration
-        self.out = sys.stderr if out is None else out
-        self.tty = _is_tty(self.out) if interactive is None else interactive
-        self.interval = max(0.05, float(interval))
-        self.every = float(every)
-        self._done = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._t0 = None
+        self.header = (f"running {duration:g} s of simulated time" if duration
+                       else "running (Ctrl-C to stop)")
 
     def line(self) -> str:
         """The current progress text."""
@@ -150,35 +197,28 @@ class RunProgress:
         return (f"{head}  {steps} steps  misses {misses} ({pct:.2f} %)  late "
                 f"{int(st.get('late_commands', 0))}  x{rtf:.2f} real time")
 
-    def _write(self, final: bool = False) -> None:
-        text = self.line()
-        if self.tty:
-            self.out.write("\r\x1b[K" + text + ("\n" if final else ""))
-        else:
-            self.out.write(text + "\n")
-        self.out.flush()
 
-    def _loop(self) -> None:
-        last = time.monotonic()
-        while not self._done.wait(self.interval):
-            if self.tty or time.monotonic() - last >= self.every:
-                self._write()
-                last = time.monotonic()
+class ServeProgress(_Ticker):
+    """A progress line for :meth:`~downhole.sil.link.ControllerClient.serve`: observations
+    received, commands sent, and the link's stale / malformed / foreign counters.
 
-    def __enter__(self):
-        self._t0 = time.monotonic()
-        if not self.tty:
-            self.out.write(f"running {self.duration:g} s of simulated time\n"
-                           if self.duration else "running (Ctrl-C to stop)\n")
-            self.out.flush()
-        self._thread = threading.Thread(target=self._loop, name="downhole-sil-progress",
-                                        daemon=True)
-        self._thread.start()
-        return self
+    Parameters
+    ----------
+    client : ControllerClient
+    **kw
+        As :class:`RunProgress` (``out``, ``interval``, ``every``, ``interactive``).
+    """
 
-    def __exit__(self, *exc):
-        self._done.set()
-        if self._thread is not None:
-            self._thread.join(2.0)
-        self._write(final=True)
-        return False
+    header = "serving the plant (until it says BYE)"
+
+    def __init__(self, client, **kw):
+        super().__init__(**kw)
+        self.client = client
+
+    def line(self) -> str:
+        """The current progress text."""
+        c = self.client.counters
+        wall = time.monotonic() - self._t0 if self._t0 is not None else 0.0
+        return (f"serving {wall:6.1f} s  {c.get('rx', 0)} received  {c.get('tx', 0)} sent  "
+                f"stale {c.get('stale', 0)}  malformed {c.get('malformed', 0)}  foreign "
+                f"{c.get('foreign', 0)}")
