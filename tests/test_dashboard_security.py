@@ -298,6 +298,16 @@ def test_token_file_errors_name_the_file(tmp_path, capsys):
     sc.write_text('[dashboard]\ntoken = "a"\ntoken_file = "x"\n')
     assert main(["sil", str(sc), "--dashboard"]) == 2
     assert "dashboard.token_file" in capsys.readouterr().err
+    # refused before the plant waits for its controller (300 s here), not after
+    for db, word in (('host = "0.0.0.0"', "not loopback"),
+                     ('host = "0.0.0.0"\ntoken = "short"', "16 characters"),
+                     ('token = "semi;colon"', "semicolons")):
+        sc.write_text(f'[plant]\nmodel = "lumped"\n[link]\nport = {free_port()}\n'
+                      f'[dashboard]\n{db}\n')
+        t = time.monotonic()
+        assert main(["sil", str(sc), "--dashboard", "--remote", "--wait", "300"]) == 2
+        assert time.monotonic() - t < 60
+        assert word in capsys.readouterr().err
 
 
 class _Server:

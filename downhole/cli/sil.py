@@ -39,7 +39,7 @@ def _design_note(sc, what: str) -> None:
     if sc.controller.kind == "dhp" and not sc.controller.file:
         d = sc.controller.dhp
         typer.echo(f"{what}: designing the DHP controller ({d.samples} samples, horizon "
-                   f"{d.horizon:g} s, weights {d.weights}); this takes about a minute...",
+                   f"{d.horizon:g} s, weights {d.weights}); this can take a minute or more",
                    err=True)
 
 
@@ -75,6 +75,13 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
     if port is not None:
         sc.link.port = port
     cfile = str(controller) if controller else None
+    token = None
+    if dashboard:  # refuse bad dashboard settings now, not after the design and the wait
+        from downhole.sil.dashboard import check_dashboard_settings
+        from downhole.sil.scenario import dashboard_token
+
+        token = dashboard_token(sc)
+        check_dashboard_settings(sc.dashboard.host, token)
     if not sc.controller.remote:
         check_code_allowed(sc, controller_file=cfile, allow_code=allow_code)
         if progress and not cfile:
@@ -117,10 +124,9 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                      "([link] connect_timeout or --wait)")
         if dashboard:
             from downhole.sil.dashboard import serve_dashboard
-            from downhole.sil.scenario import dashboard_token
 
             d = sc.dashboard
-            serve_dashboard(runner, host=d.host, port=d.port, token=dashboard_token(sc),
+            serve_dashboard(runner, host=d.host, port=d.port, token=token,
                             duration=dur, publish_hz=d.publish_hz,
                             allowed_origins=d.allowed_origins, allowed_hosts=d.allowed_hosts,
                             token_source=d.token_file or f"{scenario} [dashboard] token",

@@ -46,7 +46,7 @@ from urllib.parse import parse_qs
 from downhole.errors import DownholeInputError
 
 __all__ = ["DashboardSession", "make_app", "serve_dashboard", "is_loopback", "TOKEN_COOKIE",
-           "DEFAULT_REFERENCE_LIMITS", "MIN_REMOTE_TOKEN"]
+           "DEFAULT_REFERENCE_LIMITS", "MIN_REMOTE_TOKEN", "check_dashboard_settings"]
 
 SIGNALS = ("bit_axial_velocity", "bit_angular_velocity", "wob", "tob", "hook_load",
            "surface_torque", "top_drive_angular_velocity", "top_drive_axial_velocity",
@@ -396,10 +396,7 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
     from fastapi import FastAPI, HTTPException, Request, WebSocket, WebSocketDisconnect
     from fastapi.responses import HTMLResponse, JSONResponse
 
-    if token is not None and (not isinstance(token, str) or not token
-                              or any(c.isspace() or c in ";,\"\\" for c in token)):
-        raise DownholeInputError("the dashboard token must be a non-empty string without "
-                                 "spaces, quotes, commas, semicolons or backslashes")
+    check_dashboard_settings("127.0.0.1", token)
     limits = dict(DEFAULT_REFERENCE_LIMITS)
     limits.update(reference_limits or {})
     for name, (lo, hi) in limits.items():
@@ -477,6 +474,32 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
     return app
 
 
+def check_dashboard_settings(host: str, token: str | None) -> None:
+    """Refuse settings the dashboard will not serve with (called before a run starts).
+
+    Raises
+    ------
+    DownholeInputError
+        A non-loopback ``host`` without a token, or with one shorter than
+        :data:`MIN_REMOTE_TOKEN`; a token with spaces, quotes, commas, semicolons or
+        backslashes (it must fit in a cookie).
+    """
+    if token is not None and (not isinstance(token, str) or not token
+                              or any(c.isspace() or c in ";,\"\\" for c in token)):
+        raise DownholeInputError("the dashboard token must be a non-empty string without "
+                                 "spaces, quotes, commas, semicolons or backslashes")
+    if not is_loopback(host):
+        if not token:
+            raise DownholeInputError(f"the dashboard binds {host!r}, which is not loopback: set "
+                                     "[dashboard] token or token_file (every request must then "
+                                     "carry it)")
+        if len(token) < MIN_REMOTE_TOKEN:
+            raise DownholeInputError(
+                f"the dashboard binds {host!r}, which is not loopback: the token must have at "
+                f"least {MIN_REMOTE_TOKEN} characters, e.g. python -c 'import secrets; "
+                "print(secrets.token_urlsafe(24))'")
+
+
 def _describe_token(token: str, source: str | None) -> str:
     hint = f"{token[:4]}... ({len(token)} characters)" if len(token) >= MIN_REMOTE_TOKEN \
         else f"{len(token)} characters"
@@ -501,16 +524,7 @@ def serve_dashboard(runner, host: str = "127.0.0.1", port: int = 8765,
     """
     import uvicorn
 
-    if not is_loopback(host):
-        if not token:
-            raise DownholeInputError(f"the dashboard binds {host!r}, which is not loopback: set "
-                                     "[dashboard] token or token_file (every request must then "
-                                     "carry it)")
-        if len(token) < MIN_REMOTE_TOKEN:
-            raise DownholeInputError(
-                f"the dashboard binds {host!r}, which is not loopback: the token must have at "
-                f"least {MIN_REMOTE_TOKEN} characters, e.g. python -c 'import secrets; "
-                "print(secrets.token_urlsafe(24))'")
+    check_dashboard_settings(host, token)
     session = DashboardSession(runner, duration)
     app = make_app(session, token, publish_hz, host=host, port=port,
                    allowed_hosts=allowed_hosts, allowed_origins=allowed_origins,
