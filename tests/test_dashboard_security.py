@@ -449,3 +449,45 @@ def test_declared_ranges_reach_the_dashboard(tmp_path):
     assert c.post("/api/reference", json={"axial": 0.019, "angular": 30.0}).status_code == 200
     with pytest.raises(Exception, match="reference_limits"):
         make_app(session, reference_limits={"axial": (1.0, 0.0)})
+
+
+@pytest.mark.skipif(shutil.which(CHROMIUM) is None, reason="Debian chromium not installed "
+                    "(make test installs it)")
+def test_browser_logs_in_once_and_the_cookie_carries_http_and_websocket():
+    """With a token: /?token=... sets the cookie and leaves the address bar clean; the page's
+    WebSocket and its controls then work with the cookie alone; without it, nothing does."""
+    from playwright.sync_api import sync_playwright
+
+    runner = _runner()
+    session = DashboardSession(runner, duration=600.0)
+    port = free_port()
+    session.start()
+    try:
+        with _Server(make_app(session, TOKEN, port=port), port), sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+            anon = browser.new_page()
+            assert anon.goto(f"http://127.0.0.1:{port}/").status == 403
+            page = browser.new_context().new_page()
+            page.set_default_timeout(20000)
+            page.goto(f"http://127.0.0.1:{port}/?token={TOKEN}")
+            assert page.url == f"http://127.0.0.1:{port}/"  # the token left the address bar
+            cookie = page.context.cookies()[0]
+            assert cookie["name"] == TOKEN_COOKIE and cookie["httpOnly"]
+            assert cookie["sameSite"] == "Strict"
+            assert TOKEN not in page.content()
+            page.wait_for_selector("#sig_time")
+            t1 = float(page.inner_text("#sig_time"))
+            page.wait_for_function(f"parseFloat(document.getElementById('sig_time')"
+                                   f".textContent) > {t1 + 0.2}")  # the WebSocket streams
+            page.click("#ctrl_off")
+            page.wait_for_function("document.getElementById('controller').textContent === 'off'")
+            # a refused set-point is shown on the page; the run goes on
+            page.fill("#ref_angular", "400")
+            page.click("#apply_ref")
+            page.wait_for_function("document.getElementById('refused').textContent"
+                                   ".includes('admissible range')")
+            browser.close()
+        assert runner.controller_enabled is False and runner.reference["angular"] == 20.0
+        assert session.running
+    finally:
+        session.stop()
