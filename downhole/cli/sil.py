@@ -7,10 +7,10 @@
 - ``downhole sil-controller (--scenario S.toml | --controller FILE | --rig) [--port P]``
   is the controller end: it builds (designs) its controller first, then connects to the plant
   (the scenario's ``[link]`` address by default) and answers every observation.
+- ``downhole export-fmu SCENARIO.toml --out plant.fmu`` builds an FMI 2.0 co-simulation FMU.
 
 A Python controller file is code: both commands run one only with ``--allow-code``. Every long
 phase (design, waiting, running) shows progress on stderr (``--no-progress`` to silence it).
-- ``downhole export-fmu SCENARIO.toml --out plant.fmu`` builds an FMI 2.0 co-simulation FMU.
 """
 
 from __future__ import annotations
