@@ -31,13 +31,21 @@ def test_binding_off_loopback_needs_a_token_and_requests_must_carry_it():
     assert not is_loopback("0.0.0.0")
     with pytest.raises(DownholeInputError, match="token"):
         serve_dashboard(_runner(), host="0.0.0.0", token=None)
+    with pytest.raises(DownholeInputError, match="16 characters"):
+        serve_dashboard(_runner(), host="0.0.0.0", token="short")
     session = DashboardSession(_runner(), duration=0.2)
-    client = TestClient(make_app(session, token="s3cret"))
+    client = TestClient(make_app(session, token="s3cret"), base_url="http://127.0.0.1:8765")
     assert client.get("/").status_code == 403
     assert client.get("/?token=wrong").status_code == 403
-    assert client.get("/?token=s3cret").status_code == 200
     assert client.get("/api/state", headers={"X-Downhole-Token": "s3cret"}).status_code == 200
-    assert client.post("/api/reference?token=s3cret",
+    # a query token is read only by GET /, which turns it into a cookie and redirects
+    assert client.get("/api/state?token=s3cret").status_code == 403
+    login = client.get("/?token=s3cret", follow_redirects=False)
+    assert login.status_code == 303 and login.headers["location"] == "/"
+    assert "HttpOnly" in login.headers["set-cookie"] and \
+        "SameSite=Strict" in login.headers["set-cookie"]
+    assert client.get("/").status_code == 200  # the cookie now
+    assert client.post("/api/reference",
                        json={"axial": 0.02, "angular": 25}).json()["reference"] == \
         {"axial": 0.02, "angular": 25.0}
 

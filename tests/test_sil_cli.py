@@ -30,7 +30,8 @@ def test_sil_remote_with_the_controller_client_command(tmp_path):
                     "controller = pi_controller_for(build_plant('hybrid68'))\n")
     client = subprocess.Popen([sys.executable, "-c", "import sys; from downhole.cli import main;"
                                " sys.exit(main(sys.argv[1:]))", "sil-controller", "--port",
-                               str(port), "--controller", str(ctrl), "--idle-timeout", "2"],
+                               str(port), "--controller", str(ctrl), "--allow-code",
+                               "--idle-timeout", "2"],
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         rc = main(["sil", "examples/sil_pi_hybrid68.toml", "--remote", "--port", str(port),

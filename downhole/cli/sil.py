@@ -2,10 +2,15 @@
 
 - ``downhole sil SCENARIO.toml [--controller FILE] [--dashboard] [--duration S] [--out F.nc]``
   runs the scenario in real time (or unpaced with ``--unpaced``); with ``[controller] remote =
-  true`` (or ``--remote``) it waits for a controller on the UDP link.
-- ``downhole sil-controller --port P [--host H] (--controller FILE | --scenario S.toml)``
-  is the controller end: it connects to a running plant and answers every observation.
+  true`` (or ``--remote``) it waits for a controller on the UDP link, with a countdown, for
+  ``[link] connect_timeout`` (or ``--wait``) seconds.
+- ``downhole sil-controller (--scenario S.toml | --controller FILE | --rig) [--port P]``
+  is the controller end: it builds (designs) its controller first, then connects to the plant
+  (the scenario's ``[link]`` address by default) and answers every observation.
 - ``downhole export-fmu SCENARIO.toml --out plant.fmu`` builds an FMI 2.0 co-simulation FMU.
+
+A Python controller file is code: both commands run one only with ``--allow-code``. Every long
+phase (design, waiting, running) shows progress on stderr (``--no-progress`` to silence it).
 """
 
 from __future__ import annotations
@@ -21,26 +26,68 @@ from downhole.cli import app, fail
 __all__ = ["sil", "sil_controller", "export_fmu"]
 
 
+def _positive_seconds(value: float | None, option: str) -> float | None:
+    import math
+
+    if value is not None and not (math.isfinite(value) and value > 0):
+        fail(f"{option} must be a positive number of seconds, got {value:g}")
+    return value
+
+
+def _design_note(sc, what: str) -> None:
+    """Say that a long design starts (the trainer's rich bars follow on a terminal)."""
+    if sc.controller.kind == "dhp" and not sc.controller.file:
+        d = sc.controller.dhp
+        typer.echo(f"{what}: designing the DHP controller ({d.samples} samples, horizon "
+                   f"{d.horizon:g} s, weights {d.weights}); this can take a minute or more",
+                   err=True)
+
+
 @app.command("sil")
 def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.md)"),
         controller: Optional[Path] = typer.Option(None, "--controller",
-                                                  help="controller file (.py, or DHP .json)"),
+                                                  help="controller file (DHP .json/.npz, or a "
+                                                       ".py with --allow-code)"),
         dashboard: bool = typer.Option(False, "--dashboard", help="serve the live dashboard"),
         duration: Optional[float] = typer.Option(None, "--duration", help="simulated s"),
         out: Optional[Path] = typer.Option(None, "--out", help="write the Result (NetCDF)"),
         remote: bool = typer.Option(False, "--remote", help="controller over the UDP link"),
         port: Optional[int] = typer.Option(None, "--port", help="UDP port (overrides [link])"),
+        wait: Optional[float] = typer.Option(
+            None, "--wait", help="seconds to wait for the remote controller, with a countdown "
+                                 "(overrides [link] connect_timeout, default 300)"),
+        allow_code: bool = typer.Option(
+            False, "--allow-code", help="allow a Python controller file to run (it is code; a "
+                                        "scenario alone never runs code)"),
+        progress: bool = typer.Option(True, "--progress/--no-progress",
+                                      help="progress of design, waiting and run (stderr)"),
         unpaced: bool = typer.Option(False, "--unpaced", help="as fast as possible")):
     """Run a scenario in the real-time SIL runtime."""
+    from downhole.sil.console import RunProgress, wait_with_countdown
     from downhole.sil.runtime import RealTimeRunner, SafetyPolicy
-    from downhole.sil.scenario import build_from_scenario, load_sil_scenario
+    from downhole.sil.scenario import build_from_scenario, check_code_allowed, load_sil_scenario
 
+    _positive_seconds(duration, "--duration")
+    _positive_seconds(wait, "--wait")
     sc = load_sil_scenario(scenario)
     if remote:
         sc.controller.remote = True
     if port is not None:
         sc.link.port = port
-    plant, ctrl = build_from_scenario(sc, controller_file=str(controller) if controller else None)
+    cfile = str(controller) if controller else None
+    token = None
+    if dashboard:  # refuse bad dashboard settings now, not after the design and the wait
+        from downhole.sil.dashboard import check_dashboard_settings
+        from downhole.sil.scenario import dashboard_token
+
+        token = dashboard_token(sc)
+        check_dashboard_settings(sc.dashboard.host, token)
+    if not sc.controller.remote:
+        check_code_allowed(sc, controller_file=cfile, allow_code=allow_code)
+        if progress and not cfile:
+            _design_note(sc, "plant")
+    plant, ctrl = build_from_scenario(sc, controller_file=cfile, allow_code=allow_code,
+                                      progress=progress)
     rtc = sc.runtime
     hil = sc.link.mode == "hil"
     use_link = sc.controller.remote or hil
@@ -55,20 +102,39 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         controller_enabled=sc.controller.enabled and sc.controller.kind != "none",
         realtime=rtc.realtime)
     dur = duration if duration is not None else rtc.duration
+    patience = wait if wait is not None else sc.link.connect_timeout
     try:
         if use_link:
             h, p = runner.link.address
-            typer.echo(f"plant listening on udp://{h}:{p}; waiting for the "
-                       f"{'rig' if hil else 'controller'}...", err=True)
-            if not runner.wait_for_controller(sc.link.connect_timeout):
-                fail(f"no controller connected within {sc.link.connect_timeout:g} s")
+            peer = "rig" if hil else "controller"
+            how = (f"--rig --port {p}" if hil else f"--scenario {scenario}"
+                   + ("" if port is None else f" --port {p}"))
+            typer.echo(f"plant listening on udp://{h}:{p}; start the {peer} now, e.g. "
+                       f"`downhole sil-controller {how}`", err=True)
+            try:
+                if progress:
+                    ok = wait_with_countdown(runner.wait_for_controller, patience,
+                                             what=f"the {peer} on udp://{h}:{p}")
+                else:
+                    ok = runner.wait_for_controller(patience)
+            except KeyboardInterrupt:
+                fail(f"interrupted while waiting for the {peer}", code=130)
+            if not ok:
+                fail(f"no {peer} answered on udp://{h}:{p} within {patience:g} s "
+                     "([link] connect_timeout or --wait)")
         if dashboard:
             from downhole.sil.dashboard import serve_dashboard
 
-            serve_dashboard(runner, host=sc.dashboard.host, port=sc.dashboard.port,
-                            token=sc.dashboard.token, duration=dur,
-                            publish_hz=sc.dashboard.publish_hz)
+            d = sc.dashboard
+            serve_dashboard(runner, host=d.host, port=d.port, token=token,
+                            duration=dur, publish_hz=d.publish_hz,
+                            allowed_origins=d.allowed_origins, allowed_hosts=d.allowed_hosts,
+                            token_source=d.token_file or f"{scenario} [dashboard] token",
+                            reference_limits=_reference_limits(sc))
             res = runner.result()
+        elif progress:
+            with RunProgress(runner, dur):
+                res = runner.run(dur)
         else:
             res = runner.run(dur)
     finally:
@@ -81,56 +147,121 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         typer.echo(f"wrote {out}", err=True)
 
 
+def _reference_limits(sc) -> dict:
+    r = sc.reference
+    return {"axial": (r.axial_min, r.axial_max), "angular": (r.angular_min, r.angular_max)}
+
+
 @app.command("sil-controller")
-def sil_controller(port: int = typer.Option(..., "--port", help="plant's UDP port"),
-                   host: str = typer.Option("127.0.0.1", "--host", help="plant's address"),
-                   controller: Optional[Path] = typer.Option(None, "--controller",
-                                                             help=".py or DHP .json file"),
+def sil_controller(port: Optional[int] = typer.Option(
+                       None, "--port", help="plant's UDP port (default: the scenario's [link] "
+                                            "port, else 47600)"),
+                   host: Optional[str] = typer.Option(
+                       None, "--host", help="plant's address (default: the scenario's [link] "
+                                            "host, else 127.0.0.1)"),
+                   controller: Optional[Path] = typer.Option(
+                       None, "--controller", help="DHP .json/.npz, or a .py with --allow-code"),
                    scenario: Optional[Path] = typer.Option(
                        None, "--scenario", help="build the controller from this scenario"),
                    rig: bool = typer.Option(False, "--rig",
                                             help="act as the software HIL rig (bit + rock)"),
                    idle_timeout: float = typer.Option(5.0, "--idle-timeout",
                                                       help="stop after this long without data"),
+                   wait: Optional[float] = typer.Option(
+                       None, "--wait", help="seconds to keep trying to reach the plant, with a "
+                                            "countdown (default: the scenario's [link] "
+                                            "connect_timeout, else 300)"),
+                   allow_code: bool = typer.Option(
+                       False, "--allow-code", help="allow a Python controller file to run"),
+                   progress: bool = typer.Option(True, "--progress/--no-progress",
+                                                 help="progress of design and waiting (stderr)"),
                    realtime: bool = typer.Option(True, "--realtime/--no-realtime",
                                                  help="try SCHED_FIFO while serving")):
-    """Run a controller (or the software rig) against a plant over the UDP link."""
+    """Run a controller (or the software rig) against a plant over the UDP link.
+
+    The controller is built (a DHP scenario is designed, with progress) before the plant is
+    contacted, so that it answers the plant's first observation at once."""
     from downhole.errors import DownholeInputError
+    from downhole.sil.console import ServeProgress, wait_with_countdown
     from downhole.sil.controllers import load_controller_file
     from downhole.sil.link import ControllerClient
 
     if sum(x is not None for x in (controller, scenario)) + rig != 1:
         raise DownholeInputError("give exactly one of --controller FILE, --scenario FILE, --rig")
-    client = ControllerClient(host, port, name="downhole sil-controller")
-    layout = client.connect(timeout=30.0)
-    if rig:
-        from downhole.sil.hil import SoftwareRig
-        from downhole.string.hybrid import hybrid_model
-
-        ctrl = SoftwareRig(hybrid_model("hybrid68").bit, layout.dt)
-    elif controller is not None:
-        ctrl = load_controller_file(controller)
-    else:
-        from downhole.sil.scenario import build_from_scenario, load_sil_scenario
+    _positive_seconds(wait, "--wait")
+    _positive_seconds(idle_timeout, "--idle-timeout")
+    sc = None
+    if scenario is not None:
+        from downhole.sil.scenario import build_from_scenario, check_code_allowed, \
+            load_sil_scenario
 
         sc = load_sil_scenario(scenario)
         sc.controller.remote = False
-        _, ctrl = build_from_scenario(sc)
+        check_code_allowed(sc, allow_code=allow_code)
+    if port is None:
+        port = sc.link.port if sc is not None else 47600
+    if host is None:
+        host = sc.link.host if sc is not None else "127.0.0.1"
+    if wait is None:
+        wait = sc.link.connect_timeout if sc is not None else 300.0
+    # 1. the controller first: a DHP design takes about a minute
+    if rig:
+        ctrl = None
+    elif controller is not None:
+        ctrl = load_controller_file(controller, allow_code=allow_code)
+    else:
+        if progress:
+            _design_note(sc, "controller")
+        _, ctrl = build_from_scenario(sc, allow_code=allow_code, progress=progress)
         if ctrl is None:
-            raise DownholeInputError(f"{scenario}: the scenario defines no controller")
-    # warm up (compile) before the first observation arrives
+            raise DownholeInputError(f"{scenario}: the scenario defines no controller "
+                                     f"([controller] kind = {sc.controller.kind!r})")
+    # 2. then the plant
+    client = ControllerClient(host, port, name="downhole sil-controller")
+
+    def attempt(seconds: float) -> bool:
+        try:
+            client.connect(timeout=seconds)
+        except TimeoutError:
+            return False
+        return True
+
     try:
-        ctrl.command(0.0, {n: 0.0 for n in layout.observations}, None)
-    except Exception:  # noqa: BLE001 - a warm-up failure shows up again, properly, below
-        pass
-    ctrl.reset()
-    typer.echo(f"connected: {len(layout.observations)} observations, commands "
-               f"{', '.join(layout.commands)}, dt = {layout.dt:g} s", err=True)
-    try:
-        n = client.serve(ctrl, idle_timeout=idle_timeout, realtime=realtime)
+        try:
+            if progress:
+                ok = wait_with_countdown(attempt, wait, what=f"the plant on udp://{host}:{port}")
+            else:
+                ok = attempt(wait)
+        except KeyboardInterrupt:
+            fail("interrupted while waiting for the plant", code=130)
+        if not ok:
+            fail(f"no plant answered on udp://{host}:{port} within {wait:g} s (start `downhole "
+                 "sil SCENARIO --remote` first, or give --wait)")
+        layout = client.layout
+        if rig:
+            from downhole.sil.hil import SoftwareRig
+            from downhole.string.hybrid import hybrid_model
+
+            ctrl = SoftwareRig(hybrid_model("hybrid68").bit, layout.dt)
+        # warm up (compile) before the first observation arrives
+        try:
+            ctrl.command(0.0, {n: 0.0 for n in layout.observations}, None)
+        except Exception:  # noqa: BLE001 - a warm-up failure shows up again, properly, below
+            pass
+        ctrl.reset()
+        typer.echo(f"connected: {len(layout.observations)} observations, commands "
+                   f"{', '.join(layout.commands)}, dt = {layout.dt:g} s; serving...", err=True)
+        if progress:
+            with ServeProgress(client):
+                n = client.serve(ctrl, idle_timeout=idle_timeout, realtime=realtime)
+        else:
+            n = client.serve(ctrl, idle_timeout=idle_timeout, realtime=realtime)
     finally:
         client.close()
     typer.echo(json.dumps({"commands_sent": n, "counters": client.counters}))
+    if n == 0:
+        fail(f"the plant sent no observation within --idle-timeout {idle_timeout:g} s: no "
+             "command was sent", code=1)
 
 
 @app.command("export-fmu")

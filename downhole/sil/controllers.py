@@ -5,8 +5,9 @@ it runs unchanged offline (:func:`run_offline`), in the real-time loop and over 
 :class:`SurfacePI` is a simple bit-speed PI for plants with a ``surface`` or ``lumped``
 interface (it honours reference changes); DHP controllers come from
 :mod:`downhole.control.dhp` (``state`` interface). :func:`load_controller_file` reads a DHP
-controller (``.json``/``.npz``) or a Python file defining ``make_controller()`` or
-``controller``.
+controller (``.json``/``.npz``, data only) or, on explicit request (``allow_code=True``, the
+command line's ``--allow-code``), a Python file defining ``make_controller()`` or ``controller``.
+A Python file is code: it is never executed because a scenario names it.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ import numpy as np
 from downhole.errors import DownholeInputError
 from downhole.sim.result import Result
 
-__all__ = ["SurfacePI", "pi_controller_for", "load_controller_file", "run_offline"]
+__all__ = ["SurfacePI", "pi_controller_for", "load_controller_file", "run_offline",
+           "CODE_REFUSED"]
 
 
 class SurfacePI:
@@ -89,17 +91,34 @@ def pi_controller_for(plant, **kw) -> SurfacePI:
     return SurfacePI(names, weight=weight, dt=plant.dt, **kw)
 
 
-def load_controller_file(path, plant=None):
+#: The one-line refusal of a Python controller file without the opt-in (``{path}`` filled in).
+CODE_REFUSED = ("controller file {path} is Python code: it runs only on explicit request "
+                "(--allow-code on the command line, allow_code=True from Python)")
+
+
+def load_controller_file(path, plant=None, *, allow_code: bool = False):
     """Load a controller from ``path``.
 
-    - ``*.json`` / ``*.npz``: a saved DHP controller (:func:`downhole.control.dhp.load_controller`);
+    - ``*.json`` / ``*.npz``: a saved DHP controller (:func:`downhole.control.dhp.load_controller`;
+      data only, no code is executed);
     - ``*.py``: a module defining ``make_controller(plant)`` (called with the SilPlant, or None)
-      or a ``controller`` object.
+      or a ``controller`` object. Importing it executes it, so it is loaded only with
+      ``allow_code=True``.
+
+    Parameters
+    ----------
+    path : path-like
+        The controller file.
+    plant : SilPlant, optional
+        Passed to ``make_controller(plant)``.
+    allow_code : bool, keyword-only
+        Allow executing a Python file (the command line's ``--allow-code``). Default False.
 
     Raises
     ------
     DownholeInputError
-        Missing file, unknown suffix, or a module without either name.
+        Missing file, unknown suffix, a Python file without ``allow_code``, or a module without
+        either name.
     """
     path = Path(path)
     if path.suffix in (".json", ".npz"):
@@ -108,6 +127,8 @@ def load_controller_file(path, plant=None):
         return load_controller(path)
     if path.suffix != ".py":
         raise DownholeInputError(f"controller file {path}: expected .py, .json or .npz")
+    if allow_code is not True:
+        raise DownholeInputError(CODE_REFUSED.format(path=path))
     if not path.exists():
         raise DownholeInputError(f"controller file {path} does not exist")
     spec = importlib.util.spec_from_file_location(f"_downhole_user_ctrl_{path.stem}", path)

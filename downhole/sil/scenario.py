@@ -13,7 +13,7 @@ are errors naming the file and the dotted field. Example (``examples/sil_dhp_hyb
     duration = "20 s"
 
     [controller]
-    kind = "dhp"                # none | pi | dhp | file
+    kind = "dhp"                # none | pi | dhp | file (a .py file runs only with --allow-code)
     reference = "step"          # dhp training reference: step | sine | ramp
 
     [link]
@@ -24,6 +24,7 @@ See ``docs/sil.md`` for every field.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from pathlib import Path
 from typing import Literal
@@ -33,7 +34,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from downhole.errors import ScenarioError
 from downhole.params.quantity import Q
 
-__all__ = ["SilScenario", "load_sil_scenario", "parse_sil_scenario", "build_from_scenario"]
+__all__ = ["SilScenario", "load_sil_scenario", "parse_sil_scenario", "build_from_scenario",
+           "check_code_allowed", "dashboard_token"]
 
 
 class _Strict(BaseModel):
@@ -90,10 +92,15 @@ class ControllerSection(_Strict):
 
 
 class ReferenceSection(_Strict):
-    """``[reference]``: bit-velocity reference passed to the controller."""
+    """``[reference]``: bit-velocity reference passed to the controller, and the admissible
+    range of a set-point changed while running (the dashboard refuses anything outside)."""
 
     axial: Q["velocity"] = 0.01
     angular: Q["angular_velocity"] = 20.0
+    axial_min: Q["velocity"] = 0.0
+    axial_max: Q["velocity"] = 0.05
+    angular_min: Q["angular_velocity"] = 0.0
+    angular_max: Q["angular_velocity"] = 40.0
 
 
 class LinkSection(_Strict):
@@ -101,7 +108,7 @@ class LinkSection(_Strict):
 
     host: str = "127.0.0.1"
     port: int = Field(47600, ge=0, le=65535)
-    connect_timeout: Q["time"] = Field(30.0, gt=0)
+    connect_timeout: Q["time"] = Field(300.0, gt=0)  # the plant waits this long (countdown)
     mode: Literal["sil", "hil"] = "sil"
 
 
@@ -120,7 +127,10 @@ class DashboardSection(_Strict):
     host: str = "127.0.0.1"
     port: int = Field(8765, ge=0, le=65535)
     token: str | None = None
+    token_file: str | None = None
     publish_hz: float = Field(20.0, gt=0, le=100)
+    allowed_origins: list[str] = []
+    allowed_hosts: list[str] = []
 
 
 class SilScenario(_Strict):
@@ -146,6 +156,27 @@ def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
         raise ScenarioError(source, field, err["msg"]) from None
     if sc.controller.kind == "file" and not sc.controller.file:
         raise ScenarioError(source, "controller.file", "kind = 'file' needs a file path")
+    r = sc.reference
+    for name, lo, hi, v in (("axial", r.axial_min, r.axial_max, r.axial),
+                            ("angular", r.angular_min, r.angular_max, r.angular)):
+        if not all(math.isfinite(x) for x in (lo, hi, v)):
+            raise ScenarioError(source, f"reference.{name}", "must be finite")
+        if not lo < hi:
+            raise ScenarioError(source, f"reference.{name}_min",
+                                f"must be below {name}_max ({lo:g} >= {hi:g}, SI units)")
+        if not lo <= v <= hi:
+            raise ScenarioError(source, f"reference.{name}",
+                                f"{v:g} is outside [{name}_min, {name}_max] = [{lo:g}, {hi:g}] "
+                                "(SI units)")
+    d = sc.dashboard
+    if d.token is not None and d.token_file is not None:
+        raise ScenarioError(source, "dashboard.token_file", "give token or token_file, not both")
+    if d.token is not None and (not d.token or any(ch.isspace() for ch in d.token)):
+        raise ScenarioError(source, "dashboard.token", "must be non-empty, without whitespace")
+    for o in d.allowed_origins:
+        if not (o.startswith("http://") or o.startswith("https://")) or o.rstrip("/") != o:
+            raise ScenarioError(source, "dashboard.allowed_origins",
+                                f"{o!r} is not an origin (scheme://host[:port], no path)")
     if sc.controller.kind == "dhp" and sc.plant.interface != "state":
         raise ScenarioError(source, "plant.interface",
                             "a DHP controller needs interface = 'state'")
@@ -168,10 +199,36 @@ def load_sil_scenario(path) -> SilScenario:
     sc = parse_sil_scenario(data, str(path))
     if sc.controller.file and not Path(sc.controller.file).is_absolute():
         sc.controller.file = str(path.parent / sc.controller.file)
+    if sc.dashboard.token_file and not Path(sc.dashboard.token_file).is_absolute():
+        sc.dashboard.token_file = str(path.parent / sc.dashboard.token_file)
     return sc
 
 
-def _dhp(sc: SilScenario, plant):
+def dashboard_token(sc: SilScenario) -> str | None:
+    """The dashboard token of ``sc``: ``[dashboard] token``, the first line of ``token_file``,
+    or None.
+
+    Raises
+    ------
+    ScenarioError
+        The token file is missing, unreadable or empty.
+    """
+    d = sc.dashboard
+    if d.token_file is None:
+        return d.token
+    try:
+        text = Path(d.token_file).read_text()
+    except OSError as exc:
+        raise ScenarioError(d.token_file, "", f"cannot read the dashboard token file "
+                            f"([dashboard] token_file): {exc.strerror or exc}") from None
+    token = text.strip().splitlines()[0].strip() if text.strip() else ""
+    if not token or any(ch.isspace() for ch in token):
+        raise ScenarioError(d.token_file, "", "the dashboard token file must hold one token "
+                            "(a line without spaces)")
+    return token
+
+
+def _dhp(sc: SilScenario, plant, progress: bool = False):
     from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
 
     d = sc.controller.dhp
@@ -184,22 +241,72 @@ def _dhp(sc: SilScenario, plant):
 
         return design_dhp_planned(plant.plant.design, hybrid_model(sc.plant.design).design_model(),
                                   ref, horizon=d.horizon, weights=PenaltyWeights(**PLANNED_WEIGHTS),
-                                  settings=DHPSettings(n_samples=d.samples))
+                                  settings=DHPSettings(n_samples=d.samples),
+                                  progress=progress)
     if d.weights == "robust":
         w = dict(bit_velocity=(10.0, 10.0), bit_position=(1.0, 10.0), r=(1.0, 1.0))
     else:
         w = dict(bit_velocity=(100.0, 100.0), bit_position=(0.1, 0.1), r=(1.0, 1.0))
     return design_dhp(plant.plant.design, ref, horizon=d.horizon,
-                      weights=PenaltyWeights(**w), settings=DHPSettings(n_samples=d.samples))
+                      weights=PenaltyWeights(**w), settings=DHPSettings(n_samples=d.samples),
+                      progress=progress)
+
+
+def scenario_controller_file(sc: SilScenario, controller_file: str | None = None) -> str | None:
+    """The controller file a run would load: ``controller_file`` (command line) or
+    ``[controller] file``."""
+    return controller_file or sc.controller.file
+
+
+def check_code_allowed(sc: SilScenario, *, controller_file: str | None = None,
+                       allow_code: bool = False) -> None:
+    """Refuse, before anything is built, a Python controller file without the opt-in.
+
+    Raises
+    ------
+    DownholeInputError
+        The controller would come from a ``.py`` file and ``allow_code`` is not True (the
+        message names ``--allow-code``).
+    """
+    from downhole.errors import DownholeInputError
+    from downhole.sil.controllers import CODE_REFUSED
+
+    file = scenario_controller_file(sc, controller_file)
+    if file and Path(file).suffix == ".py" and allow_code is not True:
+        raise DownholeInputError(CODE_REFUSED.format(path=file))
 
 
 def build_from_scenario(sc: SilScenario, *, controller_file: str | None = None,
-                        with_controller: bool = True):
+                        with_controller: bool = True, allow_code: bool = False,
+                        progress: bool = False):
     """``(plant, controller)`` for a scenario (controller None for ``kind = "none"``, for
-    ``remote = true`` or when ``with_controller`` is False)."""
+    ``remote = true`` or when ``with_controller`` is False).
+
+    Parameters
+    ----------
+    sc : SilScenario
+    controller_file : str, optional
+        Overrides ``[controller] file``.
+    with_controller : bool
+        Build the controller (False: the plant only).
+    allow_code : bool, keyword-only
+        Allow a Python controller file (``kind = "file"``, ``file = "x.py"``) to run. Without
+        it such a scenario is refused before anything is built: a scenario alone never
+        executes code.
+    progress : bool
+        Show the DHP design's progress bars (``kind = "dhp"``).
+
+    Raises
+    ------
+    DownholeInputError
+        A Python controller file without ``allow_code`` (see :func:`check_code_allowed`).
+    """
     from downhole.sil.controllers import load_controller_file, pi_controller_for
     from downhole.sil.plants import build_plant
 
+    building = with_controller and not sc.controller.remote
+    if building:
+        check_code_allowed(sc, controller_file=controller_file, allow_code=allow_code)
     p = sc.plant
     if sc.link.mode == "hil":
         from downhole.sil.hil import build_hil_plant
@@ -215,12 +322,12 @@ def build_from_scenario(sc: SilScenario, *, controller_file: str | None = None,
                             axial_velocity=p.axial_velocity)
     ctrl = None
     kind = sc.controller.kind
-    file = controller_file or sc.controller.file
-    if with_controller and not sc.controller.remote:
+    file = scenario_controller_file(sc, controller_file)
+    if building:
         if file:
-            ctrl = load_controller_file(file, plant)
+            ctrl = load_controller_file(file, plant, allow_code=allow_code)
         elif kind == "pi":
             ctrl = pi_controller_for(plant)
         elif kind == "dhp":
-            ctrl = _dhp(sc, plant)
+            ctrl = _dhp(sc, plant, progress=progress)
     return plant, ctrl

@@ -56,13 +56,17 @@ class ControllerProcess:
     port : int
         The plant's UDP port on 127.0.0.1.
     args : list of str
-        Extra arguments (``["--controller", path]`` or ``["--rig"]``).
+        Extra arguments (``["--controller", path]`` or ``["--rig"]``). A ``.py`` controller
+        (a test's own file) gets ``--allow-code``.
     """
 
     def __init__(self, port: int, args, idle_timeout: float = 3.0, log: Path | None = None):
+        args = [str(a) for a in args]
+        if any(a.endswith(".py") for a in args) and "--allow-code" not in args:
+            args.append("--allow-code")
         cmd = [sys.executable, "-c", "import sys; from downhole.cli import main; "
                "sys.exit(main(sys.argv[1:]))", "sil-controller", "--port", str(port),
-               "--idle-timeout", str(idle_timeout), *map(str, args)]
+               "--idle-timeout", str(idle_timeout), *args]
         env = dict(os.environ)
         env.setdefault("OMP_NUM_THREADS", "1")
         env.setdefault("OPENBLAS_NUM_THREADS", "1")
