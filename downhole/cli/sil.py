@@ -30,7 +30,10 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         out: Optional[Path] = typer.Option(None, "--out", help="write the Result (NetCDF)"),
         remote: bool = typer.Option(False, "--remote", help="controller over the UDP link"),
         port: Optional[int] = typer.Option(None, "--port", help="UDP port (overrides [link])"),
-        unpaced: bool = typer.Option(False, "--unpaced", help="as fast as possible")):
+        unpaced: bool = typer.Option(False, "--unpaced", help="as fast as possible"),
+        link_key_file: Optional[Path] = typer.Option(
+            None, "--link-key-file", help="shared key of the UDP link (chmod 600; default: "
+            "$DOWNHOLE_LINK_KEY); required beyond loopback")):
     """Run a scenario in the real-time SIL runtime."""
     from downhole.sil.runtime import RealTimeRunner, SafetyPolicy
     from downhole.sil.scenario import build_from_scenario, load_sil_scenario
@@ -53,7 +56,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         max_lag=rtc.max_lag, wait_fraction=rtc.wait_fraction,
         safety=SafetyPolicy(sc.safety.timeout, sc.safety.hold, sc.safety.ramp, sc.safety.resume),
         controller_enabled=sc.controller.enabled and sc.controller.kind != "none",
-        realtime=rtc.realtime)
+        realtime=rtc.realtime, link_key_file=link_key_file)
     dur = duration if duration is not None else rtc.duration
     try:
         if use_link:
@@ -93,7 +96,10 @@ def sil_controller(port: int = typer.Option(..., "--port", help="plant's UDP por
                    idle_timeout: float = typer.Option(5.0, "--idle-timeout",
                                                       help="stop after this long without data"),
                    realtime: bool = typer.Option(True, "--realtime/--no-realtime",
-                                                 help="try SCHED_FIFO while serving")):
+                                                 help="try SCHED_FIFO while serving"),
+                   link_key_file: Optional[Path] = typer.Option(
+                       None, "--link-key-file", help="the plant's shared link key (default: "
+                       "$DOWNHOLE_LINK_KEY)")):
     """Run a controller (or the software rig) against a plant over the UDP link."""
     from downhole.errors import DownholeInputError
     from downhole.sil.controllers import load_controller_file
@@ -101,7 +107,8 @@ def sil_controller(port: int = typer.Option(..., "--port", help="plant's UDP por
 
     if sum(x is not None for x in (controller, scenario)) + rig != 1:
         raise DownholeInputError("give exactly one of --controller FILE, --scenario FILE, --rig")
-    client = ControllerClient(host, port, name="downhole sil-controller")
+    client = ControllerClient(host, port, name="downhole sil-controller",
+                              key_file=link_key_file)
     layout = client.connect(timeout=30.0)
     if rig:
         from downhole.sil.hil import SoftwareRig
