@@ -49,6 +49,7 @@ import os
 import struct
 import zlib
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -84,6 +85,9 @@ class MsgType(enum.IntEnum):
     OBS = 3
     CMD = 4
     BYE = 5
+
+
+_TYPES = {int(m): m for m in MsgType}
 
 
 class MalformedPacket(ValueError):
@@ -166,8 +170,7 @@ def load_key(key=None, key_file=None, *, env: bool = True) -> bytes | None:
     return raw
 
 
-@dataclass(frozen=True)
-class Message:
+class Message(NamedTuple):
     """One decoded datagram."""
 
     type: MsgType
@@ -234,10 +237,9 @@ def unpack(data: bytes, signer: Signer | None = None) -> Message:
             raise AuthenticationFailed("authentication tag mismatch (wrong key?)")
     elif authed:
         raise AuthenticationFailed("authenticated datagram, but this end has no key")
-    try:
-        mtype = MsgType(typ)
-    except ValueError:
-        raise MalformedPacket(f"unknown message type {typ}") from None
+    mtype = _TYPES.get(typ)
+    if mtype is None:
+        raise MalformedPacket(f"unknown message type {typ}")
     body = data[HEADER_SIZE:end - 4]
     if mtype in (MsgType.OBS, MsgType.CMD):
         values = np.frombuffer(body, dtype="<f8")

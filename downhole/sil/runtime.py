@@ -14,8 +14,10 @@ Timing counters (``stats``):
 - ``late_commands``: remote commands that did not arrive within the wait budget
   (``wait_fraction * dt`` after the observation was sent); the last command is held;
 - ``resyncs``: times the runner fell more than ``max_lag`` behind and re-anchored its clock;
-- ``max_rx_s``, ``mean_rx_s``: time per step spent reading and validating link datagrams
+- ``max_rx_s``, ``mean_rx_s``: CPU time per step spent reading and validating link datagrams
   (bounded by :meth:`~downhole.sil.link.PlantLink.poll`; also recorded as ``rx_time``);
+  ``max_rx_listen_s``, ``mean_rx_listen_s``: its part spent on datagrams from anybody but
+  the owner (what a flood costs; recorded as ``rx_listen_time``);
 - ``rejected_commands``: commands of an in-process controller that were not finite or outside
   the plant's admissible ranges (:attr:`~downhole.sil.plants.SilPlant.command_ranges`); the
   last admissible command is held instead (remote ones are counted by the link:
@@ -68,7 +70,8 @@ __all__ = ["RealTimeRunner", "SafetyPolicy", "STATS_KEYS", "elevate_priority"]
 STATS_KEYS = ("steps", "deadline_misses", "overruns", "late_commands", "resyncs",
               "max_lag_s", "max_exec_s", "mean_exec_s", "wall_s", "sim_s", "real_time_factor",
               "deadline_miss_fraction", "safe_actions", "rejected_commands",
-              "rejected_setpoints", "max_rx_s", "mean_rx_s")
+              "rejected_setpoints", "max_rx_s", "mean_rx_s", "max_rx_listen_s",
+              "mean_rx_listen_s")
 
 REFERENCE_NAMES = ("reference_axial_velocity", "reference_angular_velocity")
 HIL_NAMES = ("bit_axial_velocity", "bit_angular_velocity")
@@ -197,7 +200,7 @@ class RealTimeRunner:
                  wait_fraction: float = 0.7, safety: SafetyPolicy | None = None,
                  controller_enabled: bool = True, spin: float = 2e-4, realtime: bool = True,
                  command_timeout: float | None = None, link_key=None, link_key_file=None,
-                 rx_fraction: float = 0.03):
+                 rx_fraction: float = 0.02):
         if not isinstance(plant, SilPlant):
             raise DownholeInputError(f"plant must be a SilPlant (downhole.sil.build_plant), got "
                                      f"{type(plant).__name__}")
@@ -259,7 +262,7 @@ class RealTimeRunner:
         self.channels = (("time",) + tuple(n for n in obs_names if n != "time")
                          + REFERENCE_NAMES + cmd_cols
                          + ("wall_lag", "exec_time", "controller_on", "safe_action",
-                            "rx_time"))
+                            "rx_time", "rx_listen_time"))
         self.recorder = RingRecorder(self.channels, ring_rows, chunk_dir)
         self._row = np.zeros(len(self.channels))
         self.events: deque = deque(maxlen=1000)
@@ -365,8 +368,8 @@ class RealTimeRunner:
         self._bad_since = None
         self._replace_requested = False
         self._exec_sum = 0.0
-        self._rx_sum = 0.0
-        self._rx_step = 0.0
+        self._rx_sum = self._listen_sum = 0.0
+        self._rx_step = self._listen_step = 0.0
 
     def _event(self, kind: str, detail: str) -> None:
         self.events.append({"time": self._k * self.dt, "wall": time.monotonic(), "kind": kind,
@@ -420,7 +423,7 @@ class RealTimeRunner:
         """The command for the step starting now (also talks to the link)."""
         link = self.link
         remote = None
-        self._rx_step = 0.0
+        self._rx_step = self._listen_step = 0.0
         if link is not None:
             link.begin_step()
             if self._replace_requested:
@@ -441,6 +444,7 @@ class RealTimeRunner:
             else:
                 link.poll()
             self._rx_step = link.step_rx_s
+            self._listen_step = link.step_listen_s
             if remote is None:
                 self.stats["late_commands"] += link.connected
             else:
@@ -524,6 +528,8 @@ class RealTimeRunner:
                 r[i] = float(self._safe_since is not None)
             elif n == "rx_time":
                 r[i] = self._rx_step
+            elif n == "rx_listen_time":
+                r[i] = self._listen_step
             else:
                 r[i] = np.nan
         self.recorder.append(r)
@@ -610,6 +616,9 @@ class RealTimeRunner:
                 self._rx_sum += rx
                 if rx > st["max_rx_s"]:
                     st["max_rx_s"] = rx
+                self._listen_sum += self._listen_step
+                if self._listen_step > st["max_rx_listen_s"]:
+                    st["max_rx_listen_s"] = self._listen_step
                 if ex > dt:
                     st["overruns"] += 1
                 if ex > st["max_exec_s"]:
@@ -637,6 +646,7 @@ class RealTimeRunner:
             st["real_time_factor"] = st["sim_s"] / wall if wall > 0 else float("inf")
             st["mean_exec_s"] = self._exec_sum / max(st["steps"], 1)
             st["mean_rx_s"] = self._rx_sum / max(st["steps"], 1)
+            st["mean_rx_listen_s"] = self._listen_sum / max(st["steps"], 1)
             st["deadline_miss_fraction"] = st["deadline_misses"] / max(st["steps"], 1)
             self._event("stop", f"{st['steps']} steps")
             self.recorder.flush()
@@ -648,7 +658,7 @@ class RealTimeRunner:
 
         units = {f"command_{c}": self.plant.units.get(c, "") for c in self.plant.command_names}
         units.update({n: u for n, u in self.plant.units.items() if n in self.channels})
-        units.update(wall_lag="s", exec_time="s", rx_time="s")
+        units.update(wall_lag="s", exec_time="s", rx_time="s", rx_listen_time="s")
         attrs = {"model": self.plant.name, "dt": self.dt, "scheduler": self.scheduler,
                  "runtime": "real-time" if self.paced else "unpaced",
                  "stats": json.dumps(self.stats),
