@@ -20,11 +20,28 @@ import numpy as np
 import pytest
 
 from downhole.errors import DownholeInputError
-from downhole.sil import (ControllerClient, PlantLink, RealTimeRunner, SafetyPolicy, SilPlant,
-                          build_plant, pi_controller_for)
+from downhole.sil import (
+    ControllerClient,
+    PlantLink,
+    RealTimeRunner,
+    SafetyPolicy,
+    SilPlant,
+    build_plant,
+    pi_controller_for,
+)
 from downhole.sil.plants import COMMAND_RANGES
-from downhole.sil.protocol import (KEY_ENV, VERSION, AuthenticationFailed, Layout, MsgType,
-                                   Signer, VersionMismatch, load_key, pack, unpack)
+from downhole.sil.protocol import (
+    KEY_ENV,
+    VERSION,
+    AuthenticationFailed,
+    Layout,
+    MsgType,
+    Signer,
+    VersionMismatch,
+    load_key,
+    pack,
+    unpack,
+)
 from downhole.sil.testing import free_port
 
 KEY = b"0123456789abcdef0123456789abcdef"

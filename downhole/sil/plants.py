@@ -32,6 +32,8 @@ Interfaces (``interface`` of :func:`build_plant`):
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from downhole.errors import DownholeInputError
@@ -76,7 +78,7 @@ def check_range(name: str, value, ranges: dict) -> str | None:
         v = float(value)
     except (TypeError, ValueError):
         return f"{name} = {value!r} is not a number"
-    if not np.isfinite(v):
+    if not math.isfinite(v):
         return f"{name} = {v!r} is not finite"
     lo, hi = ranges[name]
     if not lo <= v <= hi:
