@@ -574,10 +574,14 @@ class PlantLink:
             socks.append(self._own)
         if self._room():
             socks.append(self.sock)
+        if len(socks) < 1 + (self._own is not None):
+            # a socket waits for the next window: wake up when it starts
+            remaining = min(remaining, max(self._win_start + self.layout.dt - time.monotonic(),
+                                           1e-5))
         if socks:
             select.select(socks, [], [], remaining)
         else:
-            time.sleep(min(remaining, self.layout.dt))
+            time.sleep(remaining)
 
     def wait_command(self, ack: int, deadline: float, count: bool = True):
         """Wait until ``deadline`` (monotonic) for the command answering observation ``ack``.
