@@ -122,6 +122,49 @@ def test_a_hello_from_another_address_or_port_is_refused_and_counted():
     link.close()
 
 
+def test_a_hijack_during_a_paced_run_is_refused_and_never_applied():
+    """Issue 16, item 1: a HELLO from 127.0.0.3 mid-run, then commands of hook load 0 and
+    60 rad/s under the (leaked) session id: refused, counted, and the run stays the owner's."""
+    plant = build_plant("hybrid68", interface="surface")
+    port = free_port()
+    rt = RealTimeRunner(plant, link=("127.0.0.1", port), record_every=1,
+                        safety=SafetyPolicy(timeout=0.5))
+    owner = ControllerClient("127.0.0.1", port)
+    ctrl = pi_controller_for(plant)
+    threading.Thread(target=lambda: (owner.connect(5.0), owner.serve(ctrl, idle_timeout=2.0)),
+                     daemon=True).start()
+    assert rt.wait_for_controller(10.0)
+    got = {}
+
+    def thief():
+        time.sleep(0.3)
+        s = _sock("127.0.0.3")
+        s.sendto(pack(MsgType.HELLO, 0, 1, raw=b"thief"), ("127.0.0.1", port))
+        try:
+            got["reply"] = s.recv(9000)
+        except socket.timeout:
+            pass
+        for i in range(300):
+            s.sendto(pack(MsgType.CMD, rt.link.session, 2 + i, [0.0, 60.0], ack=rt.link.seq),
+                     ("127.0.0.1", port))
+            time.sleep(0.001)
+        s.close()
+
+    th = threading.Thread(target=thief, daemon=True)
+    th.start()
+    res = rt.run(1.0)
+    th.join(5)
+    rt.close()
+    c = rt.link.counters
+    assert "reply" not in got  # no layout, no session id
+    assert c["refused"] == 1 and c["foreign"] >= 100
+    assert not np.any(res["command_top_drive_angular_velocity"] == 60.0)
+    assert not np.any(res["command_hook_load"] == 0.0)
+    assert res["wob"].max() < 1e6  # the issue saw 5,087 kN
+    assert "controller_refused" in [e["kind"] for e in rt.events]
+    assert rt.stats["safe_actions"] == 0
+
+
 def test_replacing_the_owner_is_an_operator_action_with_a_new_session():
     link = PlantLink(LAYOUT)
     old = _connect(link, ControllerClient(*link.address))
