@@ -11,7 +11,6 @@ measured on the development machine are in docs/sil.md.
 
 import os
 import threading
-import time
 
 import pytest
 
