@@ -20,8 +20,9 @@ owner's address (bound to the same port): the kernel delivers the owner's datagr
 everybody else's to the listening socket, so a flood from elsewhere neither delays nor drops
 the owner's commands. Every read is bounded (:meth:`PlantLink.poll`): per window of one plant
 step at most ``rx_max_datagrams`` datagrams from each socket and, on the listening socket, at
-most ``rx_budget`` seconds; a step that hits a bound is counted (``rx_capped``, event
-``receive_bound``) and the rest waits for the next step (or is dropped by the kernel).
+most ``rx_budget`` seconds (after its first datagram, which is always read); a step that hits a
+bound is counted (``rx_capped``, event ``receive_bound``) and the rest waits for the next step
+(or is dropped by the kernel).
 
 A datagram changes no state before it is fully validated, in this order: framing and CRC,
 authentication tag (with a key, :func:`~downhole.sil.protocol.load_key`), sender and session,
@@ -475,7 +476,8 @@ class PlantLink:
 
     def _room(self) -> bool:
         """True while the listening socket may still be read in this window."""
-        return self._left_lobby > 0 and self._left_s > 0
+        return self._left_lobby > 0 and (self._left_s > 0
+                                         or self._left_lobby == self.rx_max_datagrams)
 
     def poll(self) -> None:
         """Read and handle the datagrams waiting (non-blocking), within the window's bounds:
@@ -504,8 +506,9 @@ class PlantLink:
                     continue
                 if sock is own:
                     room = self._left_own > 0
-                else:
-                    room = self._left_lobby > 0 and time.monotonic() < stop
+                else:  # the first datagram of a window is always read (progress)
+                    room = self._left_lobby > 0 and (
+                        self._left_lobby == self.rx_max_datagrams or time.monotonic() < stop)
                 if not room:
                     self._capped("owner's" if sock is own else "listening")
                     if sock is own:
