@@ -5,8 +5,9 @@
 - a 10-minute soak of the same loop: the plant process's resident memory stays flat (the ring
   recorder is preallocated, events are a bounded deque, the link keeps bounded state).
 
-Run: ``pytest -m slow tests/test_sil_soak.py -s`` (``-k 60s`` for the first only). The numbers
-measured on the development machine are in docs/sil.md.
+Run: ``pytest -m slow tests/test_sil_soak.py -s`` (``-k 60s`` for the first only;
+``DOWNHOLE_SOAK_S=120`` shortens the soak). The numbers measured on the development machine are
+in docs/sil.md.
 """
 
 import os
@@ -75,15 +76,17 @@ def test_paced_60s_at_1khz_over_udp_misses_fewer_than_half_a_percent(tmp_path):
 
 @pytest.mark.slow
 def test_memory_stays_flat_over_a_10_minute_soak(tmp_path):
-    rt, samples = _paced_over_udp(tmp_path, 600.0, sample_every=10.0)
+    seconds = float(os.environ.get("DOWNHOLE_SOAK_S", "600"))
+    assert seconds >= 120, "the soak compares minute 1 with the end: give at least 120 s"
+    rt, samples = _paced_over_udp(tmp_path, seconds, sample_every=10.0)
     st = rt.stats
     after_1min = next(rss for t, rss in samples if t >= 60.0)
     last = samples[-1][1]
     growth = last - after_1min
-    print(f"\n10 min soak: RSS {after_1min / 2**20:.1f} MiB after 1 min, {last / 2**20:.1f} MiB "
-          f"at {samples[-1][0]:.0f} s (growth {growth / 2**10:.0f} KiB); deadline misses "
-          f"{st['deadline_misses']} / {st['steps']} ({100 * st['deadline_miss_fraction']:.3f} "
+    print(f"\n{seconds:.0f} s soak: RSS {after_1min / 2**20:.1f} MiB after 1 min, "
+          f"{last / 2**20:.1f} MiB at {samples[-1][0]:.0f} s (growth {growth / 2**10:.0f} KiB); "
+          f"deadline misses {st['deadline_misses']} / {st['steps']} ({100 * st['deadline_miss_fraction']:.3f} "
           f"%), late {st['late_commands']}, events {rt.event_count}")
-    assert st["steps"] == 600_000
+    assert st["steps"] == round(seconds * 1000)
     assert growth < 4 * 2**20  # flat: no per-step growth (600k steps would be MBs per byte)
     assert st["deadline_miss_fraction"] < 0.005
