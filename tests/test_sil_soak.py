@@ -85,8 +85,9 @@ def test_memory_stays_flat_over_a_10_minute_soak(tmp_path):
     growth = last - after_1min
     print(f"\n{seconds:.0f} s soak: RSS {after_1min / 2**20:.1f} MiB after 1 min, "
           f"{last / 2**20:.1f} MiB at {samples[-1][0]:.0f} s (growth {growth / 2**10:.0f} KiB); "
-          f"deadline misses {st['deadline_misses']} / {st['steps']} ({100 * st['deadline_miss_fraction']:.3f} "
-          f"%), late {st['late_commands']}, events {rt.event_count}")
+          f"deadline misses {st['deadline_misses']} / {st['steps']} "
+          f"({100 * st['deadline_miss_fraction']:.3f} %), late {st['late_commands']}, "
+          f"events {rt.event_count}")
     assert st["steps"] == round(seconds * 1000)
     assert growth < 4 * 2**20  # flat: no per-step growth (600k steps would be MBs per byte)
     assert st["deadline_miss_fraction"] < 0.005
