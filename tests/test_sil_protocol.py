@@ -51,3 +51,24 @@ def test_malformed_datagrams_raise_malformed_packet(mutate, reason):
 
 def _recrc(body):
     return body + struct.pack("<I", zlib.crc32(body))
+
+
+def test_authenticated_datagram_carries_a_truncated_hmac_sha256_tag():
+    import hashlib
+    import hmac
+
+    from downhole.sil.protocol import FLAG_AUTH, TAG_SIZE, AuthenticationFailed, Signer
+
+    key = b"k" * 32
+    plain = pack(MsgType.CMD, 5, 7, [1.5, -2.0], ack=6)
+    data = pack(MsgType.CMD, 5, 7, [1.5, -2.0], ack=6, signer=Signer(key))
+    assert len(data) == len(plain) + TAG_SIZE == 44 + 16 + 4 + 16
+    assert data[5] == MsgType.CMD | FLAG_AUTH and data[6:-20] == plain[6:-4]
+    body = data[:-16]
+    assert struct.unpack_from("<I", body, len(body) - 4)[0] == zlib.crc32(body[:-4])
+    assert data[-16:] == hmac.new(key, body, hashlib.sha256).digest()[:16]
+    assert unpack(data, Signer(key)).values.tolist() == [1.5, -2.0]
+    with pytest.raises(AuthenticationFailed, match="mismatch"):
+        unpack(data, Signer(b"x" * 32))
+    with pytest.raises(ValueError, match="at least 16"):
+        Signer(b"short")

@@ -61,7 +61,10 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                                         "scenario alone never runs code)"),
         progress: bool = typer.Option(True, "--progress/--no-progress",
                                       help="progress of design, waiting and run (stderr)"),
-        unpaced: bool = typer.Option(False, "--unpaced", help="as fast as possible")):
+        unpaced: bool = typer.Option(False, "--unpaced", help="as fast as possible"),
+        link_key_file: Optional[Path] = typer.Option(
+            None, "--link-key-file", help="shared key of the UDP link (chmod 600; default: "
+            "$DOWNHOLE_LINK_KEY); required beyond loopback")):
     """Run a scenario in the real-time SIL runtime."""
     from downhole.sil.console import RunProgress, wait_with_countdown
     from downhole.sil.runtime import RealTimeRunner, SafetyPolicy
@@ -100,7 +103,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         max_lag=rtc.max_lag, wait_fraction=rtc.wait_fraction,
         safety=SafetyPolicy(sc.safety.timeout, sc.safety.hold, sc.safety.ramp, sc.safety.resume),
         controller_enabled=sc.controller.enabled and sc.controller.kind != "none",
-        realtime=rtc.realtime)
+        realtime=rtc.realtime, link_key_file=link_key_file)
     dur = duration if duration is not None else rtc.duration
     patience = wait if wait is not None else sc.link.connect_timeout
     try:
@@ -176,7 +179,10 @@ def sil_controller(port: Optional[int] = typer.Option(
                    progress: bool = typer.Option(True, "--progress/--no-progress",
                                                  help="progress of design and waiting (stderr)"),
                    realtime: bool = typer.Option(True, "--realtime/--no-realtime",
-                                                 help="try SCHED_FIFO while serving")):
+                                                 help="try SCHED_FIFO while serving"),
+                   link_key_file: Optional[Path] = typer.Option(
+                       None, "--link-key-file", help="the plant's shared link key (default: "
+                       "$DOWNHOLE_LINK_KEY)")):
     """Run a controller (or the software rig) against a plant over the UDP link.
 
     The controller is built (a DHP scenario is designed, with progress) before the plant is
@@ -217,7 +223,8 @@ def sil_controller(port: Optional[int] = typer.Option(
             raise DownholeInputError(f"{scenario}: the scenario defines no controller "
                                      f"([controller] kind = {sc.controller.kind!r})")
     # 2. then the plant
-    client = ControllerClient(host, port, name="downhole sil-controller")
+    client = ControllerClient(host, port, name="downhole sil-controller",
+                              key_file=link_key_file)
 
     def attempt(seconds: float) -> bool:
         try:

@@ -1,19 +1,52 @@
-"""UDP link between a plant (server) and a controller, rig or PLC (client), protocol version 1.
+"""UDP link between a plant (server) and a controller, rig or PLC (client), protocol version 2.
 
 :class:`PlantLink` is the plant's end: it binds a UDP port, answers ``HELLO`` with the layout,
 sends one ``OBS`` per step and collects the ``CMD`` that answers it. :class:`ControllerClient`
 is the controller's end (the client library): it connects, receives observations as named
 dicts, calls any controller's ``command(t, observation, reference)`` and sends the answer.
 
+Session ownership: the first client whose ``HELLO`` the plant accepts (its address *and* port)
+owns the session. A ``HELLO`` from any other address or port is refused - no layout, no session
+id - and counted (``refused``, event ``controller_refused``); so are its other datagrams
+(``foreign``). The owner saying ``HELLO`` again (a restarted PLC reusing its source port)
+re-synchronises the sequence tracking (event ``controller_reconnected``); a ``BYE`` from the
+owner keeps the ownership (only the owner can come back). Handing the session to another
+client is an operator action, :meth:`PlantLink.release_owner` (the runtime's
+:meth:`~downhole.sil.runtime.RealTimeRunner.replace_controller` applies the safe action first);
+it also draws a new session id, so the old owner's datagrams no longer match.
+
+Once a client owns the session the plant reads it on a second socket *connected* to the
+owner's address (bound to the same port): the kernel delivers the owner's datagrams there and
+everybody else's to the listening socket, so a flood from elsewhere neither delays nor drops
+the owner's commands. Every read is bounded (:meth:`PlantLink.poll`): per window of one plant
+step at most ``rx_max_datagrams`` datagrams from each socket and, on the listening socket, at
+most ``rx_budget`` seconds (after its first datagram, which is always read); a step that hits a
+bound is counted (``rx_capped``, event ``receive_bound``) and the rest waits for the next step
+(or is dropped by the kernel).
+
+A datagram changes no state before it is fully validated, in this order: framing and CRC,
+authentication tag (with a key, :func:`~downhole.sil.protocol.load_key`), sender and session,
+message type, value count, finiteness, admissible range of every command
+(:data:`~downhole.sil.plants.COMMAND_RANGES`); only then does its sequence number reach the
+sequence tracker and its values the plant. Beyond loopback a key is required: both ends refuse
+to start without one.
+
 Robustness (all counted in ``counters``, none raises): malformed datagrams (bad magic,
-version, length, CRC, unknown type, wrong value count), datagrams from another session or an
-unknown peer, duplicates (a sequence number already seen), reordered datagrams (older than the
-newest seen), stale commands (answering an earlier observation than the one being waited for),
-lost commands (gaps in the sequence) and late commands (none within the step's wait budget).
+length, CRC, unknown type), another protocol version (``version_mismatch``, also counted as
+malformed), failed authentication (``auth_failed``), datagrams from another session or peer
+(``foreign``), refused HELLOs (``refused``), wrong value count (``wrong_size``), non-finite or
+out-of-range commands (``non_finite``, ``out_of_range``), duplicates (a sequence number already
+seen), reordered datagrams (older than the newest seen), a sender whose sequence restarted far
+behind (``seq_resync``: after 8 such datagrams in a row the tracker follows it, so a forged jump
+cannot lock the owner out), stale commands (answering an earlier observation than the one being
+waited for), lost commands (gaps in the sequence), late commands (none within the step's wait
+budget) and capped reads (``rx_capped``).
 """
 
 from __future__ import annotations
 
+import ipaddress
+import math
 import random
 import select
 import socket
@@ -22,33 +55,88 @@ import time
 import numpy as np
 
 from downhole.errors import DownholeInputError
-from downhole.sil.protocol import (MAX_DATAGRAM, Layout, MalformedPacket, MsgType, pack,
-                                   pack_layout, unpack, unpack_layout)
+from downhole.sil.protocol import (
+    KEY_ENV,
+    MAX_DATAGRAM,
+    AuthenticationFailed,
+    Layout,
+    MalformedPacket,
+    MsgType,
+    Signer,
+    VersionMismatch,
+    load_key,
+    pack,
+    pack_layout,
+    unpack,
+    unpack_layout,
+)
 
-__all__ = ["PlantLink", "ControllerClient", "LINK_COUNTERS"]
+__all__ = ["PlantLink", "ControllerClient", "LINK_COUNTERS", "is_loopback"]
 
 #: Counter names kept by both ends.
 LINK_COUNTERS = ("rx", "tx", "malformed", "foreign", "duplicates", "reordered", "stale",
-                 "lost", "late", "hello", "bye", "wrong_size")
+                 "lost", "late", "hello", "bye", "wrong_size", "refused", "auth_failed",
+                 "version_mismatch", "non_finite", "out_of_range", "rx_capped", "seq_resync")
+
+
+def is_loopback(host: str) -> bool:
+    """True when ``host`` names only loopback addresses (127.0.0.0/8, ::1, ``localhost``);
+    ``""`` and ``0.0.0.0`` (every interface) are not loopback."""
+    if host in ("", "0.0.0.0", "::"):
+        return False
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, None, socket.AF_INET, socket.SOCK_DGRAM)
+    except OSError:
+        return False
+    return bool(infos) and all(ipaddress.ip_address(i[4][0]).is_loopback for i in infos)
+
+
+def _require_key_beyond_loopback(host: str, signer, what: str) -> None:
+    if signer is None and not is_loopback(host):
+        raise DownholeInputError(
+            f"{what} {host or '0.0.0.0'} is beyond loopback: the UDP link then needs a shared "
+            f"key, so that nobody else on the network can drive the plant; give one with "
+            f"--link-key-file FILE (chmod 600), the environment variable {KEY_ENV}, or key= / "
+            f"key_file= (docs/sil.md, 'Security: the UDP link')")
 
 
 class _SeqTracker:
-    """Classifies incoming sequence numbers: new, duplicate or reordered; counts gaps."""
+    """Classifies incoming sequence numbers: new, duplicate or reordered; counts gaps.
 
-    def __init__(self, window: int = 256):
+    Call :meth:`classify` only for a fully validated datagram: it changes the tracker's state.
+    A sender whose numbers restarted behind the newest seen (``resync_after`` datagrams in a
+    row older than the newest, none newer in between) is followed (counted ``seq_resync``):
+    ordinary reordering moves one datagram, not eight in a row."""
+
+    def __init__(self, window: int = 256, resync_after: int = 8):
         self.window = window
+        self.resync_after = resync_after
         self.max_seq = -1
         self.recent: set[int] = set()
+        self._behind = 0
 
     def reset(self):
         self.max_seq = -1
         self.recent.clear()
+        self._behind = 0
 
     def classify(self, seq: int, counters: dict) -> bool:
         """True when ``seq`` is new and in order (or a late fill of a gap: still usable)."""
         if seq in self.recent:
             counters["duplicates"] += 1
             return False
+        if seq < self.max_seq:
+            self._behind += 1
+            if self._behind >= self.resync_after:  # the sender restarted: follow it
+                counters["seq_resync"] += 1
+                self.reset()
+                self.max_seq = seq
+                self.recent.add(seq)
+                return True
         self.recent.add(seq)
         if len(self.recent) > self.window:
             lo = self.max_seq - self.window
@@ -57,10 +145,31 @@ class _SeqTracker:
             if self.max_seq >= 0 and seq > self.max_seq + 1:
                 counters["lost"] += seq - self.max_seq - 1
             self.max_seq = seq
+            self._behind = 0
             return True
         counters["reordered"] += 1
         counters["lost"] = max(0, counters["lost"] - 1)  # the gap it left is filled
         return False
+
+
+class _SelectPoller:
+    """``select.poll`` stand-in where the platform lacks it (readability only)."""
+
+    def __init__(self):
+        self.fds: list[int] = []
+
+    def register(self, fd, _mask=None):
+        self.fds.append(fd)
+
+    def unregister(self, fd):
+        self.fds.remove(fd)
+
+    def poll(self, _timeout=0):
+        return [(fd, 1) for fd in select.select(self.fds, [], [], 0)[0]]
+
+
+def _addr(a) -> str:
+    return f"{a[0]}:{a[1]}"
 
 
 class PlantLink:
@@ -71,153 +180,411 @@ class PlantLink:
     layout : Layout
         Names announced to the client.
     host : str
-        Address to bind (default loopback).
+        Address to bind (default loopback). Any other address needs a key.
     port : int
         UDP port (0: any free port; see :attr:`address`).
+    key, key_file : bytes or str, path, optional
+        Shared key for HMAC authentication of every datagram (see
+        :func:`~downhole.sil.protocol.load_key`; default: the environment variable
+        ``DOWNHOLE_LINK_KEY`` if set, else no authentication).
+    command_ranges : dict, optional
+        ``{command: (low, high)}``; default :data:`~downhole.sil.plants.COMMAND_RANGES` for
+        the layout's commands (every command needs a range).
+    rx_max_datagrams : int
+        Per read window (one plant step), the most datagrams read from each socket.
+    rx_budget : float, optional
+        Per read window, the most seconds (wall clock) spent reading the listening socket
+        (default 2 % of the step).
 
     Attributes
     ----------
     counters : dict
         See :data:`LINK_COUNTERS`.
+    owner : (str, int) or None
+        The address and port owning the session.
     last_rx : float or None
         ``time.monotonic()`` of the last valid command (liveness for the safety timeout).
     rtt : float
         Last round-trip time (OBS sent -> its CMD received), s.
+    step_rx_s, step_rx_n : float, int
+        CPU time (of the calling thread, so that time the scheduler gives to other processes
+        is not counted) spent reading and validating datagrams, and datagrams read, since the
+        last :meth:`begin_step` (the runtime records them per step).
+    step_listen_s : float
+        The part of :attr:`step_rx_s` spent on the listening socket: what datagrams from
+        anybody but the owner (a flood) cost this step.
+
+    Raises
+    ------
+    DownholeInputError
+        Cannot bind, ``host`` beyond loopback without a key, bad key, or a command without an
+        admissible range.
     """
 
-    def __init__(self, layout: Layout, host: str = "127.0.0.1", port: int = 0):
+    def __init__(self, layout: Layout, host: str = "127.0.0.1", port: int = 0, *,
+                 key=None, key_file=None, command_ranges: dict | None = None,
+                 rx_max_datagrams: int = 32, rx_budget: float | None = None):
+        from downhole.sil.plants import COMMAND_RANGES
+
         self.layout = layout
         self._layout_raw = pack_layout(layout)
+        k = load_key(key, key_file)
+        self._signer = Signer(k) if k is not None else None
+        _require_key_beyond_loopback(host, self._signer, "binding the plant's UDP link to")
+        ranges = dict(COMMAND_RANGES)
+        ranges.update(command_ranges or {})
+        missing = [c for c in layout.commands if c not in ranges]
+        if missing:
+            raise DownholeInputError(f"link commands {missing} have no admissible range "
+                                     f"(give command_ranges=)")
+        self.command_ranges = {c: tuple(map(float, ranges[c])) for c in layout.commands}
+        self._lo = [self.command_ranges[c][0] for c in layout.commands]
+        self._hi = [self.command_ranges[c][1] for c in layout.commands]
+        if int(rx_max_datagrams) < 1:
+            raise DownholeInputError(f"rx_max_datagrams must be >= 1, got {rx_max_datagrams}")
+        self.rx_max_datagrams = int(rx_max_datagrams)
+        self.rx_budget = float(rx_budget) if rx_budget is not None else 0.02 * layout.dt
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             self.sock.bind((host, int(port)))
-        except OSError as exc:
+        except (OSError, OverflowError) as exc:
+            self.sock.close()
             raise DownholeInputError(f"cannot bind UDP {host}:{port}: {exc}") from None
         self.sock.setblocking(False)
+        self._lobby_fd = self.sock.fileno()
+        self._poller = select.poll() if hasattr(select, "poll") else _SelectPoller()
+        self._poller.register(self._lobby_fd, select.POLLIN)
+        self._own: socket.socket | None = None  # connected to the owner
         self.session = random.randrange(1, 2**32)
-        self.peer = None
+        self.owner = None
+        self._gone = False  # the owner said BYE (keeps the ownership)
         self.seq = 0
         self.counters = {k: 0 for k in LINK_COUNTERS}
         self.last_rx: float | None = None
         self.rtt = float("nan")
         self.events: list[tuple[str, str]] = []  # drained by the runtime
+        self._noted: dict[str, float] = {}
+        self._noted_addrs: set = set()
         self._cmd_seq = _SeqTracker()
         self._n_cmd = len(layout.commands)
         self._pending: dict[int, np.ndarray] = {}
+        self._cmds_since_hello = 0
+        self.begin_step()
 
+    # ------------------------------------------------------------------ state
     @property
     def address(self) -> tuple[str, int]:
         return self.sock.getsockname()
 
     @property
+    def peer(self):
+        """The owner's address while it is connected (None before HELLO and after BYE)."""
+        return None if self._gone else self.owner
+
+    @property
     def connected(self) -> bool:
-        return self.peer is not None
+        return self.owner is not None and not self._gone
+
+    @property
+    def authenticated(self) -> bool:
+        """True when every datagram carries an HMAC tag (a key is configured)."""
+        return self._signer is not None
 
     def close(self) -> None:
-        if self.peer is not None:
-            try:
-                self.sock.sendto(pack(MsgType.BYE, self.session, self._next()), self.peer)
-            except OSError:
-                pass
+        if self.connected:
+            self._send(pack(MsgType.BYE, self.session, self._next(), signer=self._signer))
+        self._close_own()
         self.sock.close()
 
     def _next(self) -> int:
         self.seq = (self.seq + 1) & 0xFFFFFFFF
         return self.seq
 
+    def _close_own(self) -> None:
+        if self._own is not None:
+            self._poller.unregister(self._own.fileno())
+            self._own.close()
+            self._own = None
+
+    def _send(self, data: bytes) -> None:
+        try:
+            if self._own is not None:
+                self._own.send(data)
+            else:
+                self.sock.sendto(data, self.owner)
+            self.counters["tx"] += 1
+        except OSError:
+            pass
+
+    def _note(self, kind: str, addr, detail: str) -> None:
+        """An event, at most one per second per kind, except the first from a new address."""
+        now = time.monotonic()
+        new = addr is not None and addr not in self._noted_addrs and len(self._noted_addrs) < 64
+        if new:
+            self._noted_addrs.add(addr)
+        if new or now - self._noted.get(kind, -1e9) >= 1.0:
+            self._noted[kind] = now
+            self.events.append((kind, detail))
+
+    def _take_owner(self, addr) -> None:
+        self.owner = addr
+        self._gone = False
+        self._cmd_seq.reset()
+        self._pending.clear()
+        self._cmds_since_hello = 0
+        own = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            own.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            own.bind(self.sock.getsockname())
+            own.connect(addr)
+            own.setblocking(False)
+            self._own = own
+            self._poller.register(own.fileno(), select.POLLIN)
+        except OSError as exc:  # the owner is then read on the listening socket
+            own.close()
+            self._own = None
+            self.events.append(("owner_socket_unavailable", str(exc)))
+        self.events.append(("controller_connected", _addr(addr)))
+
+    def release_owner(self) -> None:
+        """Operator action: end the current owner's session (BYE to it) and draw a new session
+        id; the next HELLO from any address takes the session. The runtime's
+        :meth:`~downhole.sil.runtime.RealTimeRunner.replace_controller` wraps this in the safe
+        action; call this directly only when the plant is not running."""
+        old = self.owner
+        if old is None:
+            return
+        if not self._gone:
+            self._send(pack(MsgType.BYE, self.session, self._next(), signer=self._signer))
+        self._close_own()
+        self.owner = None
+        self._gone = False
+        self._cmd_seq.reset()
+        self._pending.clear()
+        new = self.session
+        while new == self.session:
+            new = random.randrange(1, 2**32)
+        self.session = new
+        self.events.append(("controller_released", _addr(old)))
+
+    # ------------------------------------------------------------------ receive
     def _handle(self, data: bytes, addr) -> None:
         c = self.counters
         try:
-            msg = unpack(data)
+            msg = unpack(data, self._signer)
+        except VersionMismatch as exc:
+            c["malformed"] += 1
+            c["version_mismatch"] += 1
+            self._note("version_mismatch", addr, f"{_addr(addr)}: {exc}")
+            return
+        except AuthenticationFailed as exc:
+            c["auth_failed"] += 1
+            self._note("auth_failed", addr, f"{_addr(addr)}: {exc}")
+            return
         except MalformedPacket:
             c["malformed"] += 1
             return
         c["rx"] += 1
-        if msg.type == MsgType.HELLO:
-            c["hello"] += 1
-            if self.peer != addr:
-                self.events.append(("controller_connected", f"{addr[0]}:{addr[1]}"))
-                self._cmd_seq.reset()
-                self._pending.clear()
-            self.peer = addr
-            self.sock.sendto(pack(MsgType.LAYOUT, self.session, self._next(),
-                                  raw=self._layout_raw), addr)
-            c["tx"] += 1
+        if addr != self.owner:
+            if msg.type != MsgType.HELLO:
+                c["foreign"] += 1
+            elif self.owner is None:
+                c["hello"] += 1
+                self._take_owner(addr)
+                self._send(pack(MsgType.LAYOUT, self.session, self._next(),
+                                raw=self._layout_raw, signer=self._signer))
+            else:
+                c["refused"] += 1
+                self._note("controller_refused", addr, f"HELLO from {_addr(addr)} refused: "
+                           f"{_addr(self.owner)} owns the session ({c['refused']} refused)")
             return
-        if addr != self.peer or msg.session != self.session:
+        if msg.type == MsgType.HELLO:  # the owner again (restarted, or its HELLO repeated)
+            c["hello"] += 1
+            if self._gone or self._cmds_since_hello:
+                self.events.append(("controller_reconnected", _addr(addr)))
+            self._gone = False
+            self._cmd_seq.reset()
+            self._pending.clear()
+            self._cmds_since_hello = 0
+            self._send(pack(MsgType.LAYOUT, self.session, self._next(), raw=self._layout_raw,
+                            signer=self._signer))
+            return
+        if msg.session != self.session:
             c["foreign"] += 1
             return
         if msg.type == MsgType.BYE:
             c["bye"] += 1
-            self.events.append(("controller_bye", f"{addr[0]}:{addr[1]}"))
-            self.peer = None
+            if not self._gone:
+                self.events.append(("controller_bye", _addr(addr)))
+            self._gone = True
             return
         if msg.type != MsgType.CMD:
             c["foreign"] += 1
             return
-        if msg.values.size != self._n_cmd:
+        vals = msg.values
+        if vals.size != self._n_cmd:
             c["wrong_size"] += 1
             return
-        if not self._cmd_seq.classify(msg.seq, c):
+        vl = vals.tolist()
+        for v, lo, hi in zip(vl, self._lo, self._hi):
+            if not lo <= v <= hi:  # False for NaN too
+                break
+        else:
+            v = None
+        if v is not None:
+            if not all(map(math.isfinite, vl)):
+                c["non_finite"] += 1
+                self._note("command_rejected", None, f"non-finite command {vl}")
+            else:
+                c["out_of_range"] += 1
+                bad = [f"{n} = {v:g} not in [{lo:g}, {hi:g}]" for n, v, lo, hi in
+                       zip(self.layout.commands, vl, self._lo, self._hi) if not lo <= v <= hi]
+                self._note("command_rejected", None, "; ".join(bad))
             return
-        if not np.all(np.isfinite(msg.values)):
-            c["malformed"] += 1
+        if not self._cmd_seq.classify(msg.seq, c):  # only a valid command reaches the tracker
             return
+        self._cmds_since_hello += 1
         self.last_rx = time.monotonic()
         if msg.echo > 0:
             self.rtt = self.last_rx - msg.echo
-        self._pending[msg.ack] = msg.values.copy()
+        self._pending[msg.ack] = vals.copy()
         if len(self._pending) > 8:
             for k in sorted(self._pending)[:-8]:
                 del self._pending[k]
 
+    def begin_step(self, budget: float | None = None) -> None:
+        """Start a read window (the runtime calls this once per step): resets the per-window
+        bounds and :attr:`step_rx_s`, :attr:`step_rx_n`. ``budget`` overrides
+        :attr:`rx_budget` for this window. A window also restarts by itself after one plant
+        step."""
+        self._win_start = time.monotonic()
+        self._left_own = self._left_lobby = self.rx_max_datagrams
+        self._left_s = self.rx_budget if budget is None else float(budget)
+        self._win_capped = False
+        self.step_rx_s = 0.0
+        self.step_listen_s = 0.0
+        self.step_rx_n = 0
+
+    def _capped(self, where: str) -> None:
+        """A bound stopped the reading with data left waiting: count the window."""
+        if not self._win_capped:
+            self._win_capped = True
+            self.counters["rx_capped"] += 1
+            self._note("receive_bound", None, f"read bound reached on the {where} socket "
+                       f"({self.counters['rx_capped']} steps capped)")
+
+    def _room(self) -> bool:
+        """True while the listening socket may still be read in this window."""
+        return self._left_lobby > 0 and (self._left_s > 0
+                                         or self._left_lobby == self.rx_max_datagrams)
+
     def poll(self) -> None:
-        """Drain every datagram waiting on the socket (non-blocking)."""
-        while True:
-            try:
-                data, addr = self.sock.recvfrom(MAX_DATAGRAM)
-            except (BlockingIOError, InterruptedError):
-                return
-            except OSError:  # e.g. ICMP port unreachable reported on Linux
-                return
-            self._handle(data, addr)
+        """Read and handle the datagrams waiting (non-blocking), within the window's bounds:
+        the owner's socket first (at most ``rx_max_datagrams``), then the listening socket (at
+        most ``rx_max_datagrams`` and ``rx_budget`` s of wall time). What is left waits for
+        the next window. The CPU time this thread spends here is added to
+        :attr:`step_rx_s`."""
+        c0 = time.thread_time()
+        t0 = time.monotonic()
+        if t0 - self._win_start >= self.layout.dt:
+            self.begin_step()
+        own = self._own
+        own_fd = own.fileno() if own is not None else -1
+        lobby, lobby_fd = self.sock, self._lobby_fd
+        own_ok, lobby_ok = own is not None, True
+        stop = t0 + self._left_s
+        n = 0
+        while own_ok or lobby_ok:
+            ready = self._poller.poll(0)
+            if not ready:
+                break
+            fds = {fd for fd, _ in ready}
+            progressed = False
+            for ok, fd, sock in ((own_ok, own_fd, own), (lobby_ok, lobby_fd, lobby)):
+                if not ok or fd not in fds:
+                    continue
+                if sock is own:
+                    room = self._left_own > 0
+                else:  # the first datagram of a window is always read (progress)
+                    room = self._left_lobby > 0 and (
+                        self._left_lobby == self.rx_max_datagrams or time.monotonic() < stop)
+                if not room:
+                    self._capped("owner's" if sock is own else "listening")
+                    if sock is own:
+                        own_ok = False
+                    else:
+                        lobby_ok = False
+                    continue
+                if sock is own:
+                    self._left_own -= 1
+                else:
+                    self._left_lobby -= 1
+                n += 1
+                progressed = True
+                if sock is lobby:
+                    c1 = time.thread_time()
+                try:
+                    data, addr = sock.recvfrom(MAX_DATAGRAM)
+                except OSError:  # nothing after all, or ICMP port unreachable (owner gone)
+                    continue
+                self._handle(data, addr)
+                if sock is lobby:
+                    self.step_listen_s += time.thread_time() - c1
+            if not progressed:
+                break
+        self._left_s = max(0.0, stop - time.monotonic())
+        self.step_rx_s += time.thread_time() - c0
+        self.step_rx_n += n
 
     def send_obs(self, sim_time: float, values) -> int:
-        """Send one observation to the peer (if any); returns its sequence number (0 if none)."""
-        if self.peer is None:
+        """Send one observation to the owner (if connected); returns its sequence number (0
+        if none)."""
+        if not self.connected:
             return 0
         seq = self._next()
-        try:
-            self.sock.sendto(pack(MsgType.OBS, self.session, seq, values, sim_time=sim_time,
-                                  sent=time.monotonic()), self.peer)
-            self.counters["tx"] += 1
-        except OSError:
-            pass
+        self._send(pack(MsgType.OBS, self.session, seq, values, sim_time=sim_time,
+                        sent=time.monotonic(), signer=self._signer))
         return seq
 
     def probe(self, values, timeout: float, interval: float = 0.05) -> bool:
         """Readiness handshake before the clock starts: send ``values`` as a probe observation
-        (sim_time = -1) every ``interval`` s until the peer answers one (True) or ``timeout``
+        (sim_time = -1) every ``interval`` s until the owner answers one (True) or ``timeout``
         s pass (False). The client warms its controller up on a probe and resets it."""
         end = time.monotonic() + timeout
         while time.monotonic() < end:
+            self.begin_step()
             self.poll()
-            if self.peer is None:
-                time.sleep(0.005)
+            if not self.connected:
+                self._wait_readable(min(end, time.monotonic() + 0.005))
                 continue
             seq = self._next()
-            try:
-                self.sock.sendto(pack(MsgType.OBS, self.session, seq, values, sim_time=-1.0,
-                                      sent=time.monotonic()), self.peer)
-                self.counters["tx"] += 1
-            except OSError:
-                pass
+            self._send(pack(MsgType.OBS, self.session, seq, values, sim_time=-1.0,
+                            sent=time.monotonic(), signer=self._signer))
             got = self.wait_command(seq, min(end, time.monotonic() + interval), count=False)
             if got is not None:
                 self._pending.clear()
                 return True
         return False
+
+    def _wait_readable(self, deadline: float) -> None:
+        """Sleep until a socket that may still be read has data, or ``deadline``."""
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            return
+        socks = []
+        if self._own is not None and self._left_own > 0:
+            socks.append(self._own)
+        if self._room():
+            socks.append(self.sock)
+        if len(socks) < 1 + (self._own is not None):
+            # a socket waits for the next window: wake up when it starts
+            remaining = min(remaining, max(self._win_start + self.layout.dt - time.monotonic(),
+                                           1e-5))
+        if socks:
+            select.select(socks, [], [], remaining)
+        else:
+            time.sleep(remaining)
 
     def wait_command(self, ack: int, deadline: float, count: bool = True):
         """Wait until ``deadline`` (monotonic) for the command answering observation ``ack``.
@@ -233,11 +600,10 @@ class PlantLink:
                     del self._pending[k]
                 self.counters["stale"] += len(stale)
                 return vals
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
+            if deadline - time.monotonic() <= 0:
                 self.counters["late"] += count
                 return None
-            select.select([self.sock], [], [], remaining)
+            self._wait_readable(deadline)
 
 
 class ControllerClient:
@@ -249,6 +615,18 @@ class ControllerClient:
         The plant's address.
     name : str
         Sent in HELLO (shown in the plant's events).
+    key, key_file : bytes or str, path, optional
+        The plant's shared key (see :func:`~downhole.sil.protocol.load_key`; default: the
+        environment variable ``DOWNHOLE_LINK_KEY`` if set). Required when the plant is not on
+        loopback.
+    bind : (str, int), optional
+        Local address and port to send from (a PLC with a fixed source port; default: any).
+
+    Raises
+    ------
+    DownholeInputError
+        A plant beyond loopback without a key, a bad key, or a local address that cannot be
+        bound.
 
     Examples
     --------
@@ -257,11 +635,23 @@ class ControllerClient:
     >>> client.serve(my_controller)                            # doctest: +SKIP
     """
 
-    def __init__(self, host: str, port: int, name: str = "controller"):
+    def __init__(self, host: str, port: int, name: str = "controller", *, key=None,
+                 key_file=None, bind: tuple | None = None):
+        k = load_key(key, key_file)
+        self._signer = Signer(k) if k is not None else None
+        _require_key_beyond_loopback(host, self._signer, "the plant at")
         self.addr = (host, int(port))
         self.name = name
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.connect(self.addr)
+        try:
+            if bind is not None:
+                self.sock.bind((bind[0], int(bind[1])))
+            self.sock.connect(self.addr)
+        except OSError as exc:
+            self.sock.close()
+            raise DownholeInputError(f"cannot open the UDP link to {host}:{port}"
+                                     + (f" from {bind[0]}:{bind[1]}" if bind else "")
+                                     + f": {exc}") from None
         self.layout: Layout | None = None
         self.session = 0
         self.seq = 0
@@ -278,19 +668,31 @@ class ControllerClient:
         Raises
         ------
         TimeoutError
-            No layout within ``timeout`` seconds.
+            No layout within ``timeout`` seconds (the message says what was heard instead: a
+            plant of another protocol version, failed authentication).
         """
         end = time.monotonic() + timeout
+        heard = ""
         while time.monotonic() < end:
             try:
-                self.sock.send(pack(MsgType.HELLO, 0, self._next(), raw=self.name.encode()))
+                self.sock.send(pack(MsgType.HELLO, 0, self._next(), raw=self.name.encode(),
+                                    signer=self._signer))
             except OSError:
                 pass
             r, _, _ = select.select([self.sock], [], [], 0.1)
             if not r:
                 continue
             try:
-                msg = unpack(self.sock.recv(MAX_DATAGRAM))
+                msg = unpack(self.sock.recv(MAX_DATAGRAM), self._signer)
+            except VersionMismatch as exc:
+                self.counters["malformed"] += 1
+                self.counters["version_mismatch"] += 1
+                heard = f"; the plant answered in {exc}"
+                continue
+            except AuthenticationFailed as exc:
+                self.counters["auth_failed"] += 1
+                heard = f"; its answers fail authentication: {exc}"
+                continue
             except MalformedPacket:
                 self.counters["malformed"] += 1
                 continue
@@ -300,9 +702,11 @@ class ControllerClient:
             if msg.type == MsgType.LAYOUT:
                 self.layout = unpack_layout(msg.values.tobytes())
                 self.session = msg.session
+                self._obs_seq.reset()
                 return self.layout
         raise TimeoutError(f"no layout from the plant at {self.addr[0]}:{self.addr[1]} within "
-                           f"{timeout} s")
+                           f"{timeout} s{heard} (is it running, on this port, free - another "
+                           f"controller may own the session - and with the same key?)")
 
     def receive(self, timeout: float):
         """Next in-order observation as ``(seq, sim_time, sent, values)``; None on timeout;
@@ -320,7 +724,10 @@ class ControllerClient:
             except OSError:
                 return None
             try:
-                msg = unpack(data)
+                msg = unpack(data, self._signer)
+            except AuthenticationFailed:
+                self.counters["auth_failed"] += 1
+                continue
             except MalformedPacket:
                 self.counters["malformed"] += 1
                 continue
@@ -345,8 +752,10 @@ class ControllerClient:
             return msg.seq, msg.sim_time, msg.sent, msg.values
 
     def send_command(self, ack: int, sim_time: float, echo: float, values) -> None:
+        """Send the command answering observation ``ack`` (values in layout order)."""
         self.sock.send(pack(MsgType.CMD, self.session, self._next(), values, ack=ack,
-                            sim_time=sim_time, sent=time.monotonic(), echo=echo))
+                            sim_time=sim_time, sent=time.monotonic(), echo=echo,
+                            signer=self._signer))
         self.counters["tx"] += 1
 
     def serve(self, controller, *, idle_timeout: float = 5.0, max_steps: int | None = None,
@@ -403,8 +812,9 @@ class ControllerClient:
         return sent
 
     def close(self) -> None:
+        """Say BYE to the plant and close the socket."""
         try:
-            self.sock.send(pack(MsgType.BYE, self.session, self._next()))
+            self.sock.send(pack(MsgType.BYE, self.session, self._next(), signer=self._signer))
         except OSError:
             pass
         self.sock.close()

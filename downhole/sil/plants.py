@@ -10,7 +10,10 @@ whose observations and commands are a *fixed*, ordered list of named floats.
 - a vector ``"state"`` observation (the DHP design state) flattened into its state names
   (``x_1``, ``alpha_1``, ..., ``omega_6``), so a DHP controller reads them by name;
 - ``default_command()`` (the open-loop command when the controller is off) and
-  ``safe_command()`` (the safe state of the controller-timeout action).
+  ``safe_command()`` (the safe state of the controller-timeout action);
+- ``command_ranges``: the admissible range of every command (:data:`COMMAND_RANGES`); the
+  runtime and the UDP link reject (count, never apply) a non-finite or out-of-range command,
+  and :meth:`SilPlant.check_command` says why.
 
 Interfaces (``interface`` of :func:`build_plant`):
 
@@ -29,11 +32,14 @@ Interfaces (``interface`` of :func:`build_plant`):
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["SilPlant", "build_plant", "SIGNAL_UNITS"]
+__all__ = ["SilPlant", "build_plant", "SIGNAL_UNITS", "COMMAND_RANGES", "REFERENCE_RANGES",
+           "check_range"]
 
 #: Units of the signals the adapters expose (others: "").
 SIGNAL_UNITS = {
@@ -45,6 +51,39 @@ SIGNAL_UNITS = {
     "last_node_axial_velocity": "m/s", "last_node_angular_velocity": "rad/s",
     "slack_off_force": "N", "reference_axial_velocity": "m/s", "top_drive_set_point": "rad/s",
 }
+
+#: Admissible range ``(low, high)`` of every command signal, in the units above. Finite and
+#: physically sane bounds for a drilling rig (they catch a wrong unit, a corrupted or hostile
+#: packet, an absurd set-point; they are not the rig's operating envelope): a top drive turns
+#: at most 100 rad/s (955 rpm), the hook carries at most 10 MN, a surface torque beyond
+#: 200 kN m or an axial velocity beyond 1 m/s is no drilling command.
+COMMAND_RANGES = {
+    "hook_load": (0.0, 10e6),
+    "top_drive_angular_velocity": (-100.0, 100.0),
+    "top_drive_axial_velocity": (-1.0, 1.0),
+    "slack_off_force": (-10e6, 10e6),
+    "surface_torque": (-200e3, 200e3),
+    # HIL: the rig's measured bit velocities
+    "bit_axial_velocity": (-1.0, 1.0),
+    "bit_angular_velocity": (-100.0, 100.0),
+}
+
+#: Admissible bit-velocity references (set-points given to the controller).
+REFERENCE_RANGES = {"axial": (-1.0, 1.0), "angular": (-100.0, 100.0)}
+
+
+def check_range(name: str, value, ranges: dict) -> str | None:
+    """None when ``value`` is a finite number within ``ranges[name]``, else the reason."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return f"{name} = {value!r} is not a number"
+    if not math.isfinite(v):
+        return f"{name} = {v!r} is not finite"
+    lo, hi = ranges[name]
+    if not lo <= v <= hi:
+        return f"{name} = {v:g} is outside its admissible range [{lo:g}, {hi:g}]"
+    return None
 
 
 #: Plant signals renamed in the layout: the directional plants call their top-drive speed
@@ -66,10 +105,18 @@ class SilPlant:
         Description (for Result metadata).
     state_names : sequence of str, optional
         Names of the entries of a vector observation ``"state"`` (flattened into the layout).
+    command_ranges : dict, optional
+        ``{name: (low, high)}`` overriding :data:`COMMAND_RANGES` (every command needs one).
+
+    Raises
+    ------
+    DownholeInputError
+        A command without a declared range, or a default / safe command outside it.
     """
 
     def __init__(self, plant, command_names, default_command: dict, safe_command: dict,
-                 name: str = "", state_names=None, info: dict | None = None):
+                 name: str = "", state_names=None, info: dict | None = None,
+                 command_ranges: dict | None = None):
         self.plant = plant
         self.dt = float(plant.dt)
         self.command_names = tuple(command_names)
@@ -77,8 +124,22 @@ class SilPlant:
             if set(d) != set(self.command_names):
                 raise DownholeInputError(f"{what} keys {sorted(d)} differ from the commands "
                                          f"{self.command_names}")
+        ranges = dict(COMMAND_RANGES)
+        ranges.update(command_ranges or {})
+        missing = [k for k in self.command_names if k not in ranges]
+        if missing:
+            raise DownholeInputError(f"commands {missing} have no declared admissible range "
+                                     f"(COMMAND_RANGES or command_ranges=)")
+        #: admissible ``(low, high)`` of every command (see :data:`COMMAND_RANGES`)
+        self.command_ranges = {k: (float(ranges[k][0]), float(ranges[k][1]))
+                               for k in self.command_names}
         self._default = {k: float(default_command[k]) for k in self.command_names}
         self._safe = {k: float(safe_command[k]) for k in self.command_names}
+        for d, what in ((self._default, "default (open-loop)"), (self._safe, "safe")):
+            why = self.check_command(d)
+            if why is not None:
+                raise DownholeInputError(f"{name or 'plant'}: the {what} command is not "
+                                         f"admissible: {why}")
         self.name = name
         self.state_names = tuple(state_names or ())
         self.info = dict(info or {})
@@ -111,6 +172,17 @@ class SilPlant:
             out.update(zip(self.state_names, np.asarray(obs["state"], float).tolist()))
         out.setdefault("time", 0.0)
         return out
+
+    def check_command(self, command: dict) -> str | None:
+        """None when every command is present, finite and within :attr:`command_ranges`;
+        else the reason (the first offending signal)."""
+        for k in self.command_names:
+            if k not in command:
+                return f"{k} is missing"
+            why = check_range(k, command[k], self.command_ranges)
+            if why is not None:
+                return why
+        return None
 
     def default_command(self) -> dict:
         """The open-loop command (used while the controller is off)."""

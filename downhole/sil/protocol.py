@@ -1,13 +1,13 @@
 """The downhole SIL link protocol: a small, versioned binary format over UDP (struct-packed).
 
-Every datagram is ``header | payload | crc32``, little-endian:
+Every datagram is ``header | payload | crc32 [| tag]``, little-endian:
 
 ====== ==== ======= =====================================================================
 offset size type    field
 ====== ==== ======= =====================================================================
 0      4    4s      magic ``b"DHSL"``
-4      1    B       protocol version (:data:`VERSION` = 1)
-5      1    B       message type (:class:`MsgType`)
+4      1    B       protocol version (:data:`VERSION` = 2)
+5      1    B       message type (:class:`MsgType`, low 7 bits) | :data:`FLAG_AUTH` (bit 7)
 6      2    H       payload count (number of float64 values, or of layout bytes / 8 rounded up)
 8      4    I       session id (chosen by the plant at connect; 0 in HELLO)
 12     4    I       sequence number of this message (per sender, +1 per message)
@@ -17,6 +17,8 @@ offset size type    field
 36     8    d       echoed timestamp, s (CMD: the OBS's send timestamp, for round-trip time)
 44     n*8  d...    payload (OBS/CMD: ``count`` float64 values in layout order)
 44+8n  4    I       CRC-32 (zlib) of all preceding bytes
+48+8n  16   16s     only with :data:`FLAG_AUTH`: HMAC-SHA256 tag of all preceding bytes, under
+                    the shared key, truncated to :data:`TAG_SIZE` bytes
 ====== ==== ======= =====================================================================
 
 Message types: ``HELLO`` (controller -> plant, asks for the layout; its payload may carry a
@@ -24,22 +26,50 @@ UTF-8 client name), ``LAYOUT`` (plant -> controller, the named-signal layout, se
 :func:`pack_layout`), ``OBS`` (plant -> controller, one per step), ``CMD`` (controller ->
 plant, the answer to an OBS), ``BYE`` (either side, closing). A datagram with a wrong magic,
 version, length or CRC is *malformed*: counted and dropped, never raised.
+
+Authentication (version 2): with a shared key (:func:`load_key`) every datagram carries the
+flag :data:`FLAG_AUTH` in its type byte and a 16-byte tag, the first half of
+``HMAC-SHA256(key, header | payload | crc32)``. An end that holds a key rejects datagrams
+without a tag or with a wrong one (:class:`AuthenticationFailed`); an end without a key
+rejects tagged datagrams (it cannot check them). The tag gives integrity and authenticity, not
+confidentiality: the values travel in clear. Replays are bounded by the random session id and
+the receiver's sequence tracking (see :mod:`downhole.sil.link`).
+
+Versions: 1 had the same header and no tag. A version-2 end refuses a version-1 datagram with
+:class:`VersionMismatch` (a :class:`MalformedPacket` naming both versions), so a client that
+speaks the other version is told why instead of waiting silently.
 """
 
 from __future__ import annotations
 
 import enum
+import hashlib
+import hmac
+import os
 import struct
 import zlib
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
+from downhole.errors import DownholeInputError
+
 __all__ = ["VERSION", "MAGIC", "HEADER", "HEADER_SIZE", "MsgType", "Message", "MalformedPacket",
-           "pack", "unpack", "pack_layout", "unpack_layout", "Layout", "MAX_DATAGRAM"]
+           "VersionMismatch", "AuthenticationFailed", "pack", "unpack", "pack_layout",
+           "unpack_layout", "Layout", "MAX_DATAGRAM", "FLAG_AUTH", "TAG_SIZE", "KEY_ENV",
+           "MIN_KEY_BYTES", "load_key", "Signer"]
 
 MAGIC = b"DHSL"
-VERSION = 1
+VERSION = 2
+#: Bit of the type byte marking an authenticated datagram (tag appended).
+FLAG_AUTH = 0x80
+#: Bytes of the truncated HMAC-SHA256 tag.
+TAG_SIZE = 16
+#: Environment variable holding the shared key (when no key or key file is given).
+KEY_ENV = "DOWNHOLE_LINK_KEY"
+#: Shortest accepted shared key, bytes.
+MIN_KEY_BYTES = 16
 HEADER = struct.Struct("<4sBBHIIIddd")
 HEADER_SIZE = HEADER.size  # 44
 _CRC = struct.Struct("<I")
@@ -48,7 +78,7 @@ MAX_DATAGRAM = 8192
 
 
 class MsgType(enum.IntEnum):
-    """Message types of protocol version 1."""
+    """Message types (unchanged since protocol version 1)."""
 
     HELLO = 1
     LAYOUT = 2
@@ -57,12 +87,90 @@ class MsgType(enum.IntEnum):
     BYE = 5
 
 
+_TYPES = {int(m): m for m in MsgType}
+
+
 class MalformedPacket(ValueError):
-    """A datagram that is not a valid version-1 message (the reason is the message)."""
+    """A datagram that is not a valid message of this protocol version (the reason is the
+    message)."""
 
 
-@dataclass(frozen=True)
-class Message:
+class VersionMismatch(MalformedPacket):
+    """A well-framed datagram of another protocol version (``version``: the sender's)."""
+
+    def __init__(self, version: int):
+        super().__init__(f"protocol version {version}, this end speaks {VERSION}")
+        self.version = version
+
+
+class AuthenticationFailed(MalformedPacket):
+    """A datagram whose tag is missing, wrong, or present where no key is configured."""
+
+
+class Signer:
+    """HMAC-SHA256 tags under one shared key (truncated to :data:`TAG_SIZE` bytes).
+
+    Parameters
+    ----------
+    key : bytes
+        The shared key (at least :data:`MIN_KEY_BYTES` bytes).
+    """
+
+    def __init__(self, key: bytes):
+        if not isinstance(key, (bytes, bytearray)) or len(key) < MIN_KEY_BYTES:
+            raise ValueError(f"the link key must be at least {MIN_KEY_BYTES} bytes")
+        self._base = hmac.new(bytes(key), digestmod=hashlib.sha256)
+
+    def tag(self, data: bytes) -> bytes:
+        """The tag of ``data``."""
+        h = self._base.copy()
+        h.update(data)
+        return h.digest()[:TAG_SIZE]
+
+    def verify(self, data: bytes, tag: bytes) -> bool:
+        """True when ``tag`` is the tag of ``data`` (constant-time comparison)."""
+        return hmac.compare_digest(self.tag(data), tag)
+
+
+def load_key(key=None, key_file=None, *, env: bool = True) -> bytes | None:
+    """The shared link key: ``key`` itself, else the contents of ``key_file``, else the
+    environment variable :data:`KEY_ENV` (when ``env``), else None (no authentication).
+
+    A key file holds the key as text (surrounding whitespace stripped) and must not be readable
+    by group or others (POSIX); keys shorter than :data:`MIN_KEY_BYTES` bytes are refused.
+
+    Raises
+    ------
+    DownholeInputError
+        Unreadable or too permissive key file, or a key that is too short (the message names
+        the source).
+    """
+    if key is not None:
+        src = "the given key"
+        raw = key.encode("utf-8") if isinstance(key, str) else bytes(key)
+    elif key_file is not None:
+        src = f"key file {key_file}"
+        try:
+            st = os.stat(key_file)
+            with open(key_file, "rb") as fh:
+                raw = fh.read().strip()
+        except OSError as exc:
+            raise DownholeInputError(f"cannot read the link {src}: {exc.strerror}") from None
+        if os.name == "posix" and st.st_mode & 0o077:
+            raise DownholeInputError(f"the link {src} is readable by other users (mode "
+                                     f"{st.st_mode & 0o777:o}); run chmod 600 on it")
+    elif env and os.environ.get(KEY_ENV):
+        src = f"environment variable {KEY_ENV}"
+        raw = os.environ[KEY_ENV].strip().encode("utf-8")
+    else:
+        return None
+    if len(raw) < MIN_KEY_BYTES:
+        raise DownholeInputError(f"the link key from {src} has {len(raw)} bytes; at least "
+                                 f"{MIN_KEY_BYTES} are needed (e.g. `openssl rand -hex 32`)")
+    return raw
+
+
+class Message(NamedTuple):
     """One decoded datagram."""
 
     type: MsgType
@@ -76,9 +184,11 @@ class Message:
 
 
 def pack(type_: int, session: int, seq: int, values=(), *, ack: int = 0, sim_time: float = 0.0,
-         sent: float = 0.0, echo: float = 0.0, raw: bytes | None = None) -> bytes:
+         sent: float = 0.0, echo: float = 0.0, raw: bytes | None = None,
+         signer: Signer | None = None) -> bytes:
     """Encode one message. ``values`` are float64 (OBS/CMD); ``raw`` bytes for HELLO/LAYOUT
-    (padded to a multiple of 8 bytes with zeros; ``count`` = number of 8-byte words)."""
+    (padded to a multiple of 8 bytes with zeros; ``count`` = number of 8-byte words). With a
+    ``signer`` the datagram is flagged :data:`FLAG_AUTH` and its tag appended."""
     if raw is not None:
         pad = (-len(raw)) % 8
         body = raw + b"\0" * pad
@@ -88,15 +198,20 @@ def pack(type_: int, session: int, seq: int, values=(), *, ack: int = 0, sim_tim
         count = len(body) // 8
     if count > 0xFFFF:
         raise ValueError(f"payload of {count} words exceeds the protocol's 65535")
-    head = HEADER.pack(MAGIC, VERSION, int(type_), count, session & 0xFFFFFFFF,
+    flags = FLAG_AUTH if signer is not None else 0
+    head = HEADER.pack(MAGIC, VERSION, int(type_) | flags, count, session & 0xFFFFFFFF,
                        seq & 0xFFFFFFFF, ack & 0xFFFFFFFF, float(sim_time), float(sent),
                        float(echo))
     msg = head + body
-    return msg + _CRC.pack(zlib.crc32(msg))
+    msg += _CRC.pack(zlib.crc32(msg))
+    return msg + signer.tag(msg) if signer is not None else msg
 
 
-def unpack(data: bytes) -> Message:
-    """Decode one datagram; raises :class:`MalformedPacket` with the reason."""
+def unpack(data: bytes, signer: Signer | None = None) -> Message:
+    """Decode one datagram; raises :class:`MalformedPacket` with the reason
+    (:class:`VersionMismatch` for another protocol version, :class:`AuthenticationFailed` when
+    the tag does not match ``signer``, is missing although a ``signer`` is given, or is present
+    without one). Nothing about the values is trusted before these checks pass."""
     n = len(data)
     if n < HEADER_SIZE + 4:
         raise MalformedPacket(f"datagram of {n} bytes is shorter than header + crc")
@@ -104,17 +219,28 @@ def unpack(data: bytes) -> Message:
     if magic != MAGIC:
         raise MalformedPacket(f"bad magic {magic!r}")
     if ver != VERSION:
-        raise MalformedPacket(f"protocol version {ver}, this end speaks {VERSION}")
-    if n != HEADER_SIZE + 8 * count + 4:
-        raise MalformedPacket(f"length {n} does not match count {count}")
-    (crc,) = _CRC.unpack_from(data, n - 4)
-    if crc != zlib.crc32(data[:n - 4]):
+        raise VersionMismatch(ver)
+    authed = bool(typ & FLAG_AUTH)
+    typ &= ~FLAG_AUTH
+    end = HEADER_SIZE + 8 * count + 4  # end of the CRC
+    if n != end + (TAG_SIZE if authed else 0):
+        raise MalformedPacket(f"length {n} does not match count {count}"
+                              + (" and tag" if authed else ""))
+    (crc,) = _CRC.unpack_from(data, end - 4)
+    if crc != zlib.crc32(data[:end - 4]):
         raise MalformedPacket("crc mismatch")
-    try:
-        mtype = MsgType(typ)
-    except ValueError:
-        raise MalformedPacket(f"unknown message type {typ}") from None
-    body = data[HEADER_SIZE:n - 4]
+    if signer is not None:
+        if not authed:
+            raise AuthenticationFailed("datagram without the authentication tag this end "
+                                       "requires")
+        if not signer.verify(data[:end], data[end:]):
+            raise AuthenticationFailed("authentication tag mismatch (wrong key?)")
+    elif authed:
+        raise AuthenticationFailed("authenticated datagram, but this end has no key")
+    mtype = _TYPES.get(typ)
+    if mtype is None:
+        raise MalformedPacket(f"unknown message type {typ}")
+    body = data[HEADER_SIZE:end - 4]
     if mtype in (MsgType.OBS, MsgType.CMD):
         values = np.frombuffer(body, dtype="<f8")
     else:

@@ -13,7 +13,16 @@ Timing counters (``stats``):
   opposed to a miss inherited from a late start);
 - ``late_commands``: remote commands that did not arrive within the wait budget
   (``wait_fraction * dt`` after the observation was sent); the last command is held;
-- ``resyncs``: times the runner fell more than ``max_lag`` behind and re-anchored its clock.
+- ``resyncs``: times the runner fell more than ``max_lag`` behind and re-anchored its clock;
+- ``max_rx_s``, ``mean_rx_s``: CPU time per step spent reading and validating link datagrams
+  (bounded by :meth:`~downhole.sil.link.PlantLink.poll`; also recorded as ``rx_time``);
+  ``max_rx_listen_s``, ``mean_rx_listen_s``: its part spent on datagrams from anybody but
+  the owner (what a flood costs; recorded as ``rx_listen_time``);
+- ``rejected_commands``: commands of an in-process controller that were not finite or outside
+  the plant's admissible ranges (:attr:`~downhole.sil.plants.SilPlant.command_ranges`); the
+  last admissible command is held instead (remote ones are counted by the link:
+  ``non_finite``, ``out_of_range``); ``rejected_setpoints``: refused
+  :meth:`RealTimeRunner.set_reference` / :meth:`RealTimeRunner.set_manual_command` calls.
 
 Simulated time is always ``k dt``: steps are never skipped or stretched. When the runner is
 behind by less than ``max_lag`` it runs the next steps back to back (catch up); beyond it, it
@@ -21,12 +30,17 @@ re-anchors ``t0`` (wall clock and simulated time keep a new constant offset) and
 ``resync`` event. The recorded ``wall_lag`` channel shows how late each step finished.
 
 Safety (:class:`SafetyPolicy`): when a remote controller goes silent (no valid command for
-``timeout`` s) the runner records ``controller_timeout`` and applies the safe action: hold the
-last command for ``hold`` s, then ramp every command linearly over ``ramp`` s to the plant's
-safe state (:meth:`~downhole.sil.plants.SilPlant.safe_command`: no weight on bit, top drive
-stopped), records ``safe_state_reached`` and keeps running. With ``resume="manual"`` (default)
-a returning controller is ignored until :meth:`RealTimeRunner.arm` (the dashboard's
-"controller on"); with ``"auto"`` the next valid command ends the safe action.
+``timeout`` s, counted from the start of the run, so a controller that dies before its first
+command is caught as well) the runner records ``controller_timeout`` and applies the safe
+action: hold the last command for ``hold`` s, then ramp every command linearly over ``ramp`` s
+to the plant's safe state (:meth:`~downhole.sil.plants.SilPlant.safe_command`: no weight on
+bit, top drive stopped), records ``safe_state_reached`` and keeps running. With
+``resume="manual"`` (default) a returning controller is ignored until
+:meth:`RealTimeRunner.arm` (the dashboard's "controller on"); with ``"auto"`` the next valid
+command ends the safe action. An in-process controller whose commands are rejected for
+``timeout`` s of simulated time also gets the safe action (re-armed by :meth:`arm`). Handing
+the link to another controller (:meth:`RealTimeRunner.replace_controller`) starts the safe
+action as well.
 
 Memory: the recording is a preallocated ring (:class:`~downhole.sil.recorder.RingRecorder`,
 optionally chunked to disk), events are a bounded deque: a run of hours does not grow.
@@ -46,7 +60,7 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.sil.link import PlantLink
-from downhole.sil.plants import SilPlant
+from downhole.sil.plants import COMMAND_RANGES, REFERENCE_RANGES, SilPlant, check_range
 from downhole.sil.protocol import Layout
 from downhole.sil.recorder import RingRecorder
 from downhole.sim.result import Result
@@ -55,7 +69,9 @@ __all__ = ["RealTimeRunner", "SafetyPolicy", "STATS_KEYS", "elevate_priority"]
 
 STATS_KEYS = ("steps", "deadline_misses", "overruns", "late_commands", "resyncs",
               "max_lag_s", "max_exec_s", "mean_exec_s", "wall_s", "sim_s", "real_time_factor",
-              "deadline_miss_fraction", "safe_actions")
+              "deadline_miss_fraction", "safe_actions", "rejected_commands",
+              "rejected_setpoints", "max_rx_s", "mean_rx_s", "max_rx_listen_s",
+              "mean_rx_listen_s")
 
 REFERENCE_NAMES = ("reference_axial_velocity", "reference_angular_velocity")
 HIL_NAMES = ("bit_axial_velocity", "bit_angular_velocity")
@@ -164,6 +180,18 @@ class RealTimeRunner:
     realtime : bool
         When paced, try to run the loop thread under SCHED_FIFO (:func:`elevate_priority`);
         the policy obtained is in ``stats["scheduler"]``.
+    link_key, link_key_file : bytes or str, path, optional
+        Shared key of the UDP link (:class:`~downhole.sil.link.PlantLink`; required to bind
+        beyond loopback; default: the environment variable ``DOWNHOLE_LINK_KEY``).
+    rx_fraction : float
+        Share of the step the link may spend per step reading its listening socket (the bound
+        that keeps a flood from stalling the plant).
+
+    Raises
+    ------
+    DownholeInputError
+        Bad arguments, a reference outside :data:`~downhole.sil.plants.REFERENCE_RANGES`, or
+        a link that cannot be set up (see :class:`~downhole.sil.link.PlantLink`).
     """
 
     def __init__(self, plant: SilPlant, controller=None, *, link=None, hil: bool = False,
@@ -171,7 +199,8 @@ class RealTimeRunner:
                  ring_rows: int = 200_000, chunk_dir=None, max_lag: float = 0.05,
                  wait_fraction: float = 0.7, safety: SafetyPolicy | None = None,
                  controller_enabled: bool = True, spin: float = 2e-4, realtime: bool = True,
-                 command_timeout: float | None = None):
+                 command_timeout: float | None = None, link_key=None, link_key_file=None,
+                 rx_fraction: float = 0.02):
         if not isinstance(plant, SilPlant):
             raise DownholeInputError(f"plant must be a SilPlant (downhole.sil.build_plant), got "
                                      f"{type(plant).__name__}")
@@ -185,6 +214,8 @@ class RealTimeRunner:
             raise DownholeInputError(f"wait_fraction must be in (0, 1), got {wait_fraction}")
         if record_every < 1:
             raise DownholeInputError(f"record_every must be >= 1, got {record_every}")
+        if not 0 < rx_fraction < 1:
+            raise DownholeInputError(f"rx_fraction must be in (0, 1), got {rx_fraction}")
         self.plant = plant
         self.dt = plant.dt
         self.controller = controller
@@ -201,6 +232,10 @@ class RealTimeRunner:
         ref = reference or {}
         self.reference = {"axial": float(ref.get("axial", 0.01)),
                           "angular": float(ref.get("angular", 20.0))}
+        for k, v in self.reference.items():
+            why = check_range(k, v, REFERENCE_RANGES)
+            if why is not None:
+                raise DownholeInputError(f"reference: {why}")
         self.controller_enabled = bool(controller_enabled)
         self.manual_command = plant.default_command()
         obs_names = tuple(n for n in plant.observation_names if n not in REFERENCE_NAMES)
@@ -212,17 +247,22 @@ class RealTimeRunner:
             else:
                 host, port = link
                 cmds = HIL_NAMES if self.hil else plant.command_names
+                ranges = ({c: COMMAND_RANGES[c] for c in HIL_NAMES} if self.hil
+                          else plant.command_ranges)
                 units = dict(plant.units)
                 units.update({"reference_axial_velocity": "m/s",
                               "reference_angular_velocity": "rad/s"})
                 self.link = PlantLink(Layout(self.dt, "hil" if self.hil else "sil",
-                                             self.obs_names, cmds, units), host, port)
+                                             self.obs_names, cmds, units), host, port,
+                                      key=link_key, key_file=link_key_file,
+                                      command_ranges=ranges, rx_budget=rx_fraction * self.dt)
         elif self.hil:
             raise DownholeInputError("HIL mode needs a link to the rig")
         cmd_cols = tuple(f"command_{c}" for c in plant.command_names)
         self.channels = (("time",) + tuple(n for n in obs_names if n != "time")
                          + REFERENCE_NAMES + cmd_cols
-                         + ("wall_lag", "exec_time", "controller_on", "safe_action"))
+                         + ("wall_lag", "exec_time", "controller_on", "safe_action",
+                            "rx_time", "rx_listen_time"))
         self.recorder = RingRecorder(self.channels, ring_rows, chunk_dir)
         self._row = np.zeros(len(self.channels))
         self.events: deque = deque(maxlen=1000)
@@ -236,13 +276,28 @@ class RealTimeRunner:
         """Ask the loop to end after the current step."""
         self._stop.set()
 
+    def _refuse(self, why: str):
+        self.stats["rejected_setpoints"] += 1
+        self._event("setpoint_rejected", why)
+        raise DownholeInputError(why)
+
     def set_reference(self, axial: float | None = None, angular: float | None = None) -> None:
-        """Change the bit-velocity reference (m/s, rad/s) seen by the controller."""
+        """Change the bit-velocity reference (m/s, rad/s) seen by the controller.
+
+        Raises
+        ------
+        DownholeInputError
+            A value that is not finite or outside
+            :data:`~downhole.sil.plants.REFERENCE_RANGES` (counted as ``rejected_setpoints``;
+            the reference is unchanged)."""
         new = dict(self.reference)
-        if axial is not None:
-            new["axial"] = float(axial)
-        if angular is not None:
-            new["angular"] = float(angular)
+        for k, v in (("axial", axial), ("angular", angular)):
+            if v is None:
+                continue
+            why = check_range(k, v, REFERENCE_RANGES)
+            if why is not None:
+                self._refuse(f"reference refused: {why}")
+            new[k] = float(v)
         self.reference = new
         self._event("reference_change", f"axial={new['axial']:g} angular={new['angular']:g}")
 
@@ -262,12 +317,41 @@ class RealTimeRunner:
         self._last_valid = time.monotonic()
 
     def set_manual_command(self, **values) -> None:
-        """Change the open-loop command (used while the controller is off)."""
+        """Change the open-loop command (used while the controller is off).
+
+        Raises
+        ------
+        DownholeInputError
+            An unknown name, or a value that is not finite or outside the plant's
+            :attr:`~downhole.sil.plants.SilPlant.command_ranges` (counted as
+            ``rejected_setpoints``; nothing is changed)."""
+        new = dict(self.manual_command)
         for k, v in values.items():
             if k not in self.manual_command:
                 raise DownholeInputError(f"unknown command {k!r}; expected "
                                          f"{tuple(self.manual_command)}")
-            self.manual_command[k] = float(v)
+            why = check_range(k, v, self.plant.command_ranges)
+            if why is not None:
+                self._refuse(f"manual command refused: {why}")
+            new[k] = float(v)
+        self.manual_command = new
+
+    def replace_controller(self) -> None:
+        """Operator action: hand the UDP link to another controller.
+
+        The current owner is sent BYE and its session ends (a new session id is drawn); while
+        the plant runs, the safe action starts first (``controller_timeout`` with the reason
+        "operator replaced the controller"), so that nothing is applied until the new owner -
+        the next client to say HELLO - is accepted under the ``resume`` policy (``manual``:
+        after :meth:`arm`; ``auto``: with its first valid command). Thread-safe: while running,
+        the loop does it at the start of its next step."""
+        if self.link is None:
+            raise DownholeInputError("replace_controller needs a runner with a UDP link")
+        if self.running:
+            self._replace_requested = True
+        else:
+            self.link.release_owner()
+            self._drain_link_events()
 
     # ---------------------------------------------------------------- state
     def _reset_state(self):
@@ -279,8 +363,13 @@ class RealTimeRunner:
         self._held = None
         self._last_cmd = self.plant.default_command()
         self._hil_vals = None
-        self._last_valid = None
+        self._last_valid = time.monotonic()
+        self._got_first = False
+        self._bad_since = None
+        self._replace_requested = False
         self._exec_sum = 0.0
+        self._rx_sum = self._listen_sum = 0.0
+        self._rx_step = self._listen_step = 0.0
 
     def _event(self, kind: str, detail: str) -> None:
         self.events.append({"time": self._k * self.dt, "wall": time.monotonic(), "kind": kind,
@@ -321,17 +410,30 @@ class RealTimeRunner:
         self.stats["safe_actions"] += 1
         self._event("controller_timeout", why)
 
+    def _drain_link_events(self) -> list:
+        kinds = []
+        for kind, detail in self.link.events:
+            self._event(kind, detail)
+            kinds.append(kind)
+        self.link.events.clear()
+        return kinds
+
     # ---------------------------------------------------------------- one step
     def _command(self, t: float, obs: dict, start: float) -> dict:
         """The command for the step starting now (also talks to the link)."""
         link = self.link
         remote = None
+        self._rx_step = self._listen_step = 0.0
         if link is not None:
-            for kind, detail in link.events:
-                self._event(kind, detail)
-            if any(k == "controller_bye" for k, _ in link.events) and self._safe_since is None:
+            link.begin_step()
+            if self._replace_requested:
+                self._replace_requested = False
+                if self._safe_since is None:
+                    self._enter_safe(t, "operator replaced the controller")
+                link.release_owner()
+            kinds = self._drain_link_events()
+            if "controller_bye" in kinds and self._safe_since is None:
                 self._enter_safe(t, "controller said bye")
-            link.events.clear()
             if link.connected:
                 o = self._controller_obs(obs)
                 vec = np.array([o[n] for n in self.obs_names])
@@ -341,18 +443,23 @@ class RealTimeRunner:
                 remote = link.wait_command(seq, start + budget)
             else:
                 link.poll()
+            self._rx_step = link.step_rx_s
+            self._listen_step = link.step_listen_s
             if remote is None:
                 self.stats["late_commands"] += link.connected
             else:
-                if self._last_valid is None:
+                if not self._got_first:
+                    self._got_first = True
                     self._event("controller_first_command", "")
                 self._last_valid = time.monotonic()
                 if self._safe_since is not None and self.safety.resume == "auto":
                     self._event("controller_resumed", "")
                     self._safe_since = None
-            if (self._safe_since is None and self._last_valid is not None
+            # the timer runs from the start of the run: no command at all is a timeout too
+            if (self._safe_since is None and (self.controller_enabled or self.hil)
                     and time.monotonic() - self._last_valid > self.safety.timeout):
-                self._enter_safe(t, f"no valid command for {self.safety.timeout:g} s")
+                self._enter_safe(t, f"no valid command for {self.safety.timeout:g} s" +
+                                 ("" if self._got_first else " (none since the start)"))
         if self.hil:
             if remote is not None:
                 self._hil_vals = remote
@@ -370,12 +477,25 @@ class RealTimeRunner:
         elif self._safe_since is not None:
             cmd = self._safe_command(t)
         elif self.controller is not None:
-            cmd = self.controller.command(t, self._controller_obs(obs), dict(self.reference))
-            cmd = {k: float(cmd[k]) for k in self.plant.command_names}
+            raw = self.controller.command(t, self._controller_obs(obs), dict(self.reference))
+            why = self.plant.check_command(raw)
+            if why is None:
+                cmd = {k: float(raw[k]) for k in self.plant.command_names}
+                self._bad_since = None
+            else:  # never applied: hold the last admissible command
+                self.stats["rejected_commands"] += 1
+                if self._bad_since is None:
+                    self._bad_since = t
+                    self._event("command_rejected", why)
+                cmd = dict(self._last_cmd)
+                if t - self._bad_since >= self.safety.timeout:
+                    self._enter_safe(t, f"controller commands rejected for "
+                                        f"{self.safety.timeout:g} s: {why}")
+                    cmd = self._safe_command(t)
         elif self.link is not None and not self.hil:
-            if remote is not None:
+            if remote is not None:  # validated by the link (finite, within range)
                 cmd = dict(zip(self.plant.command_names, remote.tolist()))
-            elif self._last_valid is None:
+            elif not self._got_first:
                 cmd = dict(self.manual_command)  # no controller yet: open loop
             else:
                 cmd = dict(self._last_cmd)  # late: hold
@@ -406,6 +526,10 @@ class RealTimeRunner:
                 r[i] = float(self.controller_enabled and self._safe_since is None)
             elif n == "safe_action":
                 r[i] = float(self._safe_since is not None)
+            elif n == "rx_time":
+                r[i] = self._rx_step
+            elif n == "rx_listen_time":
+                r[i] = self._listen_step
             else:
                 r[i] = np.nan
         self.recorder.append(r)
@@ -421,9 +545,7 @@ class RealTimeRunner:
         obs = self._controller_obs(self.plant.reset())
         vec = np.array([obs[n] for n in self.obs_names])
         ok = self.link.probe(vec, timeout)
-        for kind, detail in self.link.events:
-            self._event(kind, detail)
-        self.link.events.clear()
+        self._drain_link_events()
         if ok:
             self._event("controller_ready", "")
         return ok
@@ -465,6 +587,7 @@ class RealTimeRunner:
         self._stop.clear()
         self.running = True
         self._event("start", f"dt={self.dt:g} paced={self.paced}")
+        self._last_valid = time.monotonic()  # the controller timeout runs from the start
         dt = self.dt
         k0 = self._k
         t0 = time.monotonic() - k0 * dt if self.paced else time.monotonic()
@@ -489,6 +612,13 @@ class RealTimeRunner:
                 st = self.stats
                 st["steps"] += 1
                 self._exec_sum += ex
+                rx = self._rx_step
+                self._rx_sum += rx
+                if rx > st["max_rx_s"]:
+                    st["max_rx_s"] = rx
+                self._listen_sum += self._listen_step
+                if self._listen_step > st["max_rx_listen_s"]:
+                    st["max_rx_listen_s"] = self._listen_step
                 if ex > dt:
                     st["overruns"] += 1
                 if ex > st["max_exec_s"]:
@@ -515,6 +645,8 @@ class RealTimeRunner:
             st["sim_s"] = (self._k - k0) * dt
             st["real_time_factor"] = st["sim_s"] / wall if wall > 0 else float("inf")
             st["mean_exec_s"] = self._exec_sum / max(st["steps"], 1)
+            st["mean_rx_s"] = self._rx_sum / max(st["steps"], 1)
+            st["mean_rx_listen_s"] = self._listen_sum / max(st["steps"], 1)
             st["deadline_miss_fraction"] = st["deadline_misses"] / max(st["steps"], 1)
             self._event("stop", f"{st['steps']} steps")
             self.recorder.flush()
@@ -526,7 +658,7 @@ class RealTimeRunner:
 
         units = {f"command_{c}": self.plant.units.get(c, "") for c in self.plant.command_names}
         units.update({n: u for n, u in self.plant.units.items() if n in self.channels})
-        units.update(wall_lag="s", exec_time="s")
+        units.update(wall_lag="s", exec_time="s", rx_time="s", rx_listen_time="s")
         attrs = {"model": self.plant.name, "dt": self.dt, "scheduler": self.scheduler,
                  "runtime": "real-time" if self.paced else "unpaced",
                  "stats": json.dumps(self.stats),
