@@ -17,6 +17,7 @@ from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
 from downhole.cli import main
+from downhole.errors import DownholeInputError
 from downhole.sil import RealTimeRunner, build_plant, pi_controller_for
 from downhole.sil.dashboard import TOKEN_COOKIE, DashboardSession, make_app
 from downhole.sil.testing import free_port
@@ -195,8 +196,12 @@ def test_nan_set_point_does_not_kill_a_running_run_and_bounds_are_inclusive():
 def test_state_and_websocket_never_emit_nan():
     session, c = _client()
     r = session.runner
-    # the Python API still takes any float; the dashboard must not pass the NaN on
-    r.set_reference(float("nan"), float("inf"))
+    # the Python API refuses a non-finite reference (counted, reference unchanged)
+    with pytest.raises(DownholeInputError, match="reference refused"):
+        r.set_reference(float("nan"), float("inf"))
+    assert r.stats["rejected_setpoints"] >= 1 and math.isfinite(r.reference["axial"])
+    # defence in depth: a non-finite value that got in anyway is served as null, reported once
+    r.reference = {"axial": float("nan"), "angular": float("inf")}
     for _ in range(2):
         resp = c.get("/api/state")
         assert resp.status_code == 200
@@ -208,18 +213,20 @@ def test_state_and_websocket_never_emit_nan():
     with c.websocket_connect(f"ws://127.0.0.1:{PORT}/ws") as ws:
         msg = _strict_json(ws.receive_text())
     assert msg["reference"]["axial"] is None
-    # a run stopped by the non-finite reference (the plant refuses the NaN command it would
-    # produce, or the run diverges): the state still serves, without NaN
+    # a run with that reference: the non-finite commands it produces are refused, never
+    # applied, and the state still serves without NaN
     session.start()
     end = time.monotonic() + 20
-    while session.running and time.monotonic() < end:
+    while session.running and r.stats.get("rejected_commands", 0) < 5 \
+            and time.monotonic() < end:
         time.sleep(0.05)
-    assert session.error is not None and "finite" in session.error
+    session.stop()
+    assert r.stats.get("rejected_commands", 0) >= 5 or session.error is not None
     resp = c.get("/api/state")
     assert resp.status_code == 200
     state = _strict_json(resp.text)
-    assert "finite" in state["error"]
     assert all(v is None or math.isfinite(v) for v in state["signals"].values())
+    assert all(math.isfinite(v) for v in r.latest().values() if isinstance(v, float))
 
 
 def test_token_guards_every_route_including_the_api_docs():

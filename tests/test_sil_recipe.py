@@ -255,7 +255,7 @@ def test_controller_that_got_nothing_to_answer_exits_1(tmp_path):
     from downhole.sil.link import PlantLink
     from downhole.sil.protocol import Layout
 
-    link = PlantLink(Layout(1e-3, "sil", ("bit_angular_velocity",), ("hook_load", "w"), {}),
+    link = PlantLink(Layout(1e-3, "sil", ("bit_angular_velocity",), ("hook_load", "top_drive_angular_velocity"), {}),
                      "127.0.0.1", 0)
     done = threading.Event()
 
