@@ -6,17 +6,74 @@
 - ``downhole sil-controller --port P [--host H] (--controller FILE | --scenario S.toml)``
   is the controller end: it connects to a running plant and answers every observation.
 - ``downhole export-fmu SCENARIO.toml --out plant.fmu`` builds an FMI 2.0 co-simulation FMU.
+
+``downhole sil`` checks ``--out`` and ``[runtime] chunk_dir`` before it builds anything. SIGINT
+and SIGTERM end a running loop after the current step: the recording is flushed, ``--out`` is
+written with the rows recorded so far (attribute ``stopped_by``) and the command exits with
+128 + the signal number (0 when the run had no set duration). A signal while waiting for the
+controller ends the command with nothing written.
 """
 
 from __future__ import annotations
 
 import json
+import signal
+import threading
+import time
 from pathlib import Path
 from typing import Optional
 
 import typer
 
+from downhole._atomic import OutputFile, check_output_path
 from downhole.cli import app, fail
+
+
+class _Interrupted(Exception):
+    """A stop signal arrived before the real-time loop started."""
+
+
+class _StopOnSignal:
+    """SIGINT/SIGTERM handler of ``downhole sil``: stop the loop, never lose the recording.
+
+    ``phase`` is ``"waiting"`` (before the loop: raise :class:`_Interrupted`), ``"running"``
+    (ask the runner to stop after the current step) or ``"writing"`` (remember the signal and
+    let the result be written).
+    """
+
+    def __init__(self, runner):
+        self.runner = runner
+        self.signum: int | None = None
+        self.phase = "waiting"
+        self._previous: dict = {}
+
+    def install(self) -> "_StopOnSignal":
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self)
+        return self
+
+    def restore(self) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous.clear()
+
+    def __call__(self, signum, frame) -> None:
+        first = self.signum is None
+        if first:
+            self.signum = signum
+        if self.phase == "waiting":
+            if first:
+                raise _Interrupted(signum)
+        elif self.phase == "running":
+            self.runner.stop()
+            if not self.runner.running:  # still warming up: stop as soon as the loop starts
+                threading.Thread(target=self._stop_when_running, daemon=True).start()
+
+    def _stop_when_running(self) -> None:
+        while self.phase == "running" and not self.runner.running:
+            time.sleep(0.005)
+        self.runner.stop()
 
 __all__ = ["sil", "sil_controller", "export_fmu"]
 
@@ -40,8 +97,13 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         sc.controller.remote = True
     if port is not None:
         sc.link.port = port
-    plant, ctrl = build_from_scenario(sc, controller_file=str(controller) if controller else None)
     rtc = sc.runtime
+    # output paths first: a bad --out must not cost a controller design and a whole run
+    if out is not None:
+        check_output_path(out, kind="file")
+    if rtc.chunk_dir is not None:
+        check_output_path(rtc.chunk_dir, option=f"{scenario}: runtime.chunk_dir", kind="folder")
+    plant, ctrl = build_from_scenario(sc, controller_file=str(controller) if controller else None)
     hil = sc.link.mode == "hil"
     use_link = sc.controller.remote or hil
     every = max(1, int(round(rtc.record_dt / rtc.dt)))
@@ -55,30 +117,58 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         controller_enabled=sc.controller.enabled and sc.controller.kind != "none",
         realtime=rtc.realtime)
     dur = duration if duration is not None else rtc.duration
+    stopper = _StopOnSignal(runner).install()
+    out_file = OutputFile(out, "sil") if out is not None else None
     try:
-        if use_link:
-            h, p = runner.link.address
-            typer.echo(f"plant listening on udp://{h}:{p}; waiting for the "
-                       f"{'rig' if hil else 'controller'}...", err=True)
-            if not runner.wait_for_controller(sc.link.connect_timeout):
-                fail(f"no controller connected within {sc.link.connect_timeout:g} s")
-        if dashboard:
-            from downhole.sil.dashboard import serve_dashboard
+        try:
+            if use_link:
+                h, p = runner.link.address
+                typer.echo(f"plant listening on udp://{h}:{p}; waiting for the "
+                           f"{'rig' if hil else 'controller'}...", err=True)
+                if not runner.wait_for_controller(sc.link.connect_timeout):
+                    fail(f"no controller connected within {sc.link.connect_timeout:g} s")
+            if out_file is not None:
+                out_file.begin()  # the previous result goes now: a killed run leaves none
+            stopper.phase = "running"
+            if dashboard:
+                from downhole.sil.dashboard import serve_dashboard
 
-            serve_dashboard(runner, host=sc.dashboard.host, port=sc.dashboard.port,
-                            token=sc.dashboard.token, duration=dur,
-                            publish_hz=sc.dashboard.publish_hz)
-            res = runner.result()
-        else:
-            res = runner.run(dur)
+                serve_dashboard(runner, host=sc.dashboard.host, port=sc.dashboard.port,
+                                token=sc.dashboard.token, duration=dur,
+                                publish_hz=sc.dashboard.publish_hz)
+                res = runner.result()
+            else:
+                res = runner.run(dur)
+            stopper.phase = "writing"
+        except _Interrupted as exc:
+            name = signal.Signals(exc.args[0]).name
+            typer.echo(f"error: {name} before the run started; nothing recorded or written",
+                       err=True)
+            raise typer.Exit(128 + exc.args[0]) from None
+        except Exception as exc:
+            if out_file is not None and out_file.marker.exists():
+                out_file.fail(f"{type(exc).__name__}: {exc}")
+            raise
+        finally:
+            stopper.phase = "writing"
+            runner.close()
+            runner.recorder.finish()
+        typer.echo(json.dumps({"stats": runner.stats, "scheduler": runner.scheduler,
+                               "link": runner.link.counters if runner.link else None,
+                               "events": runner.event_count}, indent=1))
+        if stopper.signum is not None:
+            res.dataset.attrs["stopped_by"] = signal.Signals(stopper.signum).name
+        if out_file is not None:
+            res.save(out)
+            out_file.commit()
+            typer.echo(f"wrote {out}", err=True)
     finally:
-        runner.close()
-    typer.echo(json.dumps({"stats": runner.stats, "scheduler": runner.scheduler,
-                           "link": runner.link.counters if runner.link else None,
-                           "events": runner.event_count}, indent=1))
-    if out is not None:
-        res.save(out)
-        typer.echo(f"wrote {out}", err=True)
+        stopper.restore()
+    if stopper.signum is not None:
+        typer.echo(f"stopped by {signal.Signals(stopper.signum).name} after "
+                   f"{runner.stats.get('sim_s', 0.0):g} s simulated", err=True)
+        if dur is not None:
+            raise typer.Exit(128 + stopper.signum)
 
 
 @app.command("sil-controller")
