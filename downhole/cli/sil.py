@@ -229,5 +229,6 @@ def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML"),
     """Build an FMI 2.0 co-simulation FMU of the scenario's plant (pythonfmu)."""
     from downhole.sil.fmu import export_fmu as _export
 
+    check_output_path(out, kind="file")
     path = _export(scenario, out)
     typer.echo(f"wrote {path}")
