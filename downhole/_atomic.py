@@ -41,9 +41,9 @@ from typing import Iterable, Iterator
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["MARKER", "PAUSE_ENV", "temp_path", "atomic_path", "write_bytes_atomic",
-           "write_text_atomic", "write_json_atomic", "replace_atomic", "check_output_path", "OutputFolder",
-           "OutputFile", "is_incomplete"]
+__all__ = ["MARKER", "PAUSE_ENV", "temp_path", "atomic_path", "replace_atomic",
+           "write_bytes_atomic", "write_text_atomic", "write_json_atomic", "check_output_path",
+           "OutputFolder", "OutputFile", "is_incomplete"]
 
 #: Name of the marker file of an output folder whose run has not finished.
 MARKER = "INCOMPLETE"

@@ -250,9 +250,8 @@ def test_output_folder_marks_removes_stale_files_and_commits(tmp_path):
 
 def test_output_folder_of_a_failed_run_that_did_not_exist_creates_nothing(tmp_path):
     d = tmp_path / "new"
-    with pytest.raises(ZeroDivisionError):
-        with OutputFolder(d, ("x",), "t"):
-            1 / 0
+    with pytest.raises(ZeroDivisionError), OutputFolder(d, ("x",), "t"):
+        raise ZeroDivisionError("the run failed")
     assert not d.exists()
 
 

@@ -61,8 +61,9 @@ def sweep(
     # the folder is marked and cleared just before the first case runs (run_sweep validates all
     # its input first, so a rejected sweep leaves the previous results alone)
     try:
-        _run_and_write(folder, folder.begin, base, source, param, metric, random, seed, window, sched,
-                       processes, batch_size, severity_threshold, bounce_threshold, no_plots)
+        _run_and_write(folder, folder.begin, base, source, param, metric, random, seed, window,
+                       sched, processes, batch_size, severity_threshold, bounce_threshold,
+                       no_plots)
     except BaseException as exc:
         folder.fail(f"{type(exc).__name__}: {exc}")
         raise
