@@ -427,6 +427,18 @@ def test_optimize_dp_sigterm_between_the_pair_renames(tmp_path, procs):
         load_solution(out)
 
 
+def test_optimize_dp_kill9_mid_run_leaves_no_stale_pair(tmp_path, procs):
+    out, argv, _ = _dp(tmp_path)
+    big = tmp_path / "big.toml"  # a search of many seconds
+    big.write_text(DP.replace("horizon = 5.0", "horizon = 40.0").replace("points = 11",
+                                                                          "points = 81"))
+    p = start(procs, [a if a != argv[2] else big for a in argv], tmp_path)
+    p.wait_for("the run to start", lambda: marked_and_cleared(out))
+    time.sleep(0.3)
+    p.signal(signal.SIGKILL)
+    assert is_incomplete(out) and final_files(out) == []
+
+
 def test_optimize_dp_kill9_mid_write_then_a_rerun_completes(tmp_path, procs):
     from downhole.control.dp import load_solution
 
@@ -568,6 +580,34 @@ def test_sil_sigterm_writes_the_rows_recorded_so_far(tmp_path, procs):
     full = load_chunks(chunks)
     assert full.time.size == n and "incomplete" not in full.attrs
     np.testing.assert_array_equal(full.time, res.time)
+
+
+def test_sil_sigterm_while_writing_still_writes_the_result(tmp_path, procs):
+    out = tmp_path / "run.nc"
+    scen = tmp_path / "sil.toml"
+    scen.write_text(SIL.format(duration="0.5 s", extra=""))
+    p = start(procs, ["sil", scen, "--unpaced", "--out", out], tmp_path,
+              {PAUSE_ENV: "run.nc:2"})
+    p.wait_for_pause("run.nc")
+    assert p.signal(signal.SIGTERM) == 128 + signal.SIGTERM
+    res = load_result(out)  # the signal came after the run: the whole run is in the result
+    assert res.time[-1] == pytest.approx(0.5) and "stopped_by" not in res.attrs
+    assert sorted(os.listdir(tmp_path)) == ["run.nc", "sil.toml"]
+
+
+def test_sil_sigterm_while_waiting_for_the_controller_writes_nothing(tmp_path, procs):
+    from downhole.sil.testing import free_port
+
+    out = tmp_path / "run.nc"
+    out.write_text("previous result")
+    scen = tmp_path / "sil.toml"
+    scen.write_text(SIL.format(duration="5 s", extra=""))
+    p = start(procs, ["sil", scen, "--remote", "--port", free_port(), "--out", out], tmp_path)
+    p.wait_for("the plant to listen", lambda: any("waiting for the" in ln for ln in p.lines))
+    assert p.signal(signal.SIGTERM) == 128 + signal.SIGTERM
+    assert "SIGTERM before the run started; nothing recorded or written" in "".join(p.lines)
+    assert out.read_text() == "previous result"  # no run: the previous result stays as it was
+    assert sorted(os.listdir(tmp_path)) == ["run.nc", "sil.toml"]
 
 
 def test_sil_killed_mid_run_or_mid_write_leaves_no_stale_result(tmp_path, procs):
