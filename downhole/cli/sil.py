@@ -10,8 +10,8 @@
 ``downhole sil`` checks ``--out`` and ``[runtime] chunk_dir`` before it builds anything. SIGINT
 and SIGTERM end a running loop after the current step: the recording is flushed, ``--out`` is
 written with the rows recorded so far (attribute ``stopped_by``) and the command exits with
-128 + the signal number (0 when the run had no set duration). A signal while waiting for the
-controller ends the command with nothing written.
+128 + the signal number. A signal while waiting for the controller ends the command with
+nothing written; one while the result is written is acted on once it is written.
 """
 
 from __future__ import annotations
@@ -27,6 +27,8 @@ import typer
 
 from downhole._atomic import OutputFile, check_output_path
 from downhole.cli import app, fail
+
+__all__ = ["sil", "sil_controller", "export_fmu"]
 
 
 class _Interrupted(Exception):
@@ -44,6 +46,7 @@ class _StopOnSignal:
     def __init__(self, runner):
         self.runner = runner
         self.signum: int | None = None
+        self.stopped_run = False  # the signal ended the loop early
         self.phase = "waiting"
         self._previous: dict = {}
 
@@ -66,6 +69,7 @@ class _StopOnSignal:
             if first:
                 raise _Interrupted(signum)
         elif self.phase == "running":
+            self.stopped_run = True
             self.runner.stop()
             if not self.runner.running:  # still warming up: stop as soon as the loop starts
                 threading.Thread(target=self._stop_when_running, daemon=True).start()
@@ -74,8 +78,6 @@ class _StopOnSignal:
         while self.phase == "running" and not self.runner.running:
             time.sleep(0.005)
         self.runner.stop()
-
-__all__ = ["sil", "sil_controller", "export_fmu"]
 
 
 @app.command("sil")
@@ -156,7 +158,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         typer.echo(json.dumps({"stats": runner.stats, "scheduler": runner.scheduler,
                                "link": runner.link.counters if runner.link else None,
                                "events": runner.event_count}, indent=1))
-        if stopper.signum is not None:
+        if stopper.stopped_run:
             res.dataset.attrs["stopped_by"] = signal.Signals(stopper.signum).name
         if out_file is not None:
             res.save(out)
@@ -167,8 +169,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
     if stopper.signum is not None:
         typer.echo(f"stopped by {signal.Signals(stopper.signum).name} after "
                    f"{runner.stats.get('sim_s', 0.0):g} s simulated", err=True)
-        if dur is not None:
-            raise typer.Exit(128 + stopper.signum)
+        raise typer.Exit(128 + stopper.signum)
 
 
 @app.command("sil-controller")
