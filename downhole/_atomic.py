@@ -42,8 +42,8 @@ from typing import Iterable, Iterator
 from downhole.errors import DownholeInputError
 
 __all__ = ["MARKER", "PAUSE_ENV", "temp_path", "atomic_path", "replace_atomic",
-           "write_bytes_atomic", "write_text_atomic", "write_json_atomic", "check_output_path",
-           "OutputFolder", "OutputFile", "is_incomplete"]
+           "write_bytes_atomic", "write_text_atomic", "write_json_atomic", "sync_files",
+           "check_output_path", "OutputFolder", "OutputFile", "is_incomplete"]
 
 #: Name of the marker file of an output folder whose run has not finished.
 MARKER = "INCOMPLETE"
@@ -86,6 +86,17 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
+def sync_files(paths: Iterable[str | os.PathLike]) -> None:
+    """Fsync files written with ``durable=False`` (and their folders), e.g. at the end of a run."""
+    folders = set()
+    for p in map(Path, paths):
+        with contextlib.suppress(FileNotFoundError):
+            _fsync_path(p)
+            folders.add(p.parent)
+    for folder in folders:
+        _fsync_dir(folder)
+
+
 def _test_pause(final: Path) -> None:
     spec = os.environ.get(PAUSE_ENV)
     if not spec:
@@ -101,28 +112,34 @@ def _test_pause(final: Path) -> None:
     time.sleep(delay)
 
 
-def replace_atomic(tmp: str | os.PathLike, final: str | os.PathLike) -> Path:
+def replace_atomic(tmp: str | os.PathLike, final: str | os.PathLike, *,
+                   durable: bool = True) -> Path:
     """Fsync the written temporary ``tmp`` and rename it onto ``final`` (same folder).
 
     For writers that must order several renames themselves (a pair of files); the usual way is
-    :func:`atomic_path`.
+    :func:`atomic_path`. ``durable=False`` skips the fsyncs: the rename still happens only after
+    the whole file was written, so a killed process never exposes a partial file; only a power
+    loss could (used inside real-time loops, where an fsync would cost deadlines).
     """
     tmp, final = Path(tmp), Path(final)
     if not tmp.is_file():
         raise RuntimeError(f"the writer of {final} produced no file {tmp.name}")
-    _fsync_path(tmp)
+    if durable:
+        _fsync_path(tmp)
     _test_pause(final)
     os.replace(tmp, final)
-    _fsync_dir(final.parent)
+    if durable:
+        _fsync_dir(final.parent)
     return final
 
 
 @contextlib.contextmanager
-def atomic_path(final: str | os.PathLike) -> Iterator[Path]:
+def atomic_path(final: str | os.PathLike, *, durable: bool = True) -> Iterator[Path]:
     """Context manager: yields a temporary path to write ``final``'s content to.
 
     On a normal exit the temporary is fsynced and renamed onto ``final``; on an exception it is
-    removed and ``final`` is left as it was.
+    removed and ``final`` is left as it was. ``durable=False``: no fsync (see
+    :func:`replace_atomic`).
 
     Examples
     --------
@@ -137,7 +154,7 @@ def atomic_path(final: str | os.PathLike) -> Iterator[Path]:
     tmp = temp_path(final)
     try:
         yield tmp
-        replace_atomic(tmp, final)
+        replace_atomic(tmp, final, durable=durable)
     finally:
         with contextlib.suppress(FileNotFoundError):
             if tmp.is_file() or tmp.is_symlink():

@@ -547,6 +547,20 @@ def test_reproduce_sigterm_mid_write_then_a_rerun_publishes_one_run(tmp_path, pr
     assert not is_incomplete(out)
 
 
+def test_run_one_on_its_own_replaces_the_whole_experiment_folder(tmp_path, plugin_env):
+    from downhole.report.reproduce import run_one
+
+    exp = tmp_path / "rep" / "atomic.slow"
+    exp.mkdir(parents=True)
+    (exp / "claim.json").write_text(json.dumps({"id": "atomic.slow", "passed": True, "old": 1}))
+    (exp / "stale_figure.png").write_text("from an older version of the experiment")
+    claim = run_one("atomic.slow", tmp_path / "rep", quick=True)
+    assert claim["passed"] is True and claim["measured"] == {"n": 3}
+    assert sorted(os.listdir(exp)) == ["claim.json", "data.csv", "run.log"]
+    assert "old" not in json.loads((exp / "claim.json").read_text())
+    assert sorted(os.listdir(tmp_path / "rep")) == ["atomic.slow"]  # no staging left
+
+
 def test_reproduce_refuses_to_clear_a_folder_that_is_not_an_experiments(tmp_path, capsys):
     (tmp_path / "fig2.3").mkdir()
     (tmp_path / "fig2.3" / "thesis.tex").write_text("precious")

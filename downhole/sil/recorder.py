@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from downhole._atomic import MARKER, OutputFolder, atomic_path, write_json_atomic
+from downhole._atomic import MARKER, OutputFolder, atomic_path, sync_files, write_json_atomic
 from downhole.errors import DownholeInputError
 from downhole.sim.result import Result
 
@@ -72,19 +72,21 @@ class RingRecorder:
                 self.flush()
 
     def flush(self) -> None:
-        """Write the partial chunk (if any) to disk (atomically)."""
+        """Write the partial chunk (if any) to disk (atomically; without an fsync, which could
+        cost a real-time loop its deadlines: :meth:`finish` makes the folder durable)."""
         if self.chunk_dir is None or self._chunk_n == 0:
             return
         path = self.chunk_dir / f"chunk_{self.chunks_written + 1:06d}.npz"
-        with atomic_path(path) as tmp:
+        with atomic_path(path, durable=False) as tmp:
             np.savez(tmp, data=self._chunk[:self._chunk_n])
         self.chunks_written += 1
         self._chunk_n = 0
 
     def finish(self) -> None:
-        """The recording is over: flush, and mark the chunk folder complete."""
+        """The recording is over: flush, sync the chunks to disk, mark the folder complete."""
         self.flush()
         if self._folder is not None:
+            sync_files(sorted(self.chunk_dir.glob("chunk_*.npz")))
             self._folder.commit()
 
     def rows(self) -> np.ndarray:
