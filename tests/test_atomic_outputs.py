@@ -307,15 +307,17 @@ def _scenarios(tmp_path):
 
 
 @pytest.mark.parametrize("command", ["simulate", "optimize", "sweep", "reproduce", "sil",
-                                     "design eid", "export --csv", "export --las",
-                                     "export-fmu", "demo"])
+                                     "design eid", "design dhp", "export --csv",
+                                     "export --las", "export-fmu", "demo", "bench",
+                                     "bench-report"])
 @pytest.mark.parametrize("problem", ["existing file", "under a file", "missing parent"])
 def test_bad_out_exits_2_before_any_work(command, problem, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     sim, dp, sil = _scenarios(tmp_path)
     afile = tmp_path / "afile"
     afile.write_text("not a folder")
-    file_out = command in ("sil", "export --csv", "export --las", "export-fmu")
+    file_out = command in ("sil", "export --csv", "export --las", "export-fmu", "bench",
+                           "bench-report")
     if problem == "existing file":
         if file_out:
             out = tmp_path / "adir"  # a folder where a file is expected
@@ -325,8 +327,8 @@ def test_bad_out_exits_2_before_any_work(command, problem, tmp_path, capsys, mon
     elif problem == "under a file":
         out = afile / "run"
     else:
-        if not file_out:
-            pytest.skip("an output folder is created with its parents")
+        if not file_out or command.startswith("bench"):
+            pytest.skip("created with its missing parent folders")
         out = tmp_path / "nodir" / "run.out"
     res = tmp_path / "r.nc"
     Result(np.arange(3.0), {"bit_angular_velocity": np.ones(3)}).save(res)
@@ -339,6 +341,9 @@ def test_bad_out_exits_2_before_any_work(command, problem, tmp_path, capsys, mon
         "reproduce": ["reproduce", "fig2.3", "--quick", "--jobs", "1", "--out", out],
         "sil": ["sil", sil, "--unpaced", "--out", out],
         "design eid": ["design", "eid", ROOT / "examples" / "eid_nominal.toml", "--out", out],
+        "design dhp": ["design", "dhp", ROOT / "examples" / "dhp_lumped.toml", "--out", out],
+        "bench": ["bench", "--quick", "--out", out],
+        "bench-report": ["bench-report", res, "--out", out],
         "export --csv": ["export", res, "--csv", out],
         "export --las": ["export", res, "--las", out],
         "export-fmu": ["export-fmu", sil, "--out", out],
