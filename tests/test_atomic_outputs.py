@@ -50,8 +50,9 @@ angular_velocity = "10 rad/s"
 [simulation]
 duration = "{duration}"
 dt = "0.5 ms"
-record_dt = "10 ms"
+record_dt = "{record_dt}"
 """
+LONG = "100000 s"  # hours of simulated time: the kill comes long before the end
 
 DP = """
 horizon = 5.0
@@ -298,7 +299,7 @@ def test_check_output_path_errors(case, tmp_path):
 # ------------------------------------------------------------------------------- bad --out
 def _scenarios(tmp_path):
     sim = tmp_path / "sim.toml"
-    sim.write_text(SIM.format(title="new", duration="1 s"))
+    sim.write_text(SIM.format(title="new", duration="1 s", record_dt="10 ms"))
     dp = tmp_path / "dp.toml"
     dp.write_text(DP)
     sil = tmp_path / "sil.toml"
@@ -365,7 +366,7 @@ def test_simulate_killed_mid_run_leaves_no_stale_result(tmp_path, procs):
     out = tmp_path / "run"
     old_result(out)
     scen = tmp_path / "long.toml"
-    scen.write_text(SIM.format(title="NEW RUN", duration="100000 s"))
+    scen.write_text(SIM.format(title="NEW RUN", duration=LONG, record_dt="1 s"))
     p = start(procs, ["simulate", scen, "--out", out], tmp_path)
     p.wait_for("the run to start", lambda: marked_and_cleared(out))
     time.sleep(0.5)  # well into the simulation (it runs for hours)
@@ -378,7 +379,7 @@ def test_simulate_sigterm_mid_write_leaves_only_loadable_files_of_the_new_run(tm
     out = tmp_path / "run"
     old_result(out)
     scen = tmp_path / "s.toml"
-    scen.write_text(SIM.format(title="NEW RUN", duration="2 s"))
+    scen.write_text(SIM.format(title="NEW RUN", duration="2 s", record_dt="10 ms"))
     p = start(procs, ["simulate", scen, "--out", out], tmp_path, pause("summary.json"))
     p.wait_for_pause("summary.json")
     assert p.signal(signal.SIGTERM) != 0
@@ -391,7 +392,7 @@ def test_simulate_kill9_mid_rename_then_a_rerun_completes(tmp_path, procs):
     out = tmp_path / "run"
     old_result(out)
     scen = tmp_path / "s.toml"
-    scen.write_text(SIM.format(title="NEW RUN", duration="2 s"))
+    scen.write_text(SIM.format(title="NEW RUN", duration="2 s", record_dt="10 ms"))
     p = start(procs, ["simulate", scen, "--out", out], tmp_path, pause("result.nc"))
     p.wait_for_pause("result.nc")
     p.signal(signal.SIGKILL)
@@ -473,13 +474,14 @@ def test_load_solution_refuses_a_pair_from_two_saves(tmp_path):
 # ------------------------------------------------------------------------------- sweep
 def _sweep(tmp_path, duration="1 s"):
     scen = tmp_path / "s.toml"
-    scen.write_text(SIM.format(title="sweep", duration="1 s"))
+    scen.write_text(SIM.format(title="sweep", duration="1 s", record_dt="10 ms"))
     out = tmp_path / "sweep"
     argv = ["sweep", scen, "--param", "surface.angular_velocity=5:10:2", "--metric", "mean_wob",
             "--processes", "1", "--no-plots", "--out", out]
     assert main([str(a) for a in argv]) == 0  # the previous run's results
     assert sorted(os.listdir(out)) == ["failed.json", "sweep.nc"]
-    scen.write_text(SIM.format(title="sweep", duration=duration))
+    scen.write_text(SIM.format(title="sweep", duration=duration,
+                               record_dt="1 s" if duration == LONG else "10 ms"))
     return out, argv
 
 
@@ -492,7 +494,7 @@ def test_sweep_sigterm_mid_write_leaves_nothing_stale(tmp_path, procs):
 
 
 def test_sweep_kill9_mid_run_leaves_nothing_stale(tmp_path, procs):
-    out, argv = _sweep(tmp_path, duration="100000 s")
+    out, argv = _sweep(tmp_path, duration=LONG)
     p = start(procs, argv, tmp_path)
     p.wait_for("the run to start", lambda: marked_and_cleared(out))
     time.sleep(0.5)
@@ -582,21 +584,27 @@ def test_sil_sigterm_writes_the_rows_recorded_so_far(tmp_path, procs):
     Result(np.arange(3.0), {"bit_angular_velocity": np.ones(3)}).save(out)  # previous result
     chunks = tmp_path / "chunks"
     scen = tmp_path / "sil.toml"
-    scen.write_text(SIL.format(duration="600 s", extra=f'chunk_dir = "{chunks}"'))
-    p = start(procs, ["sil", scen, "--out", out], tmp_path)
-    p.wait_for("the run to start", lambda: (tmp_path / "run.nc.INCOMPLETE").exists())
-    assert not out.exists()  # the previous result went when the run started
-    time.sleep(1.5)  # paced: about 150 recorded rows once the loop runs
+    scen.write_text(SIL.format(duration="600 s", extra=f'record_dt = "2 ms"\n'
+                               f'ring_seconds = "600 s"\nchunk_dir = "{chunks}"')
+                    .replace('record_dt = "10 ms"\n', ""))
+    p = start(procs, ["sil", scen, "--unpaced", "--out", out], tmp_path)
+    # the previous result goes when the run starts, after the marker is written
+    p.wait_for("the run to start", lambda: (tmp_path / "run.nc.INCOMPLETE").exists()
+               and not out.exists())
+    # the loop runs: its first chunk of 10 000 rows is on disk
+    p.wait_for("the first chunk", lambda: (chunks / "chunk_000001.npz").exists())
     rc = p.signal(signal.SIGTERM)
     assert rc == 128 + signal.SIGTERM, "".join(p.lines)
     res = load_result(out)
     assert res.attrs["stopped_by"] == "SIGTERM"
     n = res.time.size
-    assert n >= 2 and 0 < res.time[-1] < 600
-    np.testing.assert_allclose(np.diff(res.time), 0.01, rtol=1e-6)
+    assert 10_000 < n and 20.0 < res.time[-1] < 600
+    np.testing.assert_allclose(np.diff(res.time), 0.002, rtol=1e-6)
     assert not (tmp_path / "run.nc.INCOMPLETE").exists()
     # the chunk files hold every row (the partial chunk was flushed) and are marked complete
     full = load_chunks(chunks)
+    assert sorted(q.name for q in chunks.glob("chunk_*.npz")) == ["chunk_000001.npz",
+                                                                  "chunk_000002.npz"]
     assert full.time.size == n and "incomplete" not in full.attrs
     np.testing.assert_array_equal(full.time, res.time)
 
