@@ -637,7 +637,7 @@ def test_sil_sigterm_while_waiting_for_the_controller_writes_nothing(tmp_path, p
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "sil.toml"]
 
 
-def test_sil_killed_mid_run_or_mid_write_leaves_no_stale_result(tmp_path, procs):
+def test_sil_kill9_mid_write_leaves_no_stale_result(tmp_path, procs):
     from downhole.sil import load_chunks
 
     out = tmp_path / "run.nc"
@@ -650,11 +650,19 @@ def test_sil_killed_mid_run_or_mid_write_leaves_no_stale_result(tmp_path, procs)
     p.signal(signal.SIGKILL)
     assert not out.exists() and (tmp_path / "run.nc.INCOMPLETE").exists()
     assert load_chunks(chunks).time.size == 51  # chunks written atomically before the result
-    # kill -9 mid-run: no result, chunks on disk load and say the run is incomplete
+
+
+def test_sil_kill9_mid_run_leaves_no_stale_result_and_no_stale_chunks(tmp_path, procs):
+    out = tmp_path / "run.nc"
+    out.write_text("previous result")
+    chunks = tmp_path / "chunks"
+    chunks.mkdir()
+    (chunks / "chunk_000001.npz").write_text("a chunk of the previous run")
+    scen = tmp_path / "sil.toml"
     scen.write_text(SIL.format(duration="600 s", extra=f'chunk_dir = "{chunks}"'))
     p = start(procs, ["sil", scen, "--out", out], tmp_path)
-    p.wait_for("the run to start", lambda: not list(chunks.glob("chunk_*.npz"))
-               and not any(n.startswith(".run.part-") for n in os.listdir(tmp_path)))
+    p.wait_for("the run to start", lambda: (tmp_path / "run.nc.INCOMPLETE").exists()
+               and not out.exists())
     time.sleep(1.0)
     p.signal(signal.SIGKILL)
     assert not out.exists() and (tmp_path / "run.nc.INCOMPLETE").exists()
