@@ -9,16 +9,18 @@ complete file; a failed write leaves only the (removed, or after ``kill -9`` sta
 
 A command that writes a *set* of files that belong together (``result.nc`` + ``summary.json`` +
 ``overview.png``; ``solution.npz`` + ``solution.json``; ...) uses :class:`OutputFolder`: before
-the work starts it writes an ``INCOMPLETE`` marker into the folder and removes the previous run's
-files of that set (and stale temporaries); each file is then written atomically and the marker is
-removed only when the whole set is written. A killed or failed run thus leaves the marker, some
-complete files of the new run at most, and never the previous run's files looking fresh or mixed
-with the new ones. :class:`OutputFile` does the same for a single ``--out FILE`` with a
-``FILE.INCOMPLETE`` marker beside it.
+the work starts it writes an ``INCOMPLETE`` marker into an existing output folder and removes the
+previous run's files of that set (and stale temporaries); a folder that does not exist is
+created, with the marker, only when the first file is written. Each file is written atomically
+and the marker is removed only when the whole set is written. A killed or failed run thus leaves
+the marker, some complete files of the new run at most, and never the previous run's files
+looking fresh or mixed with the new ones. :class:`OutputFile` does the same for a single
+``--out FILE`` with a ``FILE.INCOMPLETE`` marker beside it.
 
-:func:`check_output_path` finds ``--out`` problems (an existing file where a folder is expected,
-a path under a file, a missing parent folder, a folder that is not writable) before a command
-does any work, as a :class:`~downhole.errors.DownholeInputError` (one line, exit code 2).
+:func:`check_output_path` finds ``--out`` problems (an existing file where a folder is expected
+or a folder where a file is, a path under a file, a missing parent folder of an output file, a
+folder that is not writable) before a command does any work, as a
+:class:`~downhole.errors.DownholeInputError` (one line, exit code 2).
 
 Test hook: with ``DOWNHOLE_TEST_PAUSE_BEFORE_RENAME=SECONDS`` (or ``NAME:SECONDS``, only for the
 final file name ``NAME``) the writer prints ``downhole-test: paused before rename <final>`` on
