@@ -11,6 +11,11 @@ fsync of a temporary file and its rename), and checks that
 
 The bad ``--out`` cases run in-process: exit code 2, one line naming the option and the path,
 nothing printed on standard output (no work started) and nothing created.
+
+The fast suite kills each command once (simulate twice: kill -9 mid-run, SIGTERM mid-write) and
+SIGTERMs a SIL run; the other kill cases (every command both ways, reruns after a kill, SIGTERM
+of ``sil`` while writing or waiting) are marked slow (``make test-slow``): each subprocess costs
+seconds on 2 shared cores.
 """
 
 from __future__ import annotations
@@ -388,6 +393,7 @@ def test_simulate_sigterm_mid_write_leaves_only_loadable_files_of_the_new_run(tm
     assert "NEW RUN" in load_result(out / "result.nc").attrs["scenario"]
 
 
+@pytest.mark.slow
 def test_simulate_kill9_mid_rename_then_a_rerun_completes(tmp_path, procs):
     out = tmp_path / "run"
     old_result(out)
@@ -433,6 +439,7 @@ def test_optimize_dp_sigterm_between_the_pair_renames(tmp_path, procs):
         load_solution(out)
 
 
+@pytest.mark.slow
 def test_optimize_dp_kill9_mid_run_leaves_no_stale_pair(tmp_path, procs):
     out, argv, _ = _dp(tmp_path)
     big = tmp_path / "big.toml"  # a search of many seconds
@@ -445,6 +452,7 @@ def test_optimize_dp_kill9_mid_run_leaves_no_stale_pair(tmp_path, procs):
     assert is_incomplete(out) and final_files(out) == []
 
 
+@pytest.mark.slow
 def test_optimize_dp_kill9_mid_write_then_a_rerun_completes(tmp_path, procs):
     from downhole.control.dp import load_solution
 
@@ -485,6 +493,7 @@ def _sweep(tmp_path, duration="1 s"):
     return out, argv
 
 
+@pytest.mark.slow
 def test_sweep_sigterm_mid_write_leaves_nothing_stale(tmp_path, procs):
     out, argv = _sweep(tmp_path)
     p = start(procs, argv, tmp_path, pause("sweep.nc"))
@@ -538,6 +547,7 @@ def test_reproduce_kill9_mid_run_leaves_no_old_claim(tmp_path, procs, plugin_env
     assert not (out / "index.html").exists()
 
 
+@pytest.mark.slow
 def test_reproduce_sigterm_mid_write_then_a_rerun_publishes_one_run(tmp_path, procs,
                                                                       plugin_env):
     out, exp, argv = _reproduce(tmp_path)
@@ -609,6 +619,7 @@ def test_sil_sigterm_writes_the_rows_recorded_so_far(tmp_path, procs):
     np.testing.assert_array_equal(full.time, res.time)
 
 
+@pytest.mark.slow
 def test_sil_sigterm_while_writing_still_writes_the_result(tmp_path, procs):
     out = tmp_path / "run.nc"
     scen = tmp_path / "sil.toml"
@@ -622,6 +633,7 @@ def test_sil_sigterm_while_writing_still_writes_the_result(tmp_path, procs):
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "sil.toml"]
 
 
+@pytest.mark.slow
 def test_sil_sigterm_while_waiting_for_the_controller_writes_nothing(tmp_path, procs):
     from downhole.sil.testing import free_port
 
@@ -637,6 +649,7 @@ def test_sil_sigterm_while_waiting_for_the_controller_writes_nothing(tmp_path, p
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "sil.toml"]
 
 
+@pytest.mark.slow
 def test_sil_kill9_mid_write_leaves_no_stale_result(tmp_path, procs):
     from downhole.sil import load_chunks
 
@@ -652,6 +665,7 @@ def test_sil_kill9_mid_write_leaves_no_stale_result(tmp_path, procs):
     assert load_chunks(chunks).time.size == 51  # chunks written atomically before the result
 
 
+@pytest.mark.slow
 def test_sil_kill9_mid_run_leaves_no_stale_result_and_no_stale_chunks(tmp_path, procs):
     out = tmp_path / "run.nc"
     out.write_text("previous result")
