@@ -122,42 +122,47 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
     stopper = _StopOnSignal(runner).install()
     out_file = OutputFile(out, "sil") if out is not None else None
     try:
-        try:
-            if use_link:
-                h, p = runner.link.address
-                typer.echo(f"plant listening on udp://{h}:{p}; waiting for the "
-                           f"{'rig' if hil else 'controller'}...", err=True)
-                if not runner.wait_for_controller(sc.link.connect_timeout):
-                    fail(f"no controller connected within {sc.link.connect_timeout:g} s")
-            if out_file is not None:
-                out_file.begin()  # the previous result goes now: a killed run leaves none
-            stopper.phase = "running"
-            if dashboard:
-                from downhole.sil.dashboard import serve_dashboard
+        if use_link:
+            h, p = runner.link.address
+            typer.echo(f"plant listening on udp://{h}:{p}; waiting for the "
+                       f"{'rig' if hil else 'controller'}...", err=True)
+            if not runner.wait_for_controller(sc.link.connect_timeout):
+                fail(f"no controller connected within {sc.link.connect_timeout:g} s")
+        if out_file is not None:
+            out_file.begin()  # the previous result goes now: a killed run leaves none
+        stopper.phase = "running"
+        if dashboard:
+            from downhole.sil.dashboard import serve_dashboard
 
-                serve_dashboard(runner, host=sc.dashboard.host, port=sc.dashboard.port,
-                                token=sc.dashboard.token, duration=dur,
-                                publish_hz=sc.dashboard.publish_hz)
-                res = runner.result()
-            else:
-                res = runner.run(dur)
-            stopper.phase = "writing"
-        except _Interrupted as exc:
-            name = signal.Signals(exc.args[0]).name
-            typer.echo(f"error: {name} before the run started; nothing recorded or written",
-                       err=True)
-            raise typer.Exit(128 + exc.args[0]) from None
-        except Exception as exc:
-            if out_file is not None and out_file.marker.exists():
-                out_file.fail(f"{type(exc).__name__}: {exc}")
-            raise
-        finally:
-            stopper.phase = "writing"
-            runner.close()
-            runner.recorder.finish()
-        typer.echo(json.dumps({"stats": runner.stats, "scheduler": runner.scheduler,
-                               "link": runner.link.counters if runner.link else None,
-                               "events": runner.event_count}, indent=1))
+            serve_dashboard(runner, host=sc.dashboard.host, port=sc.dashboard.port,
+                            token=sc.dashboard.token, duration=dur,
+                            publish_hz=sc.dashboard.publish_hz)
+            res = runner.result()
+        else:
+            res = runner.run(dur)
+    except _Interrupted as exc:
+        stopper.restore()
+        typer.echo(f"error: {signal.Signals(exc.args[0]).name} before the run started; nothing "
+                   "recorded or written", err=True)
+        raise typer.Exit(128 + exc.args[0]) from None
+    except BaseException as exc:
+        stopper.restore()
+        if out_file is not None and out_file.marker.exists():
+            out_file.fail(f"{type(exc).__name__}: {exc}")
+        raise
+    finally:
+        stopper.phase = "writing"  # a signal from now on is acted on once the result is written
+        runner.close()
+        runner.recorder.finish()
+    typer.echo(json.dumps({"stats": runner.stats, "scheduler": runner.scheduler,
+                           "link": runner.link.counters if runner.link else None,
+                           "events": runner.event_count}, indent=1))
+    _write_sil_result(res, out, out_file, stopper)
+
+
+def _write_sil_result(res, out, out_file, stopper) -> None:
+    """Write ``--out`` (the handlers still installed), then act on a signal that came."""
+    try:
         if stopper.stopped_run:
             res.dataset.attrs["stopped_by"] = signal.Signals(stopper.signum).name
         if out_file is not None:
@@ -168,7 +173,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         stopper.restore()
     if stopper.signum is not None:
         typer.echo(f"stopped by {signal.Signals(stopper.signum).name} after "
-                   f"{runner.stats.get('sim_s', 0.0):g} s simulated", err=True)
+                   f"{stopper.runner.stats.get('sim_s', 0.0):g} s simulated", err=True)
         raise typer.Exit(128 + stopper.signum)
 
 
