@@ -405,9 +405,26 @@ def design_dhp_cmd(scenario: Path = typer.Argument(..., help="DHP design scenari
                    progress: bool = typer.Option(True, "--progress/--no-progress",
                                                  help="progress bar while training")):
     """Train a DHP (single-network adaptive critic) controller; optionally simulate it."""
+    from downhole._atomic import OutputFolder, check_output_path
+
+    check_output_path(out, kind="folder")
     sc = load_dhp_scenario(scenario)
-    out.mkdir(parents=True, exist_ok=True)
+    folder = OutputFolder(out, ("dhp_controller.npz", "dhp_controller.json", "closed_loop.nc",
+                                "closed_loop.png", "report.json"), "design dhp").begin()
+    try:
+        _design_and_write(folder, scenario, sc, progress)
+    except BaseException as exc:
+        folder.fail(f"{type(exc).__name__}: {exc}")
+        raise
+    folder.commit()
+
+
+def _design_and_write(folder, scenario, sc, progress) -> None:
+    from downhole._atomic import write_text_atomic
+
+    out = folder.path
     ctrl = design_from_scenario(sc, progress=progress)
+    folder.writing()
     npz, js = ctrl.save(out / "dhp_controller")
     tr = ctrl.training
     report = {"scenario": str(scenario), "model": sc["model"].name,
@@ -426,7 +443,7 @@ def design_dhp_cmd(scenario: Path = typer.Argument(..., help="DHP design scenari
         window = (min(5.0, 0.5 * sc["simulation"]["duration"]), sc["simulation"]["duration"])
         report["simulation"] = {**sc["simulation"], "window": list(window),
                                 "summary": res.summary(window)}
-    (out / "report.json").write_text(json.dumps(report, indent=2, default=float))
+    write_text_atomic(out / "report.json", json.dumps(report, indent=2, default=float))
     typer.echo(f"trained {sc['model'].name} over {ctrl.horizon:g} s in {tr.seconds:.2f} s "
                f"({tr.method}); controller: {npz}")
     if "plan" in report:

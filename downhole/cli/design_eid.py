@@ -17,6 +17,7 @@ from pathlib import Path
 
 import typer
 
+from downhole._atomic import OutputFolder, atomic_path, check_output_path, write_text_atomic
 from downhole.cli.design import design_app
 from downhole.errors import ScenarioError
 
@@ -46,24 +47,41 @@ def load_eid_scenario(path: Path):
 def design_eid_cmd(scenario: Path = typer.Argument(..., help="EID design scenario (TOML)"),
                    out: Path = typer.Option(Path("out/eid"), "--out", help="output directory")):
     """Synthesize EID gains by LMI and check the closed loop with the input delay."""
+    check_output_path(out, kind="folder")
+    model, kw, ref = load_eid_scenario(scenario)
+    folder = OutputFolder(out, EID_FILES, "design eid").begin()
+    try:
+        _design_and_write(folder, scenario, model, kw, ref)
+    except BaseException as exc:
+        folder.fail(f"{type(exc).__name__}: {exc}")
+        raise
+    folder.commit()
+
+
+#: What ``design eid`` writes into its folder (the previous run's are removed first).
+EID_FILES = ("eid_gains.npz", "eid_controller.json", "roots.png", "report.md")
+
+
+def _design_and_write(folder, scenario, model, kw, ref):
     from downhole.control.eid import design_eid
     from downhole.control.eid.stability import closed_loop_stability, plot_roots
 
-    model, kw, ref = load_eid_scenario(scenario)
+    out = folder.path
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         ctrl = design_eid(model, reference=ref, **kw)
-    out.mkdir(parents=True, exist_ok=True)
+    folder.writing()
     ctrl.save(out)
     stab = closed_loop_stability(ctrl, model)
-    plot_roots(stab, out / "roots.png")
+    with atomic_path(out / "roots.png") as tmp:
+        plot_roots(stab, tmp)
     lines = ["# EID design report", "", f"scenario: {scenario}", ""]
     for g, r in zip(ctrl.gains, ctrl.reports):
         lines.append(f"- {r.channel}: Kp = {g.kp:.6g}, K_R = {g.kr:.6g}, L = {g.l:.6g}, "
                      f"B_R = {g.br:.6g}, F(s) = {g.bf:.6g}/(s + {g.bf:.6g}); LMI max eigenvalue "
                      f"{r.lmi_max_eigenvalue:.3e} (size {r.size}, {r.solve_seconds:.3f} s)")
     lines += ["", f"closed loop with input delay: {json.dumps(stab.to_dict())}", ""]
-    (out / "report.md").write_text("\n".join(lines))
+    write_text_atomic(out / "report.md", "\n".join(lines))
     typer.echo("\n".join(lines))
     if not stab.stable:
         typer.echo("warning: the closed loop with the input delay is NOT stable", err=True)

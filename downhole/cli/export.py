@@ -8,6 +8,7 @@ from typing import List, Optional
 import typer
 from rich.console import Console
 
+from downhole._atomic import atomic_path, check_output_path
 from downhole.cli import app, fail
 
 console = Console()
@@ -30,6 +31,9 @@ def export(
 
     if csv is None and las is None:
         fail("nothing to do: give --csv FILE and/or --las FILE")
+    for option, path in (("--csv", csv), ("--las", las)):
+        if path is not None:
+            check_output_path(path, option=option, kind="file")
     if not result.is_file():
         raise DownholeInputError(f"{result}: file not found")
     try:
@@ -44,20 +48,16 @@ def export(
                                      "dimension) nor a sweep dataset")
         if las is not None:
             raise DownholeInputError("a sweep dataset has no time axis: export it with --csv")
-        tmp = csv.with_name(csv.name + ".part")
-        ds.to_dataframe().to_csv(tmp)
-        tmp.replace(csv)
+        with atomic_path(csv) as tmp:
+            ds.to_dataframe().to_csv(tmp)
         console.print(f"written {csv} ({ds.attrs.get('n_cases', '?')} cases)")
         return
-    from downhole.io import write_las
     from downhole.sim.result import Result
 
     res = Result.from_dataset(ds)
     if csv is not None:
-        tmp = csv.with_name(csv.name + ".part")
-        res.to_csv(tmp)
-        tmp.replace(csv)
+        res.to_csv(csv)  # atomic (temporary file, fsync, rename)
         console.print(f"written {csv}")
     if las is not None:
-        write_las(res, las, well=well, channels=channel or None)
+        res.to_las(las, well=well, channels=channel or None)  # atomic
         console.print(f"written {las}")

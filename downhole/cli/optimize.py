@@ -11,9 +11,13 @@ from pathlib import Path
 
 import typer
 
+from downhole._atomic import OutputFolder, atomic_path, check_output_path
 from downhole.cli import app
 
 __all__ = ["optimize_app"]
+
+#: The files ``optimize dp`` writes into its folder (removed before a new run into it).
+SOLUTION_FILES = ("solution.npz", "solution.json", "solution.png")
 
 optimize_app = typer.Typer(no_args_is_help=True,
                            help="Optimize drilling inputs (dynamic programming).")
@@ -44,15 +48,18 @@ def dp(
     if method not in METHODS:
         # raised (not fail()): main() maps it to exit code 2
         raise DownholeInputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    check_output_path(out, kind="folder")
     problem = load_problem(scenario)
     kwargs = {"regions": regions} if method == "customized" and regions is not None else {}
-    sol = solve(problem, method, progress=progress, **kwargs)
-    sol.info["scenario"] = str(scenario)
-    if replay and sol.on_grid:
-        r = replay_path(sol, dt=problem.step / max(1, round(problem.step / 2.5e-3)))
-        sol.info["replayed_cost"] = trajectory_cost(problem, r["x2"], r["x4"])
-    sol.save(out)
-    _plot(sol, out / "solution.png")
+    with OutputFolder(out, SOLUTION_FILES, "optimize dp") as folder:
+        sol = solve(problem, method, progress=progress, **kwargs)
+        sol.info["scenario"] = str(scenario)
+        if replay and sol.on_grid:
+            r = replay_path(sol, dt=problem.step / max(1, round(problem.step / 2.5e-3)))
+            sol.info["replayed_cost"] = trajectory_cost(problem, r["x2"], r["x4"])
+        folder.writing()
+        sol.save(out)
+        _plot(sol, out / "solution.png")
     console = Console()
     table = Table("quantity", "value")
     table.add_row("method", method)
@@ -85,5 +92,6 @@ def _plot(sol, path: Path) -> None:
         a.set_xlabel("time (s)")
     fig.suptitle(f"{sol.method} DP, cost {sol.cost:.4g}")
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=90)
     plt.close(fig)

@@ -10,6 +10,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from downhole._atomic import check_output_path, write_text_atomic
 from downhole.cli import app, fail
 
 console = Console()
@@ -69,6 +70,7 @@ def reproduce(
         fail(f"--jobs must be at least 1, got {jobs}")
     for eid in ids:
         get_experiment(eid)  # validate all ids before running anything
+    check_output_path(out, kind="folder")
     with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
                   MofNCompleteColumn(), TimeElapsedColumn(), console=console) as progress:
         task = progress.add_task("experiments", total=len(ids))
@@ -125,6 +127,7 @@ def bench(
     from downhole.bench import all_cases, run_bench
     from downhole.report import machine_description
 
+    check_output_path(out, kind="file", parents=True)
     cases = all_cases()
     known = {c.name for c in cases}
     unknown = [c for c in (case or []) if c not in known]
@@ -158,9 +161,7 @@ def bench(
                     "command": " ".join(argv),
                     "wall_seconds": round(time.perf_counter() - t_start, 1)}}
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".part")
-    tmp.write_text(json.dumps(full, indent=2))
-    tmp.replace(out)
+    write_text_atomic(out, json.dumps(full, indent=2))
     table = Table("case", "seconds", "baseline", "x baseline", "seed s", "x seed")
     for r in rows:
         if r.get("error"):
@@ -183,6 +184,7 @@ def bench_report(
     from downhole.errors import DownholeInputError
     from downhole.report import bench_markdown
 
+    check_output_path(out, kind="file", parents=True)
     try:
         data = json.loads(report.read_text())
     except OSError as exc:
@@ -193,7 +195,5 @@ def bench_report(
         raise DownholeInputError(f"{report}: expected a `downhole bench` report with a 'cases' "
                                  "list")
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".part")
-    tmp.write_text(bench_markdown(data, source=str(report)))
-    tmp.replace(out)
+    write_text_atomic(out, bench_markdown(data, source=str(report)))
     console.print(f"written {out} ({len(data['cases'])} cases)")

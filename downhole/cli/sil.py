@@ -11,16 +11,26 @@
 
 A Python controller file is code: both commands run one only with ``--allow-code``. Every long
 phase (design, waiting, running) shows progress on stderr (``--no-progress`` to silence it).
+
+``downhole sil`` checks ``--out`` and ``[runtime] chunk_dir`` before it builds anything. SIGINT
+and SIGTERM end a running loop after the current step: the recording is flushed, ``--out`` is
+written with the rows recorded so far (attribute ``stopped_by``) and the command exits with
+128 + the signal number. A signal while waiting for the controller ends the command with
+nothing written; one while the result is written is acted on once it is written.
 """
 
 from __future__ import annotations
 
 import json
+import signal
+import threading
+import time
 from pathlib import Path
 from typing import Optional
 
 import typer
 
+from downhole._atomic import OutputFile, check_output_path
 from downhole.cli import app, fail
 
 __all__ = ["sil", "sil_controller", "export_fmu"]
@@ -41,6 +51,55 @@ def _design_note(sc, what: str) -> None:
         typer.echo(f"{what}: designing the DHP controller ({d.samples} samples, horizon "
                    f"{d.horizon:g} s, weights {d.weights}); this can take a minute or more",
                    err=True)
+
+
+class _Interrupted(Exception):
+    """A stop signal arrived before the real-time loop started."""
+
+
+class _StopOnSignal:
+    """SIGINT/SIGTERM handler of ``downhole sil``: stop the loop, never lose the recording.
+
+    ``phase`` is ``"waiting"`` (before the loop: raise :class:`_Interrupted`), ``"running"``
+    (ask the runner to stop after the current step) or ``"writing"`` (remember the signal and
+    let the result be written).
+    """
+
+    def __init__(self, runner):
+        self.runner = runner
+        self.signum: int | None = None
+        self.stopped_run = False  # the signal ended the loop early
+        self.phase = "waiting"
+        self._previous: dict = {}
+
+    def install(self) -> "_StopOnSignal":
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self)
+        return self
+
+    def restore(self) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous.clear()
+
+    def __call__(self, signum, frame) -> None:
+        first = self.signum is None
+        if first:
+            self.signum = signum
+        if self.phase == "waiting":
+            if first:
+                raise _Interrupted(signum)
+        elif self.phase == "running":
+            self.stopped_run = True
+            self.runner.stop()
+            if not self.runner.running:  # still warming up: stop as soon as the loop starts
+                threading.Thread(target=self._stop_when_running, daemon=True).start()
+
+    def _stop_when_running(self) -> None:
+        while self.phase == "running" and not self.runner.running:
+            time.sleep(0.005)
+        self.runner.stop()
 
 
 @app.command("sil")
@@ -77,6 +136,12 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         sc.controller.remote = True
     if port is not None:
         sc.link.port = port
+    rtc = sc.runtime
+    # output paths first: a bad --out must not cost a controller design and a whole run
+    if out is not None:
+        check_output_path(out, kind="file")
+    if rtc.chunk_dir is not None:
+        check_output_path(rtc.chunk_dir, option=f"{scenario}: runtime.chunk_dir", kind="folder")
     cfile = str(controller) if controller else None
     token = None
     if dashboard:  # refuse bad dashboard settings now, not after the design and the wait
@@ -91,7 +156,6 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
             _design_note(sc, "plant")
     plant, ctrl = build_from_scenario(sc, controller_file=cfile, allow_code=allow_code,
                                       progress=progress)
-    rtc = sc.runtime
     hil = sc.link.mode == "hil"
     use_link = sc.controller.remote or hil
     every = max(1, int(round(rtc.record_dt / rtc.dt)))
@@ -106,6 +170,8 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         realtime=rtc.realtime, link_key_file=link_key_file)
     dur = duration if duration is not None else rtc.duration
     patience = wait if wait is not None else sc.link.connect_timeout
+    stopper = _StopOnSignal(runner).install()
+    out_file = OutputFile(out, "sil") if out is not None else None
     try:
         if use_link:
             h, p = runner.link.address
@@ -114,17 +180,17 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                    + ("" if port is None else f" --port {p}"))
             typer.echo(f"plant listening on udp://{h}:{p}; start the {peer} now, e.g. "
                        f"`downhole sil-controller {how}`", err=True)
-            try:
-                if progress:
-                    ok = wait_with_countdown(runner.wait_for_controller, patience,
-                                             what=f"the {peer} on udp://{h}:{p}")
-                else:
-                    ok = runner.wait_for_controller(patience)
-            except KeyboardInterrupt:
-                fail(f"interrupted while waiting for the {peer}", code=130)
+            if progress:
+                ok = wait_with_countdown(runner.wait_for_controller, patience,
+                                         what=f"the {peer} on udp://{h}:{p}")
+            else:
+                ok = runner.wait_for_controller(patience)
             if not ok:
                 fail(f"no {peer} answered on udp://{h}:{p} within {patience:g} s "
                      "([link] connect_timeout or --wait)")
+        if out_file is not None:
+            out_file.begin()  # the previous result goes now: a killed run leaves none
+        stopper.phase = "running"
         if dashboard:
             from downhole.sil.dashboard import serve_dashboard
 
@@ -140,14 +206,41 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                 res = runner.run(dur)
         else:
             res = runner.run(dur)
+    except _Interrupted as exc:
+        stopper.restore()
+        typer.echo(f"error: {signal.Signals(exc.args[0]).name} before the run started; nothing "
+                   "recorded or written", err=True)
+        raise typer.Exit(128 + exc.args[0]) from None
+    except BaseException as exc:
+        stopper.restore()
+        if out_file is not None and out_file.marker.exists():
+            out_file.fail(f"{type(exc).__name__}: {exc}")
+        raise
     finally:
+        stopper.phase = "writing"  # a signal from now on is acted on once the result is written
         runner.close()
+        runner.recorder.finish()
     typer.echo(json.dumps({"stats": runner.stats, "scheduler": runner.scheduler,
                            "link": runner.link.counters if runner.link else None,
                            "events": runner.event_count}, indent=1))
-    if out is not None:
-        res.save(out)
-        typer.echo(f"wrote {out}", err=True)
+    _write_sil_result(res, out, out_file, stopper)
+
+
+def _write_sil_result(res, out, out_file, stopper) -> None:
+    """Write ``--out`` (the handlers still installed), then act on a signal that came."""
+    try:
+        if stopper.stopped_run:
+            res.dataset.attrs["stopped_by"] = signal.Signals(stopper.signum).name
+        if out_file is not None:
+            res.save(out)
+            out_file.commit()
+            typer.echo(f"wrote {out}", err=True)
+    finally:
+        stopper.restore()
+    if stopper.signum is not None:
+        typer.echo(f"stopped by {signal.Signals(stopper.signum).name} after "
+                   f"{stopper.runner.stats.get('sim_s', 0.0):g} s simulated", err=True)
+        raise typer.Exit(128 + stopper.signum)
 
 
 def _reference_limits(sc) -> dict:
@@ -277,5 +370,6 @@ def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML"),
     """Build an FMI 2.0 co-simulation FMU of the scenario's plant (pythonfmu)."""
     from downhole.sil.fmu import export_fmu as _export
 
+    check_output_path(out, kind="file")
     path = _export(scenario, out)
     typer.echo(f"wrote {path}")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -10,24 +9,32 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from downhole._atomic import OutputFolder, check_output_path, write_json_atomic
 from downhole.cli import app
 
 console = Console()
 
 
+#: The files ``simulate`` (and each ``demo`` case) writes into its folder.
+RUN_FILES = ("result.nc", "summary.json", "overview.png")
+
+
 def write_run(result, out: Path, title: str = "") -> dict:
-    """Write ``result.nc``, ``summary.json`` and ``overview.png`` into ``out`` (atomically per
-    file, the folder created only now that the run succeeded). Returns the summary."""
+    """Write ``result.nc``, ``summary.json`` and ``overview.png`` into ``out``; returns the
+    summary.
+
+    Each file is written atomically. The three belong together: call this inside an
+    :class:`~downhole._atomic.OutputFolder` of ``out`` (as ``simulate`` and ``demo`` do), which
+    removed the previous run's three before the run and keeps the folder marked ``INCOMPLETE``
+    until the last one is written.
+    """
     summary = result.summary()
     out.mkdir(parents=True, exist_ok=True)
     result.save(out / "result.nc")
-    tmp = out / "summary.json.part"
-    tmp.write_text(json.dumps({k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                               for k, v in summary.items()}, indent=2))
-    tmp.replace(out / "summary.json")
-    png = out / "overview.part.png"
-    result.plot(png, title=title or None)
-    png.replace(out / "overview.png")
+    write_json_atomic(out / "summary.json",
+                      {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                       for k, v in summary.items()})
+    result.plot(out / "overview.png", title=title or None)
     return summary
 
 
@@ -53,10 +60,13 @@ def simulate(
     """Run a scenario; write OUT/result.nc, OUT/summary.json and OUT/overview.png."""
     from downhole.scenario import load_scenario, run_scenario
 
+    check_output_path(out, kind="folder")
     data, source, _ = load_scenario(scenario)
-    with console.status(f"simulating {scenario}"):
-        result = run_scenario(scenario)
-    summary = write_run(result, out, title=data.get("title", ""))
+    with OutputFolder(out, RUN_FILES, "simulate") as folder:
+        with console.status(f"simulating {scenario}"):
+            result = run_scenario(scenario)
+        folder.writing()
+        summary = write_run(result, out, title=data.get("title", ""))
     console.print(summary_table({scenario.stem: summary}))
     console.print(f"written {out}/result.nc, summary.json, overview.png")
 
@@ -77,10 +87,15 @@ def demo(out: Path = typer.Option(Path("out"), "--out", help="output folder")):
                       "surface": {"axial_velocity": "10 mm/s", "angular_velocity": "2 rad/s"},
                       "simulation": {"duration": "100 s", "dt": "0.5 ms", "record_dt": "10 ms"}},
     }
+    check_output_path(out, kind="folder")
+    for name in cases:
+        check_output_path(out / name, kind="folder")
     rows = {}
     with console.status("running the demo"):
         for name, data in cases.items():
-            res = run_scenario(data, source=f"<demo {name}>")
-            rows[name] = write_run(res, out / name, title=data["title"])
+            with OutputFolder(out / name, RUN_FILES, "demo") as folder:
+                res = run_scenario(data, source=f"<demo {name}>")
+                folder.writing()
+                rows[name] = write_run(res, out / name, title=data["title"])
     console.print(summary_table(rows))
     console.print(f"figures: {out}/nominal/overview.png, {out}/stickslip/overview.png")

@@ -9,7 +9,11 @@ from typing import List, Optional
 import typer
 from rich.console import Console
 
+from downhole._atomic import OutputFolder, check_output_path, write_json_atomic
 from downhole.cli import app, fail
+
+#: What ``sweep`` writes into its folder (the previous run's are removed when a new one starts).
+SWEEP_FILES = ("sweep.nc", "failed.json", "stability_map.png", "sweep_*.png")
 
 console = Console()
 
@@ -45,16 +49,35 @@ def sweep(
     no_plots: bool = typer.Option(False, "--no-plots", help="write only the NetCDF dataset"),
 ):
     """Sweep scenario parameters; write OUT/sweep.nc, plots and the drilling stability map."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
-
-    from downhole.sweep import (failed_cases, load_sweep_file, plot_sweep, run_sweep, save_sweep,
-                                stability_map)
+    from downhole.sweep import load_sweep_file
 
     if scheduler and local_cluster:
         fail("give either --scheduler ADDRESS or --local-cluster, not both")
+    check_output_path(out, kind="folder")
     base, source, settings = load_sweep_file(scenario)
     base["sweep"] = settings
     sched = scheduler or ("local-cluster" if local_cluster else None)
+    folder = OutputFolder(out, SWEEP_FILES, "sweep")
+    # the folder is marked and cleared just before the first case runs (run_sweep validates all
+    # its input first, so a rejected sweep leaves the previous results alone)
+    try:
+        _run_and_write(folder, folder.begin, base, source, param, metric, random, seed, window,
+                       sched, processes, batch_size, severity_threshold, bounce_threshold,
+                       no_plots)
+    except BaseException as exc:
+        folder.fail(f"{type(exc).__name__}: {exc}")
+        raise
+    folder.commit()
+
+
+def _run_and_write(folder, begin, base, source, param, metric, random, seed, window, sched,
+                   processes, batch_size, severity_threshold, bounce_threshold, no_plots):
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+    from downhole.sweep import (failed_cases, plot_sweep, run_sweep, save_sweep,
+                                stability_map)
+
+    out = folder.path
     with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
                   TimeElapsedColumn(), console=console, transient=True) as progress:
         task = progress.add_task("sweep", total=None)
@@ -64,8 +87,9 @@ def sweep(
 
         ds = run_sweep(base, param or None, metric or None, random=random, seed=seed,
                        window=window, scheduler=sched, processes=processes,
-                       batch_size=batch_size, progress=_progress, source=source)
-    out.mkdir(parents=True, exist_ok=True)
+                       batch_size=batch_size, progress=_progress, source=source,
+                       on_start=begin)
+    folder.writing()
     files = []
     if not no_plots:
         metrics = json.loads(ds.attrs["metrics"])
@@ -80,9 +104,7 @@ def sweep(
         files += plot_sweep(ds, out)
     save_sweep(ds, out / "sweep.nc")
     failed = failed_cases(ds)
-    tmp = out / "failed.json.part"
-    tmp.write_text(json.dumps(failed, indent=2))
-    tmp.replace(out / "failed.json")
+    write_json_atomic(out / "failed.json", failed)
     console.print(f"{ds.attrs['n_cases']} cases on {ds.attrs['executor']} in "
                   f"{ds.attrs['wall_seconds']:.1f} s; {len(failed)} failed")
     for f in failed[:10]:

@@ -192,7 +192,7 @@ def build_index(out_dir: str | Path, title: str = "downhole: reproduction of the
 </main></body></html>
 """
     path = out_dir / "index.html"
-    tmp = out_dir / "index.html.part"
-    tmp.write_text(page)
-    tmp.replace(path)
+    from downhole._atomic import write_text_atomic
+
+    write_text_atomic(path, page)
     return path

@@ -7,6 +7,13 @@ and error go to ``ID/run.log``. ``OUT/reproduce.json`` summarizes the run and ``
 (see :mod:`downhole.report.html`) shows it. Experiments whose claim is about speed
 (:func:`is_timing`) run after the pool, one at a time, so that parallel jobs do not distort
 their timings.
+
+Outputs are never left stale or mixed (see "Outputs" in docs/architecture.md): when the run
+starts, every selected experiment's folder ``OUT/ID`` is emptied and marked ``INCOMPLETE`` (and
+``OUT`` itself, whose ``reproduce.json`` and ``index.html`` are removed). Each experiment runs in
+a hidden staging folder ``OUT/.ID.staging-PID/ID`` that replaces ``OUT/ID`` by a rename once its
+``claim.json`` is written, so ``claim.json`` always sits beside the outputs of the same run. A
+killed run leaves the experiments it did not finish marked ``INCOMPLETE`` with no claim.
 """
 
 from __future__ import annotations
@@ -16,18 +23,74 @@ import json
 import os
 import platform
 import re
+import shutil
 import time
 import traceback
 from pathlib import Path
 from typing import Callable
 
+from downhole._atomic import (MARKER, OutputFolder, check_output_path, write_json_atomic,
+                              write_text_atomic)
+from downhole.errors import DownholeInputError
+
 __all__ = ["reproduce", "run_one", "is_timing", "machine_description"]
+
+#: Files that identify a folder as an experiment folder written by :func:`run_one`.
+_EXPERIMENT_FILES = ("claim.json", "run.log", "error.log", MARKER)
 
 
 def _write_json(path: Path, data: dict) -> None:
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(data, indent=2))
-    tmp.replace(path)
+    write_json_atomic(path, data)
+
+
+def _staging(out_dir: Path, eid: str) -> Path:
+    return out_dir / f".{eid}.staging-{os.getpid()}"
+
+
+def _check_experiment_folder(out_dir: Path, eid: str) -> None:
+    """Refuse to clear ``out_dir/eid`` unless it is empty or an experiment folder."""
+    target = out_dir / eid
+    check_output_path(target, option=f"--out {out_dir}: experiment folder", kind="folder")
+    if target.is_dir() and any(target.iterdir()) and not any(
+            (target / f).exists() for f in _EXPERIMENT_FILES):
+        raise DownholeInputError(f"--out {out_dir}: {target} exists and is not an experiment "
+                                 "folder (no claim.json, run.log or INCOMPLETE); it is not "
+                                 "cleared: choose another --out")
+
+
+def _mark_experiment(out_dir: Path, eid: str) -> None:
+    """Empty ``out_dir/eid`` and leave only the INCOMPLETE marker in it (previous run gone)."""
+    target = out_dir / eid
+    if target.is_dir():
+        old = out_dir / f".{eid}.old-{os.getpid()}"
+        os.replace(target, old)
+        shutil.rmtree(old, ignore_errors=True)
+    target.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(target / MARKER, f"downhole reproduce: experiment {eid} started (pid "
+                      f"{os.getpid()}) and has not finished; rerun it.\n")
+
+
+def _remove_leftovers(out_dir: Path, eid: str) -> None:
+    """Staging and old folders of ``eid`` left by killed runs (any process)."""
+    if not out_dir.is_dir():
+        return
+    pattern = re.compile(rf"\.{re.escape(eid)}\.(staging|old)-\d+")
+    for p in out_dir.iterdir():
+        if p.is_dir() and pattern.fullmatch(p.name):
+            shutil.rmtree(p, ignore_errors=True)
+
+
+def _publish(stage_parent: Path, out_dir: Path, eid: str) -> None:
+    """Replace ``out_dir/eid`` by the finished staging folder (claim.json already in it)."""
+    target = out_dir / eid
+    if target.exists():
+        old = out_dir / f".{eid}.old-{os.getpid()}"
+        os.replace(target, old)
+        os.replace(stage_parent / eid, target)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(stage_parent / eid, target)
+    shutil.rmtree(stage_parent, ignore_errors=True)
 
 
 def run_one(eid: str, out_dir: str | Path, quick: bool) -> dict:
@@ -41,22 +104,24 @@ def run_one(eid: str, out_dir: str | Path, quick: bool) -> dict:
     load_plugins()
 
     out_dir = Path(out_dir)
-    target = out_dir / eid
-    target.mkdir(parents=True, exist_ok=True)
-    for stale in ("error.log",):
-        if (target / stale).exists():
-            (target / stale).unlink()
+    if not (out_dir / eid / MARKER).exists():  # called on its own, not from reproduce()
+        _check_experiment_folder(out_dir, eid)
+        _mark_experiment(out_dir, eid)
+    stage_parent = _staging(out_dir, eid)
+    shutil.rmtree(stage_parent, ignore_errors=True)
+    target = stage_parent / eid
+    target.mkdir(parents=True)
     t0 = time.perf_counter()
     with open(target / "run.log", "w") as log, contextlib.redirect_stdout(log), \
             contextlib.redirect_stderr(log):
         try:
-            claim = run_experiment(eid, out_dir, quick=quick)
+            claim = run_experiment(eid, stage_parent, quick=quick)
             error = None
         except BaseException as exc:  # noqa: BLE001 - recorded, and the others go on
             if isinstance(exc, KeyboardInterrupt):
                 raise
             error = f"{type(exc).__name__}: {exc}"
-            (target / "error.log").write_text(traceback.format_exc())
+            write_text_atomic(target / "error.log", traceback.format_exc())
             try:
                 claim_text = get_experiment(eid).claim
             except KeyError:
@@ -70,6 +135,7 @@ def run_one(eid: str, out_dir: str | Path, quick: bool) -> dict:
         claim["error"] = error
         claim["log"] = "error.log"
     _write_json(target / "claim.json", claim)
+    _publish(stage_parent, out_dir, eid)
     return claim
 
 
@@ -109,9 +175,16 @@ def reproduce(ids: list[str], out_dir: str | Path, quick: bool = False, jobs: in
     load_plugins()
     for eid in ids:
         get_experiment(eid)  # unknown ids fail before anything runs
-    out_dir.mkdir(parents=True, exist_ok=True)
+    check_output_path(out_dir, kind="folder")
+    for eid in ids:
+        _check_experiment_folder(out_dir, eid)
     jobs = max(1, int(jobs or os.cpu_count() or 1))
     order = sorted(ids, key=lambda e: -_previous_seconds(out_dir, e))
+    # the previous results go before anything runs: a killed run cannot leave them looking fresh
+    top = OutputFolder(out_dir, ("reproduce.json", "index.html"), "reproduce").writing()
+    for eid in ids:
+        _remove_leftovers(out_dir, eid)
+        _mark_experiment(out_dir, eid)
     t0 = time.perf_counter()
     claims: dict[str, dict] = {}
 
@@ -143,6 +216,7 @@ def reproduce(ids: list[str], out_dir: str | Path, quick: bool = False, jobs: in
     }
     _write_json(out_dir / "reproduce.json", summary)
     build_index(out_dir)
+    top.commit()
     return summary
 
 
@@ -189,14 +263,16 @@ def _crashed(out_dir: Path, eid: str, exc: BaseException, quick: bool) -> dict:
     from downhole.experiments import get_experiment
 
     target = out_dir / eid
-    target.mkdir(parents=True, exist_ok=True)
-    (target / "error.log").write_text(
-        "the worker process running this experiment died:\n" + "".join(
-            traceback.format_exception(type(exc), exc, exc.__traceback__)))
+    _remove_leftovers(out_dir, eid)  # the dead worker's staging folder
+    _mark_experiment(out_dir, eid)
+    write_text_atomic(target / "error.log",
+                      "the worker process running this experiment died:\n" + "".join(
+                          traceback.format_exception(type(exc), exc, exc.__traceback__)))
     claim = {"id": eid, "claim": get_experiment(eid).claim, "measured": {}, "passed": False,
              "error": f"worker process died: {type(exc).__name__}: {exc}", "log": "error.log",
              "quick": bool(quick)}
     _write_json(target / "claim.json", claim)
+    (target / MARKER).unlink(missing_ok=True)
     return claim
 
 

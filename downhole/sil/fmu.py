@@ -48,7 +48,10 @@ def export_fmu(scenario, out="plant.fmu") -> Path:
         res = tmp / "scenario.toml"
         shutil.copy2(scenario, res)
         built = FmuBuilder.build_FMU(script, dest=tmp / "out", project_files=[res])
-        shutil.move(str(built), out)
+        from downhole._atomic import atomic_path
+
+        with atomic_path(out) as part:  # the build is in /tmp: copy, fsync, rename
+            shutil.copyfile(built, part)
     return out
 
 

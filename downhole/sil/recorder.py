@@ -5,15 +5,22 @@ preallocated array (memory is constant however long the run), and, when ``chunk_
 writes every full block of ``chunk_rows`` rows to ``chunk_dir/chunk_000001.npz`` (the whole run
 on disk, never in memory). :meth:`RingRecorder.to_result` returns the rows in memory as a
 :class:`~downhole.sim.result.Result`; :func:`load_chunks` reassembles a chunked run.
+
+Chunk files are written atomically (temporary name, fsync, rename), so every ``chunk_*.npz``
+loads even after ``kill -9``. A recorder owns its chunk folder: when it starts it writes an
+``INCOMPLETE`` marker there and removes the previous run's chunks (they would otherwise be
+reassembled with the new ones); :meth:`RingRecorder.finish` flushes and removes the marker.
+:func:`load_chunks` of a folder still marked (a killed run) loads the rows on disk and sets the
+``incomplete`` attribute of the Result.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
+from downhole._atomic import MARKER, OutputFolder, atomic_path, sync_files, write_json_atomic
 from downhole.errors import DownholeInputError
 from downhole.sim.result import Result
 
@@ -30,7 +37,8 @@ class RingRecorder:
     capacity : int
         Rows kept in memory (older rows are overwritten).
     chunk_dir : path, optional
-        Directory for chunk files (created); None keeps only the ring.
+        Directory for chunk files (created; the previous run's chunks in it are removed);
+        None keeps only the ring.
     chunk_rows : int
         Rows per chunk file.
     """
@@ -45,11 +53,13 @@ class RingRecorder:
         self.chunk_dir = None if chunk_dir is None else Path(chunk_dir)
         self.chunk_rows = int(chunk_rows)
         self.chunks_written = 0
+        self._folder = None
         if self.chunk_dir is not None:
-            self.chunk_dir.mkdir(parents=True, exist_ok=True)
+            self._folder = OutputFolder(self.chunk_dir, ("chunk_*.npz", "channels.json"),
+                                        "sil recording").writing()
             self._chunk = np.empty((self.chunk_rows, len(self.channels)))
             self._chunk_n = 0
-            (self.chunk_dir / "channels.json").write_text(json.dumps(list(self.channels)))
+            write_json_atomic(self.chunk_dir / "channels.json", list(self.channels), indent=None)
 
     def append(self, row: np.ndarray) -> None:
         """Add one row (values in channel order); copies it."""
@@ -62,13 +72,22 @@ class RingRecorder:
                 self.flush()
 
     def flush(self) -> None:
-        """Write the partial chunk (if any) to disk."""
+        """Write the partial chunk (if any) to disk (atomically; without an fsync, which could
+        cost a real-time loop its deadlines: :meth:`finish` makes the folder durable)."""
         if self.chunk_dir is None or self._chunk_n == 0:
             return
+        path = self.chunk_dir / f"chunk_{self.chunks_written + 1:06d}.npz"
+        with atomic_path(path, durable=False) as tmp:
+            np.savez(tmp, data=self._chunk[:self._chunk_n])
         self.chunks_written += 1
-        path = self.chunk_dir / f"chunk_{self.chunks_written:06d}.npz"
-        np.savez(path, data=self._chunk[:self._chunk_n])
         self._chunk_n = 0
+
+    def finish(self) -> None:
+        """The recording is over: flush, sync the chunks to disk, mark the folder complete."""
+        self.flush()
+        if self._folder is not None:
+            sync_files(sorted(self.chunk_dir.glob("chunk_*.npz")))
+            self._folder.commit()
 
     def rows(self) -> np.ndarray:
         """The rows in memory, oldest first (a copy)."""
@@ -97,9 +116,20 @@ def _to_result(channels, data, units, attrs):
 
 def load_chunks(chunk_dir, units: dict | None = None, attrs: dict | None = None) -> Result:
     """Reassemble the chunk files of a run into one Result."""
+    import json
+
     chunk_dir = Path(chunk_dir)
-    names = json.loads((chunk_dir / "channels.json").read_text())
-    parts = [np.load(p)["data"] for p in sorted(chunk_dir.glob("chunk_*.npz"))]
+    try:
+        names = json.loads((chunk_dir / "channels.json").read_text())
+    except OSError:
+        raise DownholeInputError(f"{chunk_dir}: no channels.json (not a chunk folder)") from None
+    parts = []
+    for p in sorted(chunk_dir.glob("chunk_*.npz")):
+        with np.load(p, allow_pickle=False) as z:
+            parts.append(z["data"])
     if not parts:
         raise DownholeInputError(f"no chunk files in {chunk_dir}")
+    attrs = dict(attrs or {})
+    if (chunk_dir / MARKER).exists():
+        attrs["incomplete"] = 1
     return _to_result(tuple(names), np.concatenate(parts), units, attrs)

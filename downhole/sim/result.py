@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from downhole._atomic import atomic_path
 from downhole.signals import SIGNALS, STANDARD_CHANNELS
 
 __all__ = ["Result", "CHANNEL_UNITS", "load_result"]
@@ -113,16 +114,12 @@ class Result:
 
     # --- io -----------------------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> Path:
-        """Write NetCDF (h5netcdf engine). Written to a temporary file and renamed, so a failed
-        write leaves nothing half-written."""
+        """Write NetCDF (h5netcdf engine), atomically: written to a temporary file in the same
+        folder, fsynced and renamed (:func:`downhole._atomic.atomic_path`), so a failed or
+        killed write never leaves a half-written file under ``path``."""
         path = Path(path)
-        tmp = path.with_name(path.name + ".part")
-        try:
+        with atomic_path(path) as tmp:
             self.dataset.to_netcdf(tmp, engine="h5netcdf")
-            tmp.replace(path)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
         return path
 
     def summary(self, window: tuple[float, float] | None = None) -> dict:
@@ -134,24 +131,32 @@ class Result:
         return summarize(self, window)
 
     def plot(self, path: str | os.PathLike | None = None, title: str | None = None):
-        """Overview figure (bit velocities, WOB/TOB, surface signals); saved if ``path``."""
+        """Overview figure (bit velocities, WOB/TOB, surface signals); saved (atomically) if
+        ``path``."""
         from downhole.analysis.plots import plot_overview
 
-        return plot_overview(self, path, title)
+        if path is None:
+            return plot_overview(self, None, title)
+        with atomic_path(path) as tmp:
+            fig = plot_overview(self, tmp, title)
+        return fig
 
     def to_csv(self, path: str | os.PathLike) -> Path:
-        """Write the 1-D channels as CSV with a ``time`` column."""
+        """Write the 1-D channels as CSV with a ``time`` column (atomically)."""
         one_d = [n for n in self.channels if self.dataset[n].ndim == 1]
-        self.dataset[one_d].to_dataframe().to_csv(path)
+        with atomic_path(path) as tmp:
+            self.dataset[one_d].to_dataframe().to_csv(tmp)
         return Path(path)
 
     def to_las(self, path: str | os.PathLike, **kwargs) -> Path:
-        """Write the 1-D channels as a time-indexed LAS 2.0 file (keywords: ``well``,
-        ``channels``, ``company``, ``field``, ``summary``; see
+        """Write the 1-D channels as a time-indexed LAS 2.0 file, atomically (keywords:
+        ``well``, ``channels``, ``company``, ``field``, ``summary``; see
         :func:`downhole.io.las.write_las`)."""
         from downhole.io.las import write_las
 
-        return write_las(self, path, **kwargs)
+        with atomic_path(path) as tmp:
+            write_las(self, tmp, **kwargs)
+        return Path(path)
 
     def __repr__(self) -> str:
         t = self.time

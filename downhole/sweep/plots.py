@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from downhole._atomic import atomic_path
 from downhole.errors import DownholeInputError
 
 __all__ = ["plot_sweep", "classify_regimes", "stability_map", "REGIMES", "display_units"]
@@ -100,7 +101,8 @@ def plot_sweep(ds, out_dir: str | Path) -> list[Path]:
         fig.suptitle(f"sweep: {m}", fontsize=10)
         fig.tight_layout()
         path = out_dir / f"sweep_{m}.png"
-        fig.savefig(path, dpi=110)
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=110)
         plt.close(fig)
         files.append(path)
     return files
@@ -209,6 +211,7 @@ def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = No
         ax.set_ylabel(yl)
     fig.suptitle(title or "drilling stability map", fontsize=11)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return regimes

@@ -20,6 +20,7 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
+from downhole._atomic import atomic_path
 from downhole.errors import DownholeInputError
 from downhole.sweep.spec import (METRICS, ParamSpec, compute_metrics, metric_names, parse_param,
                                  parse_window, set_path, validate_path)
@@ -116,7 +117,7 @@ def _restore_env(saved: dict) -> None:
 def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random: int | None = None,
               seed: int | None = None, window=None, scheduler=None, processes: int | None = None,
               batch_size: int | None = None, progress: Callable[[int, int], None] | None = None,
-              source: str = "<dict>"):
+              source: str = "<dict>", on_start: Callable[[], None] | None = None):
     """Run a parameter sweep and return its results as an :class:`xarray.Dataset`.
 
     Parameters
@@ -144,6 +145,9 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
         Cases per task; default about four tasks per worker, at most 64 cases per task.
     progress : callable(done, total), optional
         Called as cases complete.
+    on_start : callable(), optional
+        Called once, after every input was validated and before the first case runs (the CLI
+        marks its output folder incomplete there).
 
     Returns
     -------
@@ -224,6 +228,8 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
         _store(batch, [([math.nan] * len(metrics), err, math.nan)] * len(batch))
 
     args = (base, source, names)
+    if on_start is not None:
+        on_start()
     executor_desc = _execute(args, cases, batches, metrics, window, scheduler, processes,
                              workers, _store, _fail_batch)
     wall = time.perf_counter() - t0
@@ -391,15 +397,11 @@ def _assemble(specs: list[ParamSpec], cases, results, metrics, window, base, sou
 
 
 def save_sweep(ds, path: str | Path) -> Path:
-    """Write a sweep dataset as NetCDF (h5netcdf), atomically."""
+    """Write a sweep dataset as NetCDF (h5netcdf), atomically (temporary file in the same folder,
+    fsync, rename: :func:`downhole._atomic.atomic_path`)."""
     path = Path(path)
-    tmp = path.with_name(path.name + ".part")
-    try:
+    with atomic_path(path) as tmp:
         ds.to_netcdf(tmp, engine="h5netcdf")
-        tmp.replace(path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 

@@ -308,11 +308,12 @@ class DHPController:
                 "input_names": list(self.input_names), "reference": self.reference.to_dict(),
                 "past_horizon": self.past_horizon, "stationary_step": self.stationary_step,
                 "meta": self.meta}
-        tmp = npz.with_name(npz.name + ".part.npz")
-        with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        tmp.replace(npz)
-        js.write_text(json.dumps(meta, indent=2, default=_json_default))
+        from downhole._atomic import atomic_path, write_text_atomic
+
+        with atomic_path(npz) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, **arrays)
+        write_text_atomic(js, json.dumps(meta, indent=2, default=_json_default))
         return npz, js
 
     def __repr__(self) -> str:

@@ -2,18 +2,21 @@
 
 A :class:`DPSolution` is written as ``solution.npz`` (plain float/int arrays, loaded with
 ``allow_pickle=False``) next to ``solution.json`` (method, cost, timings and the problem as a
-plain dict that re-validates on load).
+plain dict that re-validates on load). The pair is written atomically and carries one
+``run_id``, so that arrays and metadata of two different saves are never loaded together.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from downhole._atomic import replace_atomic, temp_path
 from downhole.errors import DownholeInputError
 
 __all__ = ["DPSolution", "load_solution", "stage_costs", "trajectory_cost"]
@@ -131,15 +134,34 @@ class DPSolution:
 
     # ------------------------------------------------------------------ persistence
     def save(self, directory: str | os.PathLike) -> Path:
-        """Write ``solution.npz`` and ``solution.json`` into ``directory``; returns it."""
+        """Write ``solution.npz`` and ``solution.json`` into ``directory``; returns it.
+
+        The pair is written so that it is never left mixed from two saves: both files are
+        written under temporary names first (and fsynced), the old ``solution.json`` is removed,
+        then ``solution.npz`` and last ``solution.json`` are renamed into place. Both carry the
+        same ``run_id``, which :func:`load_solution` checks. A save killed at any point leaves
+        either the previous pair, or no ``solution.json`` (and :func:`load_solution` says so).
+        """
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
-        np.savez(d / "solution.npz", **{k: np.asarray(getattr(self, k)) for k in _ARRAYS})
-        meta = {"format": _FORMAT, "method": self.method, "cost": float(self.cost),
-                "problem": self.problem.model_dump(mode="json"), "info": _jsonable(self.info)}
-        tmp = d / "solution.json.tmp"
-        tmp.write_text(json.dumps(meta, indent=2))
-        tmp.replace(d / "solution.json")
+        run_id = uuid.uuid4().hex
+        npz, js = d / "solution.npz", d / "solution.json"
+        meta = {"format": _FORMAT, "run_id": run_id, "method": self.method,
+                "cost": float(self.cost), "problem": self.problem.model_dump(mode="json"),
+                "info": _jsonable(self.info)}
+        tmp_npz, tmp_js = temp_path(npz), temp_path(js)
+        try:
+            np.savez(tmp_npz, run_id=np.array(run_id),
+                     **{k: np.asarray(getattr(self, k)) for k in _ARRAYS})
+            tmp_js.write_text(json.dumps(meta, indent=2))
+            # until the json is renamed the folder holds no solution.json, so a kill cannot
+            # leave the new arrays beside the previous run's metadata
+            js.unlink(missing_ok=True)
+            replace_atomic(tmp_npz, npz)
+            replace_atomic(tmp_js, js)
+        finally:
+            tmp_npz.unlink(missing_ok=True)
+            tmp_js.unlink(missing_ok=True)
         return d
 
 
@@ -167,6 +189,11 @@ def load_solution(directory: str | os.PathLike) -> DPSolution:
         if missing:
             raise DownholeInputError(f"{arr_path}: missing arrays {missing}")
         arrays = {k: np.array(z[k]) for k in _ARRAYS}
+        npz_id = str(z["run_id"]) if "run_id" in z.files else None
+    json_id = meta.get("run_id")
+    if npz_id is not None and json_id is not None and npz_id != json_id:
+        raise DownholeInputError(f"{arr_path} and {meta_path} come from two different saves "
+                                 f"(run_id {npz_id} vs {json_id}); rerun the optimization")
     problem = problem_from_dict(meta["problem"], source=str(meta_path))
     n = problem.steps
     if arrays["x2"].size != n + 1 or arrays["u1"].size != n:

@@ -115,11 +115,14 @@ class EIDController:
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
         g = self.gains
-        np.savez(d / "eid_gains.npz", Kp=np.diag([g[0].kp, g[1].kp]),
-                 K_R=np.diag([g[0].kr, g[1].kr]), L=np.diag([g[0].l, g[1].l]),
-                 B_R=np.diag([g[0].br, g[1].br]), A_F=np.diag([-g[0].bf, -g[1].bf]),
-                 B_F=np.diag([g[0].bf, g[1].bf]), C_F=np.eye(2))
-        (d / "eid_controller.json").write_text(json.dumps(self.to_dict(), indent=2))
+        from downhole._atomic import atomic_path, write_text_atomic
+
+        with atomic_path(d / "eid_gains.npz") as tmp:
+            np.savez(tmp, Kp=np.diag([g[0].kp, g[1].kp]),
+                     K_R=np.diag([g[0].kr, g[1].kr]), L=np.diag([g[0].l, g[1].l]),
+                     B_R=np.diag([g[0].br, g[1].br]), A_F=np.diag([-g[0].bf, -g[1].bf]),
+                     B_F=np.diag([g[0].bf, g[1].bf]), C_F=np.eye(2))
+        write_text_atomic(d / "eid_controller.json", json.dumps(self.to_dict(), indent=2))
         return d
 
 
