@@ -644,7 +644,7 @@ def test_sil_sigterm_while_waiting_for_the_controller_writes_nothing(tmp_path, p
     p = start(procs, ["sil", scen, "--remote", "--port", free_port(), "--out", out], tmp_path)
     p.wait_for("the plant to listen", lambda: any("waiting for the" in ln for ln in p.lines))
     assert p.signal(signal.SIGTERM) == 128 + signal.SIGTERM
-    assert "SIGTERM before the run started; nothing recorded or written" in "".join(p.lines)
+    assert "(SIGTERM) while waiting for the controller; nothing recorded or written" in "".join(p.lines)
     assert out.read_text() == "previous result"  # no run: the previous result stays as it was
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "sil.toml"]
 

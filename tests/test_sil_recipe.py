@@ -247,7 +247,8 @@ def test_ctrl_c_while_waiting_is_a_clean_error(tmp_path):
     plant.send_signal(signal.SIGINT)
     rc, _, err = _finish(plant, timeout=30)
     assert rc == 130
-    assert err.strip().splitlines()[-1] == "error: interrupted while waiting for the controller"
+    assert err.strip().splitlines()[-1] == ("error: interrupted (SIGINT) while waiting for the "
+                                            "controller; nothing recorded or written")
     assert "Traceback" not in err
 
 
@@ -255,8 +256,8 @@ def test_controller_that_got_nothing_to_answer_exits_1(tmp_path):
     from downhole.sil.link import PlantLink
     from downhole.sil.protocol import Layout
 
-    link = PlantLink(Layout(1e-3, "sil", ("bit_angular_velocity",), ("hook_load", "top_drive_angular_velocity"), {}),
-                     "127.0.0.1", 0)
+    link = PlantLink(Layout(1e-3, "sil", ("bit_angular_velocity",),
+                            ("hook_load", "top_drive_angular_velocity"), {}), "127.0.0.1", 0)
     done = threading.Event()
 
     def answer_hellos():  # a plant that says LAYOUT, then never sends an observation

@@ -208,8 +208,9 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
             res = runner.run(dur)
     except _Interrupted as exc:
         stopper.restore()
-        typer.echo(f"error: {signal.Signals(exc.args[0]).name} before the run started; nothing "
-                   "recorded or written", err=True)
+        typer.echo(f"error: interrupted ({signal.Signals(exc.args[0]).name}) while waiting for "
+                   f"the {'rig' if hil else 'controller'}; nothing recorded or written",
+                   err=True)
         raise typer.Exit(128 + exc.args[0]) from None
     except BaseException as exc:
         stopper.restore()
