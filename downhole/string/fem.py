@@ -29,6 +29,7 @@ from downhole.params.presets import get_preset
 from downhole.sim.fem_kernels import CHANNELS, TOP_LAYOUT, run_directional
 from downhole.sim.result import Result
 from downhole.string.drillstring import DrillString
+from downhole.string.zoh import zoh
 from downhole.well import WellPath
 
 __all__ = ["DirectionalModel", "fem_model", "fem_from_nodes", "simulate_directional",
@@ -205,17 +206,27 @@ class DirectionalModel:
         A_d : ndarray (4N, 4N)
         B_d : ndarray (4N, 2)
         """
-        from scipy.linalg import expm
-
         if not dt > 0:
             raise DownholeInputError(f"dt must be > 0 s, got {dt!r}")
         A, B, _, _ = self.continuous_linear_model(top_drive_inertia)
-        ns, m = A.shape[0], B.shape[1]
-        aug = np.zeros((ns + m, ns + m))
-        aug[:ns, :ns] = A
-        aug[:ns, ns:] = B
-        E = expm(aug * dt)
-        return E[:ns, :ns], E[:ns, ns:]
+        return zoh(A, B, dt)
+
+    def nodal_force_map(self, dt: float, top_drive_inertia: float = 500.0) -> np.ndarray:
+        """ZOH map of arbitrary held nodal forces: ``Gamma = int_0^dt e^{A s} ds [0; M^-1]``.
+
+        A force pair ``f`` (2N,: axial force and torque per node, in the state's interleaved
+        order) held over one step adds ``Gamma @ f`` to the discrete state of
+        :meth:`linear_model`.
+
+        Returns
+        -------
+        ndarray (4N, 2N)
+        """
+        if not dt > 0:
+            raise DownholeInputError(f"dt must be > 0 s, got {dt!r}")
+        A, _, _, Minv = self.continuous_linear_model(top_drive_inertia)
+        n2 = Minv.shape[0]
+        return zoh(A, np.vstack([np.zeros((n2, n2)), Minv]), dt)[1]
 
     def control_affine(self, dt: float = 1e-3, *, state_scale=None, input_scale=(1e5, 1e4),
                        top_drive_inertia: float = 500.0, friction: bool = True,
@@ -247,16 +258,9 @@ class DirectionalModel:
         m = self.design_model()
         n = m.n_nodes
         A_d, B_d = self.linear_model(dt, top_drive_inertia)
-        A, _, names, Minv = self.continuous_linear_model(top_drive_inertia)
+        A, _, names, _ = self.continuous_linear_model(top_drive_inertia)
         ns = A.shape[0]
-        # ZOH map of arbitrary nodal forces (2n): Gamma = int_0^dt e^{As} ds [0; M^-1]
-        from scipy.linalg import expm
-
-        Bf = np.vstack([np.zeros((2 * n, 2 * n)), Minv])
-        aug = np.zeros((ns + 2 * n, ns + 2 * n))
-        aug[:ns, :ns] = A
-        aug[:ns, ns:] = Bf
-        Gam = expm(aug * dt)[:ns, ns:]
+        Gam = self.nodal_force_map(dt, top_drive_inertia)
         bitp = m.bit.to_array()
         ib = n - 1
         # hanging tension per element (zero WOB) for the friction normal force

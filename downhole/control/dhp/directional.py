@@ -21,7 +21,6 @@ import math
 
 import numpy as np
 from numba import njit
-from scipy.linalg import expm
 
 from downhole.bit.detournay import approx_depth_of_cut, bit_forces
 from downhole.control.affine import ControlAffineModel
@@ -190,13 +189,9 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
     m = dmodel.design_model()
     n = m.n_nodes
     A_d, B_d = dmodel.linear_model(dt, top_drive_inertia)
-    A, _, names, Minv = dmodel.continuous_linear_model(top_drive_inertia)
+    A, _, names, _ = dmodel.continuous_linear_model(top_drive_inertia)
     ns = A.shape[0]
-    Bf = np.vstack([np.zeros((2 * n, 2 * n)), Minv])
-    aug = np.zeros((ns + 2 * n, ns + 2 * n))
-    aug[:ns, :ns] = A
-    aug[:ns, ns:] = Bf
-    Gam = expm(aug * dt)[:ns, ns:]
+    Gam = dmodel.nodal_force_map(dt, top_drive_inertia)
     kinds, nodes = [], []
     for blk in ("position", "velocity"):
         for i in range(n):
