@@ -28,6 +28,7 @@ import numpy as np
 from numba import njit
 
 from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
 from downhole.params.bit import BIT_ARRAY_LAYOUT
 
 __all__ = ["CHANNELS", "TOP_LAYOUT", "MISC_LAYOUT", "run_directional", "thomas_solve"]
@@ -407,7 +408,7 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     hk, hc, h0 = top[_HK], top[_HC], top[_H0]
     kp, ki, sg, stau = top[_KP], top[_KI], top[_SG], top[_ST]
     mu = top[_MU]
-    veps2 = top[_VEPS] * top[_VEPS]
+    v_eps = top[_VEPS]
     fb0, fc0 = top[_FB0], top[_FC0]
     omfloor = bitp[_OMFLOOR]
     h = 0.5 * dt
@@ -420,15 +421,8 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     drate_rock = rp[4] * h  # delayed depth of cut: d(v1) = d0 + n h (v0 + v1)
     # ---- contact elements / nodes (skip elements whose normal force is identically zero:
     # straight and vertical, no curvature and no lateral weight)
-    ce = np.empty(n, np.int64)
-    n_ce = 0
-    if mu > 0.0:
-        for e in range(n - 1):
-            if elem[e, 7] > 0.5 and (elem[e, 1] != 0.0 or elem[e, 2] != 0.0 or elem[e, 3] != 0.0
-                                     or elem[e, 4] != 0.0 or elem[e, 5] != 0.0
-                                     or elem[e, 6] != 0.0):
-                ce[n_ce] = e
-                n_ce += 1
+    ce = contact_elements(elem) if mu > 0.0 else np.empty(0, np.int64)
+    n_ce = ce.shape[0]
     incontact = np.zeros(n, np.bool_)
     for j in range(n_ce):
         incontact[ce[j]] = True
@@ -543,20 +537,15 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 nrm[cn[j]] = 0.0
             for j in range(n_ce):
                 e = ce[j]
-                T = -mats[3, e] * (state[0, e + 1] - state[0, e])
-                gx = T * elem[e, 1] + elem[e, 4]
-                gy = T * elem[e, 2] + elem[e, 5]
-                gz = T * elem[e, 3] + elem[e, 6]
-                half = 0.5 * elem[e, 0] * math.sqrt(gx * gx + gy * gy + gz * gz)
+                tension = -mats[3, e] * (state[0, e + 1] - state[0, e])
+                half = element_normal_half(elem, e, tension)
                 nrm[e] += half
                 nrm[e + 1] += half
             for j in range(n_cn):
                 i = cn[j]
                 if nrm[i] > 0.0:
                     r = node[i, 1]
-                    va_i = state[1, i]
-                    rw = r * state[4, i]
-                    c = mu * nrm[i] / math.sqrt(va_i * va_i + rw * rw + veps2)
+                    c = friction_damper(nrm[i], mu, state[1, i], r * state[4, i], v_eps)
                     cfr[0, i] = c
                     cfr[1, i] = c * r * r
                 else:

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.linalg import solve_banded
 
 from downhole.bit.rock_surface import RockSurfaceSpec, rock_init
+from downhole.contact.softstring import nodal_friction_forces, normal_weight
 from downhole.control.topdrive import Hook, TopDrive
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, DirectionalWellParams
@@ -282,19 +283,10 @@ class DirectionalModel:
             if mu > 0:
                 xa = zb[:, 0:2 * n:2]
                 T = tension[None, :] - m.Ka[1, None, :n - 1] * (xa[:, 1:] - xa[:, :-1])
-                kv = elem[:n - 1, 1:4]
-                gv = elem[:n - 1, 4:7]
-                Nl = np.linalg.norm(T[:, :, None] * kv[None] + gv[None], axis=2)
-                Nl *= elem[None, :n - 1, 7] * elem[None, :n - 1, 0] * 0.5
-                Nn = np.zeros((N, n))
-                Nn[:, :-1] += Nl
-                Nn[:, 1:] += Nl
-                vax = zb[:, 2 * n:4 * n:2]
-                vtr = zb[:, 2 * n + 1:4 * n:2]
-                den = np.sqrt(vax**2 + (radius[None] * vtr) ** 2 + v_eps_design**2)
-                c = mu * Nn / den
-                F[:, 0:2 * n:2] -= c * vax
-                F[:, 1:2 * n:2] -= c * radius[None] ** 2 * vtr
+                fa, ft = nodal_friction_forces(T, elem, radius, mu, zb[:, 2 * n:4 * n:2],
+                                               zb[:, 2 * n + 1:4 * n:2], v_eps_design)
+                F[:, 0:2 * n:2] += fa
+                F[:, 1:2 * n:2] += ft
             return F @ _G.T
 
         kinds, nodes = [], []
@@ -390,13 +382,9 @@ def _assemble_chain(well, string, md, top_md, mass="consistent"):
     grav[:-1] += 0.5 * wb * dz
     grav[1:] += 0.5 * wb * dz
     elem = np.zeros((n, 8))
-    t = well.tangent(mid)
-    k = well.curvature_vector(mid)
-    down = np.array([0.0, 0.0, 1.0])
-    gperp = down[None, :] - (t @ down)[:, None] * t
     elem[:-1, 0] = L
-    elem[:-1, 1:4] = k
-    elem[:-1, 4:7] = wb[:, None] * gperp
+    elem[:-1, 1:4] = well.curvature_vector(mid)
+    elem[:-1, 4:7] = normal_weight(well.tangent(mid), wb)
     elem[:-1, 7] = 1.0
     od = string.property_at(s_mid, "outer_diameter")
     radius = np.zeros(n)
