@@ -30,6 +30,7 @@ from numba import njit
 from downhole.bit.detournay import approx_depth_of_cut, bit_forces
 from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
 from downhole.params.bit import BIT_ARRAY_LAYOUT
+from downhole.string.wave import wave_incoming, wave_source_forces, wave_step
 
 __all__ = ["CHANNELS", "TOP_LAYOUT", "MISC_LAYOUT", "run_directional", "thomas_solve"]
 
@@ -219,13 +220,6 @@ def solve_bit_node(field, den, r, h, x, c0, c1, bk):
                 xn = hi - 1.0 - abs(hi)
         x = xn
     return x
-
-
-@njit(cache=True)
-def _wave_sample(hist, row, k, cap, init):
-    if k < 0:
-        return init
-    return hist[row, k % cap]
 
 
 @njit(cache=True)
@@ -482,17 +476,9 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     cw_t = np.empty(n)
     nrm = np.zeros(n)
     Aw = np.empty((n, n)) if dense else np.empty((1, 1))
-    # ---- wave segments: constant read offset and interpolation weight
+    # ---- wave segments (downhole.string.wave: one read, source forces, step per field)
     za = wa_wp[0]
     zt = wt_wp[0]
-    pos_a = wa_pos[0]
-    pos_t = wt_pos[0]
-    cap_a = int(wa_wp[2])
-    cap_t = int(wt_wp[2])
-    off_a = int(math.floor(-wa_wp[1]))
-    fr_a = -wa_wp[1] - off_a
-    off_t = int(math.floor(-wt_wp[1]))
-    fr_t = -wt_wp[1] - off_t
     nla = int(top[_NLA])
     nlt = int(top[_NLT])
     al_a = 1.0 - math.exp(-dt / top[_LTA]) if nla > 0 else 0.0
@@ -570,26 +556,18 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         ta_in = 0.0
         tb_in = 0.0
         if hybrid:
-            k0 = pos_a + off_a
-            a_in = (1.0 - fr_a) * _wave_sample(wa_hist, 0, k0, cap_a, wa_wp[3]) \
-                + fr_a * _wave_sample(wa_hist, 0, k0 + 1, cap_a, wa_wp[3])
-            b_in = (1.0 - fr_a) * _wave_sample(wa_hist, 1, k0, cap_a, wa_wp[4]) \
-                + fr_a * _wave_sample(wa_hist, 1, k0 + 1, cap_a, wa_wp[4])
-            k0 = pos_t + off_t
-            ta_in = (1.0 - fr_t) * _wave_sample(wt_hist, 0, k0, cap_t, wt_wp[3]) \
-                + fr_t * _wave_sample(wt_hist, 0, k0 + 1, cap_t, wt_wp[3])
-            tb_in = (1.0 - fr_t) * _wave_sample(wt_hist, 1, k0, cap_t, wt_wp[4]) \
-                + fr_t * _wave_sample(wt_hist, 1, k0 + 1, cap_t, wt_wp[4])
+            a_in, b_in = wave_incoming(wa_hist, wa_pos, wa_wp)
+            ta_in, tb_in = wave_incoming(wt_hist, wt_pos, wt_wp)
             if nla > 0:
                 b_in = _lag_cascade(lag, 0, nla, al_a, b_in)
                 a_in = _lag_cascade(lag, 1, nla, al_a, a_in)
             if nlt > 0:
                 tb_in = _lag_cascade(lag, 2, nlt, al_t, tb_in)
                 ta_in = _lag_cascade(lag, 3, nlt, al_t, ta_in)
-            F[0, iB] = Fst[0, iB] + 2.0 * za * b_in
-            F[0, iC] = Fst[0, iC] + 2.0 * za * a_in
-            F[1, iB] = 2.0 * zt * tb_in
-            F[1, iC] = 2.0 * zt * ta_in
+            sb, sc = wave_source_forces(za, a_in, b_in)
+            F[0, iB] = Fst[0, iB] + sb
+            F[0, iC] = Fst[0, iC] + sc
+            F[1, iB], F[1, iC] = wave_source_forces(zt, ta_in, tb_in)
         # ---- solve both fields: (M + h C + h^2 K + h C_x + h^2 K_x) v1 = rhs
         if dense:
             for f in range(2):
@@ -728,23 +706,14 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
             j_next = rock_advance_fast(surf, j_next, r_ref, r_h, r_nb, r_cap, r_mem, th_b0,
                                        ua_b0, state[3, ib], state[0, ib])
         if hybrid:
-            vB = state[1, iB]
-            vC = state[1, iC]
-            ka = pos_a % cap_a
-            wa_hist[0, ka] = vB - b_in
-            wa_hist[1, ka] = vC - a_in
-            pos_a += 1
-            wB = state[4, iB]
-            wC = state[4, iC]
-            kt = pos_t % cap_t
-            wt_hist[0, kt] = wB - tb_in
-            wt_hist[1, kt] = wC - ta_in
-            pos_t += 1
-            fb_line = fb0 + za * (2.0 * b_in - vB)
-            fc_line = -fc0 - za * (2.0 * a_in - vC)
+            f_b, f_c = wave_step(wa_hist, wa_pos, wa_wp, state[1, iB], state[1, iC], a_in, b_in)
+            fb_line = fb0 + f_b
+            fc_line = -fc0 - f_c
             # reported torque GJ (theta_up - theta_down)/L is minus the line's N
-            tb_line = -zt * (2.0 * tb_in - wB)
-            tc_line = zt * (2.0 * ta_in - wC)
+            f_b, f_c = wave_step(wt_hist, wt_pos, wt_wp, state[4, iB], state[4, iC], ta_in,
+                                 tb_in)
+            tb_line = -f_b
+            tc_line = f_c
         t_now += dt
         n_done += 1.0
         # ---- record
@@ -795,6 +764,4 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     misc[3] = lowp
     misc[5] = n_done
     istate[0] = j_next
-    wa_pos[0] = pos_a
-    wt_pos[0] = pos_t
     return status, row - rec_start

@@ -30,8 +30,8 @@ from downhole.control.eid._kernel import eid_arrays, eid_step
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, NeutralStringParams, get_preset
 from downhole.sim.result import Result
-from downhole.string.wave import (WaveSegment, segments_from_pipe, wave_incoming, wave_push,
-                                  wave_state)
+from downhole.string.wave import (WaveSegment, segments_from_pipe, wave_incoming, wave_state,
+                                  wave_step)
 
 __all__ = ["NeutralModel", "NDDEMatrices", "NeutralPlant", "neutral_model", "simulate_neutral",
            "NEUTRAL_CHANNELS", "NOMINAL_U_A", "NOMINAL_U_T"]
@@ -281,8 +281,8 @@ def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, a
         if k == nsteps:
             break
         # outgoing waves of t_k, then incoming at t_{k+1}
-        wave_push(ha, pa, wpa, vtop - b_in, v - a_in)
-        wave_push(ht, pt, wpt, wtop - b_in_t, w - a_in_t)
+        wave_step(ha, pa, wpa, vtop, v, a_in, b_in)
+        wave_step(ht, pt, wpt, wtop, w, a_in_t, b_in_t)
         a1, b1 = wave_incoming(ha, pa, wpa)
         a1t, b1t = wave_incoming(ht, pt, wpt)
         # bit node: trapezoidal on the line terms, bit forces with implicit frozen slopes

@@ -43,8 +43,15 @@ Compiled state
 
 Per step: ``a_in, b_in = wave_incoming(hist, pos, wp)`` gives the incoming waves at ``t_n``
 (linear interpolation for a non-integer ``delay/dt``, which must be >= 1), the integrator solves
-the end nodes, then ``wave_push(hist, pos, wp, v_B - b_in, v_C - a_in)`` stores the outgoing
-waves of ``t_n`` and advances to ``t_{n+1}``.
+the end nodes (with :func:`wave_source_forces` as known forces and ``Z`` as end dampers), then
+``F_B, F_C = wave_step(hist, pos, wp, v_B, v_C, a_in, b_in)`` stores the outgoing waves of
+``t_n`` (``v_B - b_in``, ``v_C - a_in``), advances to ``t_{n+1}`` and returns the end forces of
+``t_n``. These compiled functions are the package's one wave-segment stepping: the neutral kernel
+(:mod:`downhole.string.neutral`) and the FEM/hybrid kernel (:mod:`downhole.sim.fem_kernels`)
+both call them.
+
+The read position ``t_n - delay`` is split once into an integer offset ``floor(-delay/dt)`` and
+an interpolation weight, both exact, so the weight does not pick up round-off as ``n`` grows.
 """
 
 from __future__ import annotations
@@ -58,8 +65,8 @@ from numba import njit
 from downhole.errors import DownholeInputError
 
 __all__ = ["WaveSegment", "segments_from_pipe", "wave_state", "wave_incoming", "wave_push",
-           "wave_read", "wave_outgoing", "wave_end_forces", "static_end_forces",
-           "initial_waves", "WP_Z", "WP_DELAY_STEPS", "WP_CAP"]
+           "wave_step", "wave_read", "wave_outgoing", "wave_end_forces", "wave_source_forces",
+           "static_end_forces", "initial_waves", "WP_Z", "WP_DELAY_STEPS", "WP_CAP"]
 
 #: Indices into the ``wp`` parameter array.
 WP_Z, WP_DELAY_STEPS, WP_CAP, WP_A0, WP_B0 = 0, 1, 2, 3, 4
@@ -196,9 +203,9 @@ def wave_read(hist, pos, wp, lag_steps):
     """Outgoing waves ``(a_out_B, b_out_C)`` at time ``t_n - lag_steps * dt`` (linear
     interpolation; ``lag_steps`` >= 1 and <= cap - 2)."""
     cap = int(wp[WP_CAP])
-    q = pos[0] - lag_steps
-    k0 = int(math.floor(q))
-    f = q - k0
+    off = int(math.floor(-lag_steps))
+    f = -lag_steps - off
+    k0 = pos[0] + off
     a = (1.0 - f) * _sample(hist, 0, k0, cap, wp[WP_A0]) + f * _sample(hist, 0, k0 + 1, cap,
                                                                           wp[WP_A0])
     b = (1.0 - f) * _sample(hist, 1, k0, cap, wp[WP_B0]) + f * _sample(hist, 1, k0 + 1, cap,
@@ -220,6 +227,23 @@ def wave_push(hist, pos, wp, a_out_b, b_out_c):
     hist[0, k] = a_out_b
     hist[1, k] = b_out_c
     pos[0] += 1
+
+
+@njit(cache=True)
+def wave_step(hist, pos, wp, v_b, v_c, a_in, b_in):
+    """End of one step at ``t_n``: push the outgoing waves ``(v_B - b_in, v_C - a_in)``,
+    advance to ``t_{n+1}`` and return the forces of the line on its ends at ``t_n``,
+    ``(F_B, F_C)`` as :func:`wave_end_forces` (``a_in, b_in`` from :func:`wave_incoming`)."""
+    wave_push(hist, pos, wp, v_b - b_in, v_c - a_in)
+    return wave_end_forces(wp[WP_Z], v_b, v_c, a_in, b_in)
+
+
+@njit(cache=True)
+def wave_source_forces(z, a_in, b_in):
+    """The part of the end forces known before the step, ``(2 Z b_in, 2 Z a_in)``: an implicit
+    integrator applies these as forces and ``Z`` as a damper on each end node, since
+    ``F_B = 2 Z b_in - Z v_B`` and ``F_C = 2 Z a_in - Z v_C``."""
+    return 2.0 * z * b_in, 2.0 * z * a_in
 
 
 @njit(cache=True)
