@@ -30,7 +30,8 @@ from numba import njit
 from downhole.bit.detournay import approx_depth_of_cut, bit_forces
 from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
 from downhole.params.bit import BIT_ARRAY_LAYOUT
-from downhole.string.wave import wave_incoming, wave_source_forces, wave_step
+from downhole.string.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WP_Z, wave_read_at,
+                                  wave_read_plan, wave_source_forces, wave_step_at)
 
 __all__ = ["CHANNELS", "TOP_LAYOUT", "MISC_LAYOUT", "run_directional", "thomas_solve"]
 
@@ -476,9 +477,15 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     cw_t = np.empty(n)
     nrm = np.zeros(n)
     Aw = np.empty((n, n)) if dense else np.empty((1, 1))
-    # ---- wave segments (downhole.string.wave: one read, source forces, step per field)
-    za = wa_wp[0]
-    zt = wt_wp[0]
+    # ---- wave segments (downhole.string.wave): clocks, capacities and read plans in locals
+    za = wa_wp[WP_Z]
+    zt = wt_wp[WP_Z]
+    pos_a = wa_pos[0]
+    pos_t = wt_pos[0]
+    cap_a = int(wa_wp[WP_CAP])
+    cap_t = int(wt_wp[WP_CAP])
+    off_a, fr_a = wave_read_plan(wa_wp[WP_DELAY_STEPS])
+    off_t, fr_t = wave_read_plan(wt_wp[WP_DELAY_STEPS])
     nla = int(top[_NLA])
     nlt = int(top[_NLT])
     al_a = 1.0 - math.exp(-dt / top[_LTA]) if nla > 0 else 0.0
@@ -556,8 +563,10 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         ta_in = 0.0
         tb_in = 0.0
         if hybrid:
-            a_in, b_in = wave_incoming(wa_hist, wa_pos, wa_wp)
-            ta_in, tb_in = wave_incoming(wt_hist, wt_pos, wt_wp)
+            a_in, b_in = wave_read_at(wa_hist, pos_a, off_a, fr_a, cap_a, wa_wp[WP_A0],
+                                      wa_wp[WP_B0])
+            ta_in, tb_in = wave_read_at(wt_hist, pos_t, off_t, fr_t, cap_t, wt_wp[WP_A0],
+                                        wt_wp[WP_B0])
             if nla > 0:
                 b_in = _lag_cascade(lag, 0, nla, al_a, b_in)
                 a_in = _lag_cascade(lag, 1, nla, al_a, a_in)
@@ -706,12 +715,15 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
             j_next = rock_advance_fast(surf, j_next, r_ref, r_h, r_nb, r_cap, r_mem, th_b0,
                                        ua_b0, state[3, ib], state[0, ib])
         if hybrid:
-            f_b, f_c = wave_step(wa_hist, wa_pos, wa_wp, state[1, iB], state[1, iC], a_in, b_in)
+            f_b, f_c = wave_step_at(wa_hist, pos_a, cap_a, za, state[1, iB], state[1, iC], a_in,
+                                    b_in)
+            pos_a += 1
             fb_line = fb0 + f_b
             fc_line = -fc0 - f_c
             # reported torque GJ (theta_up - theta_down)/L is minus the line's N
-            f_b, f_c = wave_step(wt_hist, wt_pos, wt_wp, state[4, iB], state[4, iC], ta_in,
-                                 tb_in)
+            f_b, f_c = wave_step_at(wt_hist, pos_t, cap_t, zt, state[4, iB], state[4, iC], ta_in,
+                                    tb_in)
+            pos_t += 1
             tb_line = -f_b
             tc_line = f_c
         t_now += dt
@@ -764,4 +776,6 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     misc[3] = lowp
     misc[5] = n_done
     istate[0] = j_next
+    wa_pos[0] = pos_a
+    wt_pos[0] = pos_t
     return status, row - rec_start
