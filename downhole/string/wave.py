@@ -213,11 +213,14 @@ def wave_read_plan(lag_steps):
     return off, -lag_steps - off
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def wave_read_at(hist, n, off, frac, cap, a_init, b_init):
     """Outgoing waves ``(a_out_B, b_out_C)`` at time ``t_{n + off + frac}`` (``off``, ``frac``
     from :func:`wave_read_plan`; linear interpolation between samples ``n + off`` and
-    ``n + off + 1``; before the first sample the initial waves)."""
+    ``n + off + 1``; before the first sample the initial waves).
+
+    Inlined into the calling kernel at Numba IR level: LLVM leaves this call in place, which
+    costs ~5 % of a small hybrid step (24 states)."""
     k0 = n + off
     a = (1.0 - frac) * _sample(hist, 0, k0, cap, a_init) + frac * _sample(hist, 0, k0 + 1, cap,
                                                                           a_init)
