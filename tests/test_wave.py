@@ -229,3 +229,18 @@ def test_read_weight_stays_exact_after_many_steps():
         exact = (1 - f) * (k0 % 2) + f * ((k0 + 1) % 2)
         assert a == pytest.approx(exact, abs=1e-15)
         assert a + b == pytest.approx(1.0, abs=1e-15)
+
+
+def test_line_preload_is_the_static_end_forces_of_the_line_weight():
+    from downhole.string.wave import line_preload
+
+    seg = WaveSegment(800.0, 5100.0, 3.0e5)
+    assert line_preload(2.0e4, 350.0 * 800.0) == static_end_forces(seg, 2.0e4, 350.0)
+    # the hybrid's preload: B carries the line's weight on top of the tension at C
+    from downhole.string.fem import _line_preload
+    from downhole.string.hybrid import hybrid_model
+
+    m = hybrid_model("hybrid24")
+    fb0, fc0, _ = _line_preload(m, 1.0e5)
+    n_c = float(m.gravity[m.node_c:].sum()) - 1.0e5
+    assert (fb0, fc0) == (n_c + m.wave["line_weight"], -n_c)

@@ -584,11 +584,12 @@ def _static_axial(m: DirectionalModel, wob: float) -> np.ndarray:
 
 def _line_preload(m: DirectionalModel, wob: float):
     """Static forces of the wave segment on B and C (downward) and its static elongation."""
+    from downhole.string.wave import line_preload
+
     wv = m.wave
     n_c = float(m.gravity[m.node_c:].sum()) - wob
     wl = wv["line_weight"]
-    fb0 = n_c + wl
-    fc0 = -n_c
+    fb0, fc0 = line_preload(n_c, wl)
     delta = (n_c * wv["length"] + 0.5 * wl * wv["length"]) / wv["EA"]
     return fb0, fc0, delta
 

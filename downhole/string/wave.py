@@ -72,7 +72,7 @@ from downhole.errors import DownholeInputError
 __all__ = ["WaveSegment", "segments_from_pipe", "wave_state", "wave_incoming", "wave_push",
            "wave_step", "wave_step_at", "wave_read", "wave_read_plan", "wave_read_at",
            "wave_outgoing", "wave_end_forces", "wave_source_forces", "static_end_forces",
-           "initial_waves", "WP_Z", "WP_DELAY_STEPS", "WP_CAP"]
+           "line_preload", "initial_waves", "WP_Z", "WP_DELAY_STEPS", "WP_CAP"]
 
 #: Indices into the ``wp`` parameter array.
 WP_Z, WP_DELAY_STEPS, WP_CAP, WP_A0, WP_B0 = 0, 1, 2, 3, 4
@@ -290,7 +290,8 @@ def wave_outgoing(v_b, v_c, a_in, b_in):
 
 @njit(cache=True)
 def wave_end_forces(z, v_b, v_c, a_in, b_in):
-    """Forces of the line on its ends, downward positive: ``(Z (2 b_in - v_B), Z (2 a_in - v_C))``."""
+    """Forces of the line on its ends, downward positive:
+    ``(Z (2 b_in - v_B), Z (2 a_in - v_C))``."""
     return z * (2.0 * b_in - v_b), z * (2.0 * a_in - v_c)
 
 
@@ -307,6 +308,11 @@ def static_end_forces(segment: WaveSegment, bottom_tension: float,
     (F_B, F_C) : tuple of float
         ``(N_C + w L, -N_C)``, N.
     """
-    w = float(weight_per_length)
+    return line_preload(bottom_tension, float(weight_per_length) * segment.length)
+
+
+def line_preload(bottom_tension: float, line_weight: float) -> tuple[float, float]:
+    """Static forces ``(N_C + W, -N_C)`` of a hanging line of total axial weight ``W`` (N) on
+    B and C, downward positive (:func:`static_end_forces` with ``W = w L``)."""
     n_c = float(bottom_tension)
-    return n_c + w * segment.length, -n_c
+    return n_c + float(line_weight), -n_c
