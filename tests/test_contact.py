@@ -155,3 +155,22 @@ def test_fem_elements_reproduce_johancsik_and_numpy_form_matches_compiled():
             assert fa[s, i] == pytest.approx(-c * va[s, i], rel=1e-12, abs=1e-12)
             assert ft[s, i] == pytest.approx(-c * m.radius[i] ** 2 * vt[s, i], rel=1e-12,
                                              abs=1e-12)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(tension=np.zeros(3)), r"velocities \(\.\.\., 4\)"),
+    (dict(elem=np.zeros((5, 7))), r"elem \(n, 8\) expected"),
+    (dict(tension=np.zeros(6)), r"elem \(n, 8\) expected"),
+    (dict(tension=5.0), r"tension \(\.\.\., n - 1\)"),
+    (dict(radius=np.zeros(4)), r"radius \(5,\)"),
+    (dict(v_eps=0.0), "v_eps must be > 0"),
+    (dict(v_eps=float("nan")), "v_eps must be > 0"),
+])
+def test_numpy_friction_rejects_mismatched_input(kw, match):
+    from downhole.contact import nodal_friction_forces
+
+    args = dict(tension=np.zeros(4), elem=np.zeros((5, 8)), radius=np.full(5, 0.06), mu=0.3,
+                v_axial=np.zeros(5), v_angular=np.zeros(5), v_eps=1e-3)
+    args.update(kw)
+    with pytest.raises(DownholeInputError, match=match):
+        nodal_friction_forces(**args)

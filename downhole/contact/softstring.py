@@ -28,6 +28,8 @@ import math
 import numpy as np
 from numba import njit
 
+from downhole.errors import DownholeInputError
+
 __all__ = ["ELEM_LAYOUT", "normal_force_per_length", "element_normal_half", "friction_damper",
            "friction_forces", "contact_elements", "normal_weight", "soft_string_normal_force",
            "nodal_friction_forces"]
@@ -169,16 +171,32 @@ def nodal_friction_forces(tension, elem, radius, mu, v_axial, v_angular, v_eps):
         Axial friction force, N.
     torque : ndarray, shape (..., n)
         Friction torque, N m.
+
+    Raises
+    ------
+    DownholeInputError
+        If the shapes do not fit together or ``v_eps`` is not positive.
     """
     T = np.asarray(tension, float)
-    m = T.shape[-1]
+    elem = np.asarray(elem, float)
+    vax = np.asarray(v_axial, float)
+    vtr = np.asarray(v_angular, float)
+    r = np.asarray(radius, float)
+    m = T.shape[-1] if T.ndim else 0
+    if T.ndim == 0 or elem.ndim != 2 or elem.shape[1] != 8 or elem.shape[0] < m + 1:
+        raise DownholeInputError(
+            f"nodal_friction_forces: tension (..., n - 1) and elem (n, 8) expected, got tension "
+            f"{T.shape} and elem {elem.shape}")
+    if vax.shape[-1:] != (m + 1,) or vtr.shape[-1:] != (m + 1,) or r.shape != (m + 1,):
+        raise DownholeInputError(
+            f"nodal_friction_forces: velocities (..., {m + 1}) and radius ({m + 1},) expected "
+            f"for {m} elements, got {vax.shape}, {vtr.shape} and {r.shape}")
+    if not (float(v_eps) > 0.0 and math.isfinite(float(v_eps))):
+        raise DownholeInputError(f"nodal_friction_forces: v_eps must be > 0 m/s, got {v_eps!r}")
     Nl = np.linalg.norm(T[..., None] * elem[:m, 1:4] + elem[:m, 4:7], axis=-1)
     Nl *= elem[:m, 7] * elem[:m, 0] * 0.5
     Nn = np.zeros(T.shape[:-1] + (m + 1,))
     Nn[..., :-1] += Nl
     Nn[..., 1:] += Nl
-    vax = np.asarray(v_axial, float)
-    vtr = np.asarray(v_angular, float)
-    r = np.asarray(radius, float)
     c = mu * Nn / np.sqrt(vax**2 + (r * vtr) ** 2 + v_eps**2)
     return -(c * vax), -(c * r**2 * vtr)
