@@ -8,7 +8,7 @@ import pytest
 from downhole.contact import friction_forces, soft_string_normal_force
 from downhole.errors import DownholeInputError
 from downhole.string.drillstring import DrillString, StringSegment, pipe_section
-from downhole.well import Arc, Vertical, WellPath
+from downhole.well import Arc, Tangent, Vertical, WellPath
 
 
 def test_normal_force_equals_johancsik_inclination_azimuth_form():
@@ -174,3 +174,48 @@ def test_numpy_friction_rejects_mismatched_input(kw, match):
     args.update(kw)
     with pytest.raises(DownholeInputError, match=match):
         nodal_friction_forces(**args)
+
+
+def test_kernel_torque_loss_of_a_rotating_string_equals_the_soft_string_integral():
+    # torque and drag by hand: a string hanging at zero WOB and rotating steadily at 10 rad/s in
+    # a build-and-hold well does not slide axially, so the tension is the buoyed weight below
+    # (T(s) = w (TVD(L) - TVD(s))) and the surface torque is int mu r N(s) ds with Johancsik's
+    # N; mass-proportional damping off, so the wall friction is the only torque on the string
+    from scipy.integrate import quad
+
+    from downhole.control.topdrive import Hook, TopDrive
+    from downhole.string.fem import fem_model, simulate_directional
+
+    well = WellPath.from_sections([Vertical(500.0), Arc(600.0, math.pi / 3), Tangent(300.0)])
+    pipe = pipe_section(0.127, 0.1086)
+    ds = DrillString.uniform(well.total_depth, pipe, mud_density=1200.0)
+    mu = 0.25
+    m = fem_model(well, ds, n_elements=80, friction=mu, rayleigh_alpha=0.0,
+                  rayleigh_beta=0.02, md_b=200.0, md_c=400.0)
+    r = simulate_directional(m, 30.0, 1e-3, top_drive=TopDrive(speed=10.0, ramp_time=3.0),
+                             hook=Hook(mode="force", wob=0.0), depth_of_cut="approximate",
+                             record_dt=0.01)
+    steady = r.time > 25.0
+    torque = np.asarray(r["surface_torque"])[steady]
+    assert np.max(np.abs(np.asarray(r["bit_angular_velocity"])[steady] - 10.0)) < 0.05
+    assert np.max(np.abs(np.asarray(r["wob"])[steady])) < 1.0
+
+    L = well.total_depth
+    w = float(ds.buoyed_weight_per_length(0.5 * L))
+    tvd_bit = float(well.tvd(L))
+    h = 1e-3
+
+    def normal(s):
+        T = w * (tvd_bit - float(well.tvd(s)))
+        inc = float(well.inclination(s))
+        th1 = (float(well.inclination(s + h)) - float(well.inclination(s - h))) / (2 * h)
+        ph1 = (float(well.azimuth(s + h)) - float(well.azimuth(s - h))) / (2 * h)
+        return math.hypot(T * th1 - w * math.sin(inc), T * math.sin(inc) * ph1)
+
+    radius = pipe.outer_diameter / 2
+    arc_end = 500.0 + 600.0 * math.pi / 3
+    by_hand = sum(quad(lambda s: mu * radius * normal(s), a, b, limit=200)[0]
+                  for a, b in ((h, 500.0), (500.0, arc_end), (arc_end, L - h)))
+    assert by_hand > 1000.0  # a real torque loss, not a vanishing one
+    assert float(np.mean(torque)) == pytest.approx(by_hand, rel=5e-3)
+    assert np.ptp(torque) < 0.02 * by_hand
