@@ -9,7 +9,7 @@ from downhole.errors import DownholeInputError
 from downhole.params import NeutralStringParams, get_preset
 from downhole.string.wave import (WaveSegment, segments_from_pipe, static_end_forces,
                                   wave_end_forces, wave_incoming, wave_outgoing, wave_push,
-                                  wave_state)
+                                  wave_source_forces, wave_state, wave_step)
 
 
 def _run_line(seg, dt, n, v_b_fn, c_end):
@@ -165,3 +165,82 @@ def test_delay_shorter_than_step_is_rejected():
     seg = WaveSegment(1.0, 5000.0, 1.0)
     with pytest.raises(DownholeInputError, match="shorter than the step"):
         wave_state(seg, 1e-3)
+
+
+def test_pulse_arrives_after_length_over_speed_and_returns_inverted():
+    # d'Alembert: a velocity pulse imposed at B travels down at c; at a fixed end C (v_C = 0)
+    # the force is F_C(t) = 2 Z v_B(t - L/c), and the reflected wave (velocity inverted) is back
+    # at B after 2 L/c: F_B(t) = -Z v_B(t) - 2 Z v_B(t - 2 L/c). Non-integer delay/dt = 173.37.
+    seg = WaveSegment(866.85, 5000.0, 3.0e5)
+    dt = 1e-3
+    tau, z = seg.delay, seg.impedance
+    t0, width, amp = 0.05, 0.008, 0.2
+
+    def v_b(t):
+        return amp * math.exp(-0.5 * ((t - t0) / width) ** 2)
+
+    hist, pos, wp = wave_state(seg, dt)
+    n = 450
+    t = np.arange(n) * dt
+    fb = np.empty(n)
+    fc = np.empty(n)
+    for i in range(n):
+        a_in, b_in = wave_incoming(hist, pos, wp)
+        ref = wave_end_forces(z, v_b(t[i]), 0.0, a_in, b_in)
+        fb[i], fc[i] = wave_step(hist, pos, wp, v_b(t[i]), 0.0, a_in, b_in)
+        assert (fb[i], fc[i]) == ref
+        # the known part of the end forces, the rest is the end damper Z v
+        sb, sc = wave_source_forces(z, a_in, b_in)
+        assert sb - z * v_b(t[i]) == pytest.approx(fb[i], rel=1e-12, abs=1e-9)
+        assert sc == pytest.approx(fc[i], rel=1e-12, abs=1e-9)
+    assert pos[0] == n
+    exact_c = np.array([2 * z * v_b(s - tau) for s in t])
+    exact_b = np.array([-z * v_b(s) - 2 * z * v_b(s - 2 * tau) for s in t])
+    # linear interpolation at weight f of a pulse 8 samples wide: peak error about
+    # f (1 - f) / 2 (dt / width)^2 = 1.8e-3 of the amplitude per pass; the reflection passes twice
+    assert np.max(np.abs(fc - exact_c)) < 2.5e-3 * 2 * z * amp
+    assert np.max(np.abs(fb - exact_b)) < 5e-3 * 2 * z * amp
+    # nothing reaches C before t0 + L/c - 5 widths
+    assert np.all(np.abs(fc[t < t0 + tau - 5 * width]) < 1e-4 * z * amp)
+    # the arrival (centroid of F_C) lies at t0 + L/c
+    sel = t < t0 + 1.5 * tau
+    centroid = np.sum(fc[sel] * t[sel]) / np.sum(fc[sel])
+    assert centroid == pytest.approx(t0 + tau, abs=1e-6)
+
+
+def test_read_weight_stays_exact_after_many_steps():
+    # the read position t_n - delay uses an exact integer offset and weight: after 10^9 steps
+    # the interpolation is as exact as at the start (n - delay in floating point is not)
+    from fractions import Fraction
+
+    seg = WaveSegment(1000.0, 5184.5, 1.0)
+    dt = 1.3e-3
+    hist, pos, wp = wave_state(seg, dt)
+    cap = int(wp[2])
+    for n in (1001, 10**6 + 7, 10**9 + 3):
+        pos[0] = n
+        for k in range(n - cap + 1, n):
+            hist[0, k % cap] = k % 2      # parity of the absolute sample index
+            hist[1, k % cap] = 1 - k % 2
+        a, b = wave_incoming(hist, pos, wp)
+        q = Fraction(n) - Fraction(wp[1])
+        k0 = math.floor(q)
+        f = float(q - k0)
+        exact = (1 - f) * (k0 % 2) + f * ((k0 + 1) % 2)
+        assert a == pytest.approx(exact, abs=1e-15)
+        assert a + b == pytest.approx(1.0, abs=1e-15)
+
+
+def test_line_preload_is_the_static_end_forces_of_the_line_weight():
+    from downhole.string.wave import line_preload
+
+    seg = WaveSegment(800.0, 5100.0, 3.0e5)
+    assert line_preload(2.0e4, 350.0 * 800.0) == static_end_forces(seg, 2.0e4, 350.0)
+    # the hybrid's preload: B carries the line's weight on top of the tension at C
+    from downhole.string.fem import _line_preload
+    from downhole.string.hybrid import hybrid_model
+
+    m = hybrid_model("hybrid24")
+    fb0, fc0, _ = _line_preload(m, 1.0e5)
+    n_c = float(m.gravity[m.node_c:].sum()) - 1.0e5
+    assert (fb0, fc0) == (n_c + m.wave["line_weight"], -n_c)

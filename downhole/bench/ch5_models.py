@@ -23,6 +23,7 @@ __all__ = ["lsoda_seconds", "best_time"]
 
 def _ode_rhs(model, top_speed=10.0, wob=120e3, kp=1e4, ki=2e3, j_td=500.0):
     from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+    from downhole.contact.softstring import nodal_friction_forces
 
     m = model.design_model()
     n = m.n_nodes
@@ -56,14 +57,9 @@ def _ode_rhs(model, top_speed=10.0, wob=120e3, kp=1e4, ki=2e3, j_td=500.0):
         ft[0] = kp * (top_speed - vt[0]) + ki * (top_speed * t - ut[0])
         if mu > 0:
             T = -m.Ka[1, :-1] * (ua[1:] - ua[:-1])
-            Nl = np.linalg.norm(T[:, None] * elem[:-1, 1:4] + elem[:-1, 4:7], axis=1)
-            Nl *= 0.5 * elem[:-1, 0] * elem[:-1, 7]
-            N = np.zeros(n)
-            N[:-1] += Nl
-            N[1:] += Nl
-            c = mu * N / np.sqrt(va**2 + (rad * vt) ** 2 + veps**2)
-            fa -= c * va
-            ft -= c * rad**2 * vt
+            f_fr, t_fr = nodal_friction_forces(T, elem, rad, mu, va, vt, veps)
+            fa += f_fr
+            ft += t_fr
         d = approx_depth_of_cut(va[-1], vt[-1], bitp)
         w, tq = bit_forces(d, va[-1], vt[-1], bitp)
         fa[-1] -= w

@@ -1,7 +1,10 @@
 """Wellbore contact: soft-string normal force and regularized, implicitly applied friction."""
 
-from downhole.contact.softstring import (friction_damper, friction_forces,
-                                         normal_force_per_length, soft_string_normal_force)
+from downhole.contact.softstring import (ELEM_LAYOUT, contact_elements, element_normal_half,
+                                         friction_damper, friction_forces, nodal_friction_forces,
+                                         normal_force_per_length, normal_weight,
+                                         soft_string_normal_force)
 
-__all__ = ["normal_force_per_length", "friction_damper", "friction_forces",
-           "soft_string_normal_force"]
+__all__ = ["ELEM_LAYOUT", "normal_force_per_length", "element_normal_half", "friction_damper",
+           "friction_forces", "contact_elements", "normal_weight", "soft_string_normal_force",
+           "nodal_friction_forces"]

@@ -9,6 +9,16 @@ regularized direction v / sqrt(|v|^2 + v_eps^2). Kernels apply it as a frozen-co
 c = mu N / sqrt(v^2 + (r omega)^2 + v_eps^2) on the new velocities, which is dissipative and
 therefore stable for any v_eps. The torque arm r is the pipe's outer radius (not the wellbore
 radius of seed Eq. 4.7).
+
+This module is the package's only soft-string contact code. Element data use the layout of
+``DirectionalModel.elem`` (:data:`ELEM_LAYOUT`): per element its length, dt/ds (3), w g_perp (3)
+and a contact flag; each element gives half its normal force ``L N`` to each end node.
+
+* compiled (numba, called from the FEM/hybrid kernel and the DHP directional exporter):
+  :func:`normal_force_per_length`, :func:`element_normal_half`, :func:`friction_damper`,
+  :func:`friction_forces`, :func:`contact_elements`;
+* NumPy (model assembly, design exporters, reference ODEs): :func:`normal_weight`,
+  :func:`soft_string_normal_force`, :func:`nodal_friction_forces`.
 """
 
 from __future__ import annotations
@@ -18,8 +28,17 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["normal_force_per_length", "friction_damper", "friction_forces",
-           "soft_string_normal_force"]
+from downhole.errors import DownholeInputError
+
+__all__ = ["ELEM_LAYOUT", "normal_force_per_length", "element_normal_half", "friction_damper",
+           "friction_forces", "contact_elements", "normal_weight", "soft_string_normal_force",
+           "nodal_friction_forces"]
+
+#: Columns of the per-element contact array (``DirectionalModel.elem``).
+ELEM_LAYOUT = ("length", "dtds_north", "dtds_east", "dtds_down", "wg_north", "wg_east", "wg_down",
+               "contact")
+
+_DOWN = np.array([0.0, 0.0, 1.0])
 
 
 @njit(cache=True)
@@ -29,6 +48,34 @@ def normal_force_per_length(tension, kx, ky, kz, gx, gy, gz):
     y = tension * ky + gy
     z = tension * kz + gz
     return math.sqrt(x * x + y * y + z * z)
+
+
+@njit(cache=True)
+def element_normal_half(elem, e, tension):
+    """Half the soft-string normal force of element ``e``, ``0.5 L |T dt/ds + w g_perp|`` (N):
+    the share of each of its two end nodes (``elem`` in :data:`ELEM_LAYOUT`)."""
+    return 0.5 * elem[e, 0] * normal_force_per_length(tension, elem[e, 1], elem[e, 2],
+                                                      elem[e, 3], elem[e, 4], elem[e, 5],
+                                                      elem[e, 6])
+
+
+@njit(cache=True)
+def contact_elements(elem):
+    """Indices (int64) of the elements whose normal force can be non-zero.
+
+    An element takes part when its contact flag is set and it is curved or not vertical; a
+    straight vertical element has zero curvature and zero normal weight, so its soft-string
+    normal force is exactly 0 whatever the tension, and the kernels skip it. The last row of
+    ``elem`` (one per node) is never an element."""
+    out = np.empty(max(elem.shape[0] - 1, 0), np.int64)
+    k = 0
+    for e in range(elem.shape[0] - 1):
+        if elem[e, 7] > 0.5 and (elem[e, 1] != 0.0 or elem[e, 2] != 0.0 or elem[e, 3] != 0.0
+                                 or elem[e, 4] != 0.0 or elem[e, 5] != 0.0
+                                 or elem[e, 6] != 0.0):
+            out[k] = e
+            k += 1
+    return out[:k]
 
 
 @njit(cache=True)
@@ -42,6 +89,27 @@ def friction_forces(normal_force, mu, v, omega, radius, v_eps):
     """Axial friction force (N) and torque (N m) opposing (v, r omega), regularized."""
     c = friction_damper(normal_force, mu, v, radius * omega, v_eps)
     return -c * v, -c * radius * radius * omega
+
+
+def normal_weight(tangent, weight_per_length):
+    """Part of the buoyed weight normal to the string, ``w g_perp`` (N/m), per element.
+
+    Parameters
+    ----------
+    tangent : array_like, shape (m, 3)
+        Unit tangent (north, east, down).
+    weight_per_length : array_like, shape (m,)
+        Buoyed weight per length, N/m.
+
+    Returns
+    -------
+    ndarray, shape (m, 3)
+        ``w (e_down - (t . e_down) t)``.
+    """
+    t = np.asarray(tangent, float)
+    w = np.asarray(weight_per_length, float)
+    gperp = _DOWN[None, :] - (t @ _DOWN)[:, None] * t
+    return w[:, None] * gperp
 
 
 def soft_string_normal_force(tension, curvature_vector, weight_per_length, tangent):
@@ -71,8 +139,64 @@ def soft_string_normal_force(tension, curvature_vector, weight_per_length, tange
     """
     T = np.asarray(tension, float)[:, None]
     k = np.asarray(curvature_vector, float)
-    t = np.asarray(tangent, float)
-    w = np.asarray(weight_per_length, float)[:, None]
-    down = np.array([0.0, 0.0, 1.0])
-    gperp = down - (t @ down)[:, None] * t
-    return np.linalg.norm(T * k + w * gperp, axis=1)
+    return np.linalg.norm(T * k + normal_weight(tangent, weight_per_length), axis=1)
+
+
+def nodal_friction_forces(tension, elem, radius, mu, v_axial, v_angular, v_eps):
+    """Wellbore friction on every node (NumPy, vectorised over a leading batch of states).
+
+    Each element's normal force ``L |T dt/ds + w g_perp|`` is shared equally by its end nodes;
+    at node i the regularized Coulomb friction is ``-c (v_i, r_i^2 omega_i)`` with
+    ``c = mu N_i / sqrt(v_i^2 + (r_i omega_i)^2 + v_eps^2)`` (the same law as the compiled
+    :func:`friction_damper`, evaluated explicitly).
+
+    Parameters
+    ----------
+    tension : array_like, shape (..., n - 1)
+        Effective tension per element, N (positive in tension).
+    elem : ndarray, shape (n, 8)
+        Element data, :data:`ELEM_LAYOUT` (rows beyond ``n - 1`` are ignored).
+    radius : array_like, shape (n,)
+        Torque arm per node, m.
+    mu : float
+        Friction coefficient.
+    v_axial, v_angular : array_like, shape (..., n)
+        Nodal axial (m/s) and angular (rad/s) velocities.
+    v_eps : float
+        Regularization velocity, m/s (> 0).
+
+    Returns
+    -------
+    force : ndarray, shape (..., n)
+        Axial friction force, N.
+    torque : ndarray, shape (..., n)
+        Friction torque, N m.
+
+    Raises
+    ------
+    DownholeInputError
+        If the shapes do not fit together or ``v_eps`` is not positive.
+    """
+    T = np.asarray(tension, float)
+    elem = np.asarray(elem, float)
+    vax = np.asarray(v_axial, float)
+    vtr = np.asarray(v_angular, float)
+    r = np.asarray(radius, float)
+    m = T.shape[-1] if T.ndim else 0
+    if T.ndim == 0 or elem.ndim != 2 or elem.shape[1] != 8 or elem.shape[0] < m + 1:
+        raise DownholeInputError(
+            f"nodal_friction_forces: tension (..., n - 1) and elem (n, 8) expected, got tension "
+            f"{T.shape} and elem {elem.shape}")
+    if vax.shape[-1:] != (m + 1,) or vtr.shape[-1:] != (m + 1,) or r.shape != (m + 1,):
+        raise DownholeInputError(
+            f"nodal_friction_forces: velocities (..., {m + 1}) and radius ({m + 1},) expected "
+            f"for {m} elements, got {vax.shape}, {vtr.shape} and {r.shape}")
+    if not (float(v_eps) > 0.0 and math.isfinite(float(v_eps))):
+        raise DownholeInputError(f"nodal_friction_forces: v_eps must be > 0 m/s, got {v_eps!r}")
+    Nl = np.linalg.norm(T[..., None] * elem[:m, 1:4] + elem[:m, 4:7], axis=-1)
+    Nl *= elem[:m, 7] * elem[:m, 0] * 0.5
+    Nn = np.zeros(T.shape[:-1] + (m + 1,))
+    Nn[..., :-1] += Nl
+    Nn[..., 1:] += Nl
+    c = mu * Nn / np.sqrt(vax**2 + (r * vtr) ** 2 + v_eps**2)
+    return -(c * vax), -(c * r**2 * vtr)

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from scipy.linalg import expm
 
 from downhole.bit.detournay import approx_depth_of_cut, bit_force_slopes, bit_forces
 from downhole.errors import DownholeInputError
@@ -59,15 +58,10 @@ class HILStringPlant:
         self.dt = float(dt)
         self.coupling = tuple(float(c) for c in coupling)
         A_d, B_d = dmodel.linear_model(dt, top_drive_inertia)
-        A, _, _, Minv = dmodel.continuous_linear_model(top_drive_inertia)
-        ns = A.shape[0]
+        ns = A_d.shape[0]
         n2 = ns // 2
         self.n = n2 // 2
-        Bf = np.vstack([np.zeros((n2, n2)), Minv])
-        aug = np.zeros((ns + n2, ns + n2))
-        aug[:ns, :ns] = A
-        aug[:ns, ns:] = Bf
-        Gam = expm(aug * dt)[:ns, ns:]
+        Gam = dmodel.nodal_force_map(dt, top_drive_inertia)
         last = 2 * (self.n - 1)
         self.A_d = np.ascontiguousarray(A_d)
         self.B = np.ascontiguousarray(np.hstack([B_d, Gam[:, [last, last + 1]]]))

@@ -28,7 +28,10 @@ import numpy as np
 from numba import njit
 
 from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
 from downhole.params.bit import BIT_ARRAY_LAYOUT
+from downhole.string.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WP_Z, wave_read_at,
+                                  wave_read_plan, wave_source_forces, wave_step_at)
 
 __all__ = ["CHANNELS", "TOP_LAYOUT", "MISC_LAYOUT", "run_directional", "thomas_solve"]
 
@@ -221,13 +224,6 @@ def solve_bit_node(field, den, r, h, x, c0, c1, bk):
 
 
 @njit(cache=True)
-def _wave_sample(hist, row, k, cap, init):
-    if k < 0:
-        return init
-    return hist[row, k % cap]
-
-
-@njit(cache=True)
 def rock_depth_fast(surf, j_next, theta_ref, h, nb, cap, nbl, x, theta):
     """:func:`downhole.bit.rock_surface.rock_depth` with the layout unpacked (same result)."""
     mask = cap - 1
@@ -407,7 +403,7 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     hk, hc, h0 = top[_HK], top[_HC], top[_H0]
     kp, ki, sg, stau = top[_KP], top[_KI], top[_SG], top[_ST]
     mu = top[_MU]
-    veps2 = top[_VEPS] * top[_VEPS]
+    v_eps = top[_VEPS]
     fb0, fc0 = top[_FB0], top[_FC0]
     omfloor = bitp[_OMFLOOR]
     h = 0.5 * dt
@@ -420,15 +416,8 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     drate_rock = rp[4] * h  # delayed depth of cut: d(v1) = d0 + n h (v0 + v1)
     # ---- contact elements / nodes (skip elements whose normal force is identically zero:
     # straight and vertical, no curvature and no lateral weight)
-    ce = np.empty(n, np.int64)
-    n_ce = 0
-    if mu > 0.0:
-        for e in range(n - 1):
-            if elem[e, 7] > 0.5 and (elem[e, 1] != 0.0 or elem[e, 2] != 0.0 or elem[e, 3] != 0.0
-                                     or elem[e, 4] != 0.0 or elem[e, 5] != 0.0
-                                     or elem[e, 6] != 0.0):
-                ce[n_ce] = e
-                n_ce += 1
+    ce = contact_elements(elem) if mu > 0.0 else np.empty(0, np.int64)
+    n_ce = ce.shape[0]
     incontact = np.zeros(n, np.bool_)
     for j in range(n_ce):
         incontact[ce[j]] = True
@@ -488,17 +477,15 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     cw_t = np.empty(n)
     nrm = np.zeros(n)
     Aw = np.empty((n, n)) if dense else np.empty((1, 1))
-    # ---- wave segments: constant read offset and interpolation weight
-    za = wa_wp[0]
-    zt = wt_wp[0]
+    # ---- wave segments (downhole.string.wave): clocks, capacities and read plans in locals
+    za = wa_wp[WP_Z]
+    zt = wt_wp[WP_Z]
     pos_a = wa_pos[0]
     pos_t = wt_pos[0]
-    cap_a = int(wa_wp[2])
-    cap_t = int(wt_wp[2])
-    off_a = int(math.floor(-wa_wp[1]))
-    fr_a = -wa_wp[1] - off_a
-    off_t = int(math.floor(-wt_wp[1]))
-    fr_t = -wt_wp[1] - off_t
+    cap_a = int(wa_wp[WP_CAP])
+    cap_t = int(wt_wp[WP_CAP])
+    off_a, fr_a = wave_read_plan(wa_wp[WP_DELAY_STEPS])
+    off_t, fr_t = wave_read_plan(wt_wp[WP_DELAY_STEPS])
     nla = int(top[_NLA])
     nlt = int(top[_NLT])
     al_a = 1.0 - math.exp(-dt / top[_LTA]) if nla > 0 else 0.0
@@ -543,20 +530,15 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 nrm[cn[j]] = 0.0
             for j in range(n_ce):
                 e = ce[j]
-                T = -mats[3, e] * (state[0, e + 1] - state[0, e])
-                gx = T * elem[e, 1] + elem[e, 4]
-                gy = T * elem[e, 2] + elem[e, 5]
-                gz = T * elem[e, 3] + elem[e, 6]
-                half = 0.5 * elem[e, 0] * math.sqrt(gx * gx + gy * gy + gz * gz)
+                tension = -mats[3, e] * (state[0, e + 1] - state[0, e])
+                half = element_normal_half(elem, e, tension)
                 nrm[e] += half
                 nrm[e + 1] += half
             for j in range(n_cn):
                 i = cn[j]
                 if nrm[i] > 0.0:
                     r = node[i, 1]
-                    va_i = state[1, i]
-                    rw = r * state[4, i]
-                    c = mu * nrm[i] / math.sqrt(va_i * va_i + rw * rw + veps2)
+                    c = friction_damper(nrm[i], mu, state[1, i], r * state[4, i], v_eps)
                     cfr[0, i] = c
                     cfr[1, i] = c * r * r
                 else:
@@ -581,26 +563,20 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         ta_in = 0.0
         tb_in = 0.0
         if hybrid:
-            k0 = pos_a + off_a
-            a_in = (1.0 - fr_a) * _wave_sample(wa_hist, 0, k0, cap_a, wa_wp[3]) \
-                + fr_a * _wave_sample(wa_hist, 0, k0 + 1, cap_a, wa_wp[3])
-            b_in = (1.0 - fr_a) * _wave_sample(wa_hist, 1, k0, cap_a, wa_wp[4]) \
-                + fr_a * _wave_sample(wa_hist, 1, k0 + 1, cap_a, wa_wp[4])
-            k0 = pos_t + off_t
-            ta_in = (1.0 - fr_t) * _wave_sample(wt_hist, 0, k0, cap_t, wt_wp[3]) \
-                + fr_t * _wave_sample(wt_hist, 0, k0 + 1, cap_t, wt_wp[3])
-            tb_in = (1.0 - fr_t) * _wave_sample(wt_hist, 1, k0, cap_t, wt_wp[4]) \
-                + fr_t * _wave_sample(wt_hist, 1, k0 + 1, cap_t, wt_wp[4])
+            a_in, b_in = wave_read_at(wa_hist, pos_a, off_a, fr_a, cap_a, wa_wp[WP_A0],
+                                      wa_wp[WP_B0])
+            ta_in, tb_in = wave_read_at(wt_hist, pos_t, off_t, fr_t, cap_t, wt_wp[WP_A0],
+                                        wt_wp[WP_B0])
             if nla > 0:
                 b_in = _lag_cascade(lag, 0, nla, al_a, b_in)
                 a_in = _lag_cascade(lag, 1, nla, al_a, a_in)
             if nlt > 0:
                 tb_in = _lag_cascade(lag, 2, nlt, al_t, tb_in)
                 ta_in = _lag_cascade(lag, 3, nlt, al_t, ta_in)
-            F[0, iB] = Fst[0, iB] + 2.0 * za * b_in
-            F[0, iC] = Fst[0, iC] + 2.0 * za * a_in
-            F[1, iB] = 2.0 * zt * tb_in
-            F[1, iC] = 2.0 * zt * ta_in
+            sb, sc = wave_source_forces(za, a_in, b_in)
+            F[0, iB] = Fst[0, iB] + sb
+            F[0, iC] = Fst[0, iC] + sc
+            F[1, iB], F[1, iC] = wave_source_forces(zt, ta_in, tb_in)
         # ---- solve both fields: (M + h C + h^2 K + h C_x + h^2 K_x) v1 = rhs
         if dense:
             for f in range(2):
@@ -739,23 +715,17 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
             j_next = rock_advance_fast(surf, j_next, r_ref, r_h, r_nb, r_cap, r_mem, th_b0,
                                        ua_b0, state[3, ib], state[0, ib])
         if hybrid:
-            vB = state[1, iB]
-            vC = state[1, iC]
-            ka = pos_a % cap_a
-            wa_hist[0, ka] = vB - b_in
-            wa_hist[1, ka] = vC - a_in
+            f_b, f_c = wave_step_at(wa_hist, pos_a, cap_a, za, state[1, iB], state[1, iC], a_in,
+                                    b_in)
             pos_a += 1
-            wB = state[4, iB]
-            wC = state[4, iC]
-            kt = pos_t % cap_t
-            wt_hist[0, kt] = wB - tb_in
-            wt_hist[1, kt] = wC - ta_in
-            pos_t += 1
-            fb_line = fb0 + za * (2.0 * b_in - vB)
-            fc_line = -fc0 - za * (2.0 * a_in - vC)
+            fb_line = fb0 + f_b
+            fc_line = -fc0 - f_c
             # reported torque GJ (theta_up - theta_down)/L is minus the line's N
-            tb_line = -zt * (2.0 * tb_in - wB)
-            tc_line = zt * (2.0 * ta_in - wC)
+            f_b, f_c = wave_step_at(wt_hist, pos_t, cap_t, zt, state[4, iB], state[4, iC], ta_in,
+                                    tb_in)
+            pos_t += 1
+            tb_line = -f_b
+            tc_line = f_c
         t_now += dt
         n_done += 1.0
         # ---- record

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.linalg import solve_banded
 
 from downhole.bit.rock_surface import RockSurfaceSpec, rock_init
+from downhole.contact.softstring import nodal_friction_forces, normal_weight
 from downhole.control.topdrive import Hook, TopDrive
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, DirectionalWellParams
@@ -29,6 +30,7 @@ from downhole.params.presets import get_preset
 from downhole.sim.fem_kernels import CHANNELS, TOP_LAYOUT, run_directional
 from downhole.sim.result import Result
 from downhole.string.drillstring import DrillString
+from downhole.string.zoh import zoh
 from downhole.well import WellPath
 
 __all__ = ["DirectionalModel", "fem_model", "fem_from_nodes", "simulate_directional",
@@ -205,17 +207,27 @@ class DirectionalModel:
         A_d : ndarray (4N, 4N)
         B_d : ndarray (4N, 2)
         """
-        from scipy.linalg import expm
-
         if not dt > 0:
             raise DownholeInputError(f"dt must be > 0 s, got {dt!r}")
         A, B, _, _ = self.continuous_linear_model(top_drive_inertia)
-        ns, m = A.shape[0], B.shape[1]
-        aug = np.zeros((ns + m, ns + m))
-        aug[:ns, :ns] = A
-        aug[:ns, ns:] = B
-        E = expm(aug * dt)
-        return E[:ns, :ns], E[:ns, ns:]
+        return zoh(A, B, dt)
+
+    def nodal_force_map(self, dt: float, top_drive_inertia: float = 500.0) -> np.ndarray:
+        """ZOH map of arbitrary held nodal forces: ``Gamma = int_0^dt e^{A s} ds [0; M^-1]``.
+
+        A force pair ``f`` (2N,: axial force and torque per node, in the state's interleaved
+        order) held over one step adds ``Gamma @ f`` to the discrete state of
+        :meth:`linear_model`.
+
+        Returns
+        -------
+        ndarray (4N, 2N)
+        """
+        if not dt > 0:
+            raise DownholeInputError(f"dt must be > 0 s, got {dt!r}")
+        A, _, _, Minv = self.continuous_linear_model(top_drive_inertia)
+        n2 = Minv.shape[0]
+        return zoh(A, np.vstack([np.zeros((n2, n2)), Minv]), dt)[1]
 
     def control_affine(self, dt: float = 1e-3, *, state_scale=None, input_scale=(1e5, 1e4),
                        top_drive_inertia: float = 500.0, friction: bool = True,
@@ -247,16 +259,9 @@ class DirectionalModel:
         m = self.design_model()
         n = m.n_nodes
         A_d, B_d = self.linear_model(dt, top_drive_inertia)
-        A, _, names, Minv = self.continuous_linear_model(top_drive_inertia)
+        A, _, names, _ = self.continuous_linear_model(top_drive_inertia)
         ns = A.shape[0]
-        # ZOH map of arbitrary nodal forces (2n): Gamma = int_0^dt e^{As} ds [0; M^-1]
-        from scipy.linalg import expm
-
-        Bf = np.vstack([np.zeros((2 * n, 2 * n)), Minv])
-        aug = np.zeros((ns + 2 * n, ns + 2 * n))
-        aug[:ns, :ns] = A
-        aug[:ns, ns:] = Bf
-        Gam = expm(aug * dt)[:ns, ns:]
+        Gam = self.nodal_force_map(dt, top_drive_inertia)
         bitp = m.bit.to_array()
         ib = n - 1
         # hanging tension per element (zero WOB) for the friction normal force
@@ -278,19 +283,10 @@ class DirectionalModel:
             if mu > 0:
                 xa = zb[:, 0:2 * n:2]
                 T = tension[None, :] - m.Ka[1, None, :n - 1] * (xa[:, 1:] - xa[:, :-1])
-                kv = elem[:n - 1, 1:4]
-                gv = elem[:n - 1, 4:7]
-                Nl = np.linalg.norm(T[:, :, None] * kv[None] + gv[None], axis=2)
-                Nl *= elem[None, :n - 1, 7] * elem[None, :n - 1, 0] * 0.5
-                Nn = np.zeros((N, n))
-                Nn[:, :-1] += Nl
-                Nn[:, 1:] += Nl
-                vax = zb[:, 2 * n:4 * n:2]
-                vtr = zb[:, 2 * n + 1:4 * n:2]
-                den = np.sqrt(vax**2 + (radius[None] * vtr) ** 2 + v_eps_design**2)
-                c = mu * Nn / den
-                F[:, 0:2 * n:2] -= c * vax
-                F[:, 1:2 * n:2] -= c * radius[None] ** 2 * vtr
+                fa, ft = nodal_friction_forces(T, elem, radius, mu, zb[:, 2 * n:4 * n:2],
+                                               zb[:, 2 * n + 1:4 * n:2], v_eps_design)
+                F[:, 0:2 * n:2] += fa
+                F[:, 1:2 * n:2] += ft
             return F @ _G.T
 
         kinds, nodes = [], []
@@ -386,13 +382,9 @@ def _assemble_chain(well, string, md, top_md, mass="consistent"):
     grav[:-1] += 0.5 * wb * dz
     grav[1:] += 0.5 * wb * dz
     elem = np.zeros((n, 8))
-    t = well.tangent(mid)
-    k = well.curvature_vector(mid)
-    down = np.array([0.0, 0.0, 1.0])
-    gperp = down[None, :] - (t @ down)[:, None] * t
     elem[:-1, 0] = L
-    elem[:-1, 1:4] = k
-    elem[:-1, 4:7] = wb[:, None] * gperp
+    elem[:-1, 1:4] = well.curvature_vector(mid)
+    elem[:-1, 4:7] = normal_weight(well.tangent(mid), wb)
     elem[:-1, 7] = 1.0
     od = string.property_at(s_mid, "outer_diameter")
     radius = np.zeros(n)
@@ -592,11 +584,12 @@ def _static_axial(m: DirectionalModel, wob: float) -> np.ndarray:
 
 def _line_preload(m: DirectionalModel, wob: float):
     """Static forces of the wave segment on B and C (downward) and its static elongation."""
+    from downhole.string.wave import line_preload
+
     wv = m.wave
     n_c = float(m.gravity[m.node_c:].sum()) - wob
     wl = wv["line_weight"]
-    fb0 = n_c + wl
-    fc0 = -n_c
+    fb0, fc0 = line_preload(n_c, wl)
     delta = (n_c * wv["length"] + 0.5 * wl * wv["length"]) / wv["EA"]
     return fb0, fc0, delta
 

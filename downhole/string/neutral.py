@@ -30,8 +30,9 @@ from downhole.control.eid._kernel import eid_arrays, eid_step
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, NeutralStringParams, get_preset
 from downhole.sim.result import Result
-from downhole.string.wave import (WaveSegment, segments_from_pipe, wave_incoming, wave_push,
-                                  wave_state)
+from downhole.string.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WaveSegment,
+                                  segments_from_pipe, wave_read_at, wave_read_plan,
+                                  wave_source_forces, wave_state, wave_step_at)
 
 __all__ = ["NeutralModel", "NDDEMatrices", "NeutralPlant", "neutral_model", "simulate_neutral",
            "NEUTRAL_CHANNELS", "NOMINAL_U_A", "NOMINAL_U_T"]
@@ -220,9 +221,16 @@ def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, a
     v = bstate[1]
     th = bstate[2]
     w = bstate[3]
+    # wave clocks, capacities and read plans in locals (downhole.string.wave)
+    na = pa[0]
+    nt = pt[0]
+    cap_a = int(wpa[WP_CAP])
+    cap_t = int(wpt[WP_CAP])
+    off_a, fr_a = wave_read_plan(wpa[WP_DELAY_STEPS])
+    off_t, fr_t = wave_read_plan(wpt[WP_DELAY_STEPS])
     # incoming waves at t0 and the top node at t0
-    a_in, b_in = wave_incoming(ha, pa, wpa)
-    a_in_t, b_in_t = wave_incoming(ht, pt, wpt)
+    a_in, b_in = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa[WP_A0], wpa[WP_B0])
+    a_in_t, b_in_t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt[WP_A0], wpt[WP_B0])
     uvec = np.zeros(2)
     y = np.zeros(2)
     r = np.zeros(2)
@@ -241,9 +249,11 @@ def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, a
         else:
             ua = u_in[0, k]
             ut = u_in[1, k]
-        # massless top nodes (algebraic)
-        vtop = (2.0 * za * b_in + alpha_a * ua - f_top) / (za + alpha_a)
-        wtop = (2.0 * zt * b_in_t + alpha_t * ut) / (zt + alpha_t)
+        # massless top nodes (algebraic): line force 2 Z b_in - Z v_top
+        sa_top, _ = wave_source_forces(za, a_in, b_in)
+        st_top, _ = wave_source_forces(zt, a_in_t, b_in_t)
+        vtop = (sa_top + alpha_a * ua - f_top) / (za + alpha_a)
+        wtop = (st_top + alpha_t * ut) / (zt + alpha_t)
         # bit forces at t_k
         if approx:
             d = approx_depth_of_cut(v, w, bitp)
@@ -276,20 +286,27 @@ def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, a
                 sigout[rec, 5] = sig[1, 2]
             for c in range(1, 14):
                 if not math.isfinite(out[rec, c]):
+                    pa[0] = na
+                    pt[0] = nt
                     return 1, k, c
             rec += 1
         if k == nsteps:
             break
         # outgoing waves of t_k, then incoming at t_{k+1}
-        wave_push(ha, pa, wpa, vtop - b_in, v - a_in)
-        wave_push(ht, pt, wpt, wtop - b_in_t, w - a_in_t)
-        a1, b1 = wave_incoming(ha, pa, wpa)
-        a1t, b1t = wave_incoming(ht, pt, wpt)
-        # bit node: trapezoidal on the line terms, bit forces with implicit frozen slopes
+        _, fa_line = wave_step_at(ha, na, cap_a, za, vtop, v, a_in, b_in)
+        _, ft_line = wave_step_at(ht, nt, cap_t, zt, wtop, w, a_in_t, b_in_t)
+        na += 1
+        nt += 1
+        a1, b1 = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa[WP_A0], wpa[WP_B0])
+        a1t, b1t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt[WP_A0], wpt[WP_B0])
+        _, sa1 = wave_source_forces(za, a1, b1)
+        _, st1 = wave_source_forces(zt, a1t, b1t)
+        # bit node: trapezoidal on the line force at the bit (F_C of t_k; 2 Z a_in of t_{k+1}
+        # with the end damper implicit), bit forces with implicit frozen slopes
         ca, ct = bit_force_slopes(d, v, w, bitp, approx)
-        v1 = (m_b * v / dt + 0.5 * za * (2.0 * a_in - v) + za * a1 + grav - wob + ca * v) / (
+        v1 = (m_b * v / dt + 0.5 * fa_line + 0.5 * sa1 + grav - wob + ca * v) / (
             m_b / dt + 0.5 * za + ca)
-        w1 = (i_b * w / dt + 0.5 * zt * (2.0 * a_in_t - w) + zt * a1t - tob + ct * w) / (
+        w1 = (i_b * w / dt + 0.5 * ft_line + 0.5 * st1 - tob + ct * w) / (
             i_b / dt + 0.5 * zt + ct)
         xprev = x
         thprev = th
@@ -304,6 +321,8 @@ def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, a
     bstate[1] = v
     bstate[2] = th
     bstate[3] = w
+    pa[0] = na
+    pt[0] = nt
     return 0, nsteps, 0
 
 

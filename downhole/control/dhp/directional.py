@@ -17,13 +17,11 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
-from scipy.linalg import expm
 
 from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
 from downhole.control.affine import ControlAffineModel
 from downhole.control.dhp.riccati import _draw_one, _fit_one
 from downhole.errors import DownholeInputError
@@ -83,18 +81,11 @@ def _directional_forces(WT, P0, P1, bitp, tension, koff, elem, radius, mu, v_eps
             p1 = P1[i1]
             te = tension[e]
             ke = koff[e]
-            k1, k2, k3 = elem[e, 1], elem[e, 2], elem[e, 3]
-            g1, g2, g3 = elem[e, 4], elem[e, 5], elem[e, 6]
-            hl = 0.5 * elem[e, 0]
             sa = slot[e]
             sb = slot[e + 1]
             for t in range(nb):
                 dx = d0 + w1[s0 + t] * p1 - w0[s0 + t] * p0
-                T = te - ke * dx
-                a0 = T * k1 + g1
-                a1 = T * k2 + g2
-                a2 = T * k3 + g3
-                half = hl * math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+                half = element_normal_half(elem, e, te - ke * dx)
                 normal[sa, t] += half
                 normal[sb, t] += half
         for j in range(q2):
@@ -109,8 +100,7 @@ def _directional_forces(WT, P0, P1, bitp, tension, koff, elem, radius, mu, v_eps
                 vax[t] = oa + sa_ * wa[s0 + t]
                 vtr[t] = ot + st_ * wt[s0 + t]
             for t in range(nb):
-                den = math.sqrt(vax[t] * vax[t] + (r * vtr[t]) ** 2 + v_eps * v_eps)
-                c = mu * normal[j, t] / den
+                c = friction_damper(normal[j, t], mu, vax[t], r * vtr[t], v_eps)
                 vax[t] = c * vax[t]
                 vtr[t] = c * r * r * vtr[t]
             for t in range(nb):
@@ -190,13 +180,9 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
     m = dmodel.design_model()
     n = m.n_nodes
     A_d, B_d = dmodel.linear_model(dt, top_drive_inertia)
-    A, _, names, Minv = dmodel.continuous_linear_model(top_drive_inertia)
+    A, _, names, _ = dmodel.continuous_linear_model(top_drive_inertia)
     ns = A.shape[0]
-    Bf = np.vstack([np.zeros((2 * n, 2 * n)), Minv])
-    aug = np.zeros((ns + 2 * n, ns + 2 * n))
-    aug[:ns, :ns] = A
-    aug[:ns, ns:] = Bf
-    Gam = expm(aug * dt)[:ns, ns:]
+    Gam = dmodel.nodal_force_map(dt, top_drive_inertia)
     kinds, nodes = [], []
     for blk in ("position", "velocity"):
         for i in range(n):
@@ -213,10 +199,8 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
     elem = np.ascontiguousarray(m.elem, dtype=float)
     radius = np.ascontiguousarray(m.radius, dtype=float)
     mu = float(m.mu) if friction else 0.0
-    # contact elements whose normal force can be non-zero (a straight vertical element has
-    # zero curvature and zero normal weight: its soft-string normal force is exactly 0)
-    can = (elem[:n - 1, 7] >= 0.5) & np.any(elem[:n - 1, 1:7] != 0.0, axis=1)
-    contact = np.flatnonzero(can).astype(np.int64) if mu > 0.0 else np.zeros(0, dtype=np.int64)
+    # contact elements whose normal force can be non-zero (the kernel's selection)
+    contact = contact_elements(elem) if mu > 0.0 else np.zeros(0, dtype=np.int64)
     act = np.unique(np.concatenate([[n - 1], contact, contact + 1])).astype(np.int64)
     cols = np.ravel(np.column_stack([2 * act, 2 * act + 1]))
     Gam = np.ascontiguousarray(Gam[:, cols])

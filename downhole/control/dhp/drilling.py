@@ -19,7 +19,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-import scipy.linalg
 from numba import njit
 
 from downhole.bit.detournay import approx_depth_of_cut, bit_forces
@@ -27,20 +26,11 @@ from downhole.control.affine import ControlAffineModel
 from downhole.errors import DownholeInputError
 from downhole.params.bit import BitParams
 from downhole.params.lumped import LumpedParams
+from downhole.string.zoh import zoh
 
 __all__ = ["lumped_affine_model", "reference_states", "feed_forward", "PenaltyWeights",
            "penalty_matrices", "table_4_1_weights", "zoh", "integral_augmented_model",
            "INTEGRAL_STATE_NAMES"]
-
-
-def zoh(Ac: np.ndarray, Bc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretization (matrix exponential of the augmented matrix)."""
-    n, m = Bc.shape
-    aug = np.zeros((n + m, n + m))
-    aug[:n, :n] = Ac
-    aug[:n, n:] = Bc
-    E = scipy.linalg.expm(aug * dt)
-    return E[:n, :n], E[:n, n:]
 
 
 @njit(cache=True)
