@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from downhole.bit.detournay import bit_forces
+from downhole.bit.law import bit_forces
 from downhole.string.lumped import ChainModel
 
 __all__ = ["simulate_lumped4_numpy"]
