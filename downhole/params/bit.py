@@ -106,7 +106,7 @@ class BitParams(BaseModel):
     friction_law: Literal["stribeck", "constant"] = "stribeck"
     omega_reg: Q["angular_velocity"] = Field(0.01, gt=0)
     omega_floor: Q["angular_velocity"] = Field(0.5, gt=0)
-    law: Literal["detournay", "aarsnes"] = "detournay"
+    law: Literal[tuple(LAW_IDS)] = "detournay"  # type: ignore[valid-type]
     contact_force: Q["force"] | None = Field(None, ge=0)
     contact_depth: Q["length"] = Field(1e-5, gt=0)
 
