@@ -244,3 +244,17 @@ def test_law_registry_and_selection():
         assert set(law.parameters) <= set(BitParams.model_fields)
     p = BitParams(law="aarsnes").to_array()
     assert p[-3] == 1.0 and p[-2] == pytest.approx(45e6 * 3.6e-3 * 0.15)
+
+
+def test_tuple_and_array_forms_of_the_parameters_agree():
+    # kernels may hand the law a tuple built once (the FEM kernel does): same numbers, every slot
+    from downhole.bit.law import bit_forces_and_slopes, bit_params_tuple
+    from downhole.params.bit import BIT_ARRAY_LAYOUT
+
+    for bit in (BIT, AARSNES):
+        p = bit.to_array()
+        t = bit_params_tuple(p)
+        assert len(t) == len(BIT_ARRAY_LAYOUT) == p.size
+        assert tuple(t) == tuple(p)
+        for d, v, w in SMOOTH_POINTS:
+            assert bit_forces_and_slopes(d, v, w, t) == bit_forces_and_slopes(d, v, w, p)

@@ -44,7 +44,7 @@ from downhole.bit.detournay import detournay_forces_and_slopes, detournay_wob
 from downhole.bit.layout import LAW, OMFLOOR
 from downhole.params.bit import LAW_IDS, BitParams
 
-__all__ = ["BitLaw", "LAWS", "law_id", "bit_forces", "bit_forces_and_slopes", "bit_wob",
+__all__ = ["BitLaw", "LAWS", "law_id", "bit_params_tuple", "bit_forces", "bit_forces_and_slopes", "bit_wob",
            "approx_depth_of_cut", "approx_depth_rate", "bit_force_slopes", "solve_bit_node",
            "bit_forces_py", "bit_forces_vec", "bit_forces_and_slopes_py"]
 
@@ -97,6 +97,17 @@ def law_id(name: str) -> int:
     if name not in LAWS:
         raise ValueError(f"unknown bit law {name!r}: expected one of {sorted(LAWS)}")
     return LAWS[name].law_id
+
+
+@njit(cache=True, inline="always")
+def bit_params_tuple(p):
+    """The packed parameters as a tuple of floats, for kernels that build it once before their
+    time loop: the law's functions accept either form, and a tuple travels in registers (no
+    reloads of the array, which the compiler cannot hoist past the kernel's stores).
+
+    Its length is that of :data:`downhole.params.bit.BIT_ARRAY_LAYOUT` (checked by the tests)."""
+    return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+            p[13], p[14], p[15], p[16], p[17], p[18], p[19], p[20], p[21], p[22], p[23], p[24])
 
 
 @njit(cache=True, inline="always")

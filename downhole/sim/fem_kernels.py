@@ -27,8 +27,8 @@ import math
 import numpy as np
 from numba import njit
 
-from downhole.bit.law import (approx_depth_of_cut, approx_depth_rate, bit_forces, bit_wob,
-                              solve_bit_node)
+from downhole.bit.law import (approx_depth_of_cut, approx_depth_rate, bit_forces,
+                              bit_params_tuple, bit_wob, solve_bit_node)
 from downhole.bit.rock_surface import rock_advance_to, rock_depth_at
 
 __all__ = ["CHANNELS", "TOP_LAYOUT", "MISC_LAYOUT", "run_directional", "thomas_solve"]
@@ -201,6 +201,7 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     mu = top[_MU]
     veps2 = top[_VEPS] * top[_VEPS]
     fb0, fc0 = top[_FB0], top[_FC0]
+    bt = bit_params_tuple(bitp)  # the bit law's parameters, by value
     h = 0.5 * dt
     ih = 1.0 / h
     # rock surface (downhole.bit.rock_surface layout), unpacked
@@ -357,7 +358,7 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         th_b0 = state[3, ib]
         if approx:
             dax0 = 0.0
-            drate = approx_depth_rate(state[4, ib], bitp)
+            drate = approx_depth_rate(state[4, ib], bt)
         else:
             d0 = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, ua_b0, th_b0)
             dax0 = d0 + drate_rock * state[1, ib]
@@ -410,7 +411,7 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 else:
                     va_new = state[1, ib]
                     if approx:
-                        d1 = approx_depth_of_cut(va_new, state[4, ib], bitp)
+                        d1 = approx_depth_of_cut(va_new, state[4, ib], bt)
                     else:
                         d1 = dax0 + drate * va_new
                     c0 = d1
@@ -426,11 +427,11 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 cw[ib] = 1.0
                 _spd_solve2(Aw, rhs, cw, y, dd, n)
                 den = 1.0 / dd[ib]
-                x = solve_bit_node(f, den, den * y[ib], h, state[ru + 1, ib], c0, c1, bitp)
+                x = solve_bit_node(f, den, den * y[ib], h, state[ru + 1, ib], c0, c1, bt)
                 if f == 0:
-                    fb, _, _ = bit_wob(c0 + c1 * x, x, bitp)
+                    fb, _, _ = bit_wob(c0 + c1 * x, x, bt)
                 else:
-                    _, fb = bit_forces(c0, c1, x, bitp)
+                    _, fb = bit_forces(c0, c1, x, bt)
                 for i in range(n):
                     y[i] -= h * fb * dd[i]
                 y[ib] = x
@@ -494,13 +495,13 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                     y[i] = ra * inva
                     cw_t[i] = mats[11, i] * invt
                     y_t[i] = rt * invt
-            va_new = solve_bit_node(0, dena, ra, h, state[1, ib], dax0, drate, bitp)
+            va_new = solve_bit_node(0, dena, ra, h, state[1, ib], dax0, drate, bt)
             if approx:
-                d1 = approx_depth_of_cut(va_new, state[4, ib], bitp)
+                d1 = approx_depth_of_cut(va_new, state[4, ib], bt)
             else:
                 d1 = dax0 + drate * va_new
             y[ib] = va_new
-            y_t[ib] = solve_bit_node(1, dent, rt, h, state[4, ib], d1, va_new, bitp)
+            y_t[ib] = solve_bit_node(1, dent, rt, h, state[4, ib], d1, va_new, bt)
             for i in range(n - 2, -1, -1):
                 y[i] -= cw[i] * y[i + 1]
                 y_t[i] -= cw_t[i] * y_t[i + 1]
@@ -548,11 +549,11 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 status = 1
                 break
             if approx:
-                dn = approx_depth_of_cut(vab, vtb, bitp)
+                dn = approx_depth_of_cut(vab, vtb, bt)
             else:
                 dn = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, state[0, ib],
                                      state[3, ib])
-            wn, tn = bit_forces(dn, vab, vtb, bitp)
+            wn, tn = bit_forces(dn, vab, vtb, bt)
             rec[row, 0] = state[0, ib] - misc[4]
             rec[row, 1] = vab
             rec[row, 2] = state[3, ib]
