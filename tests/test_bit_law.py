@@ -111,8 +111,8 @@ AARSNES = BIT.model_copy(update={"law": "aarsnes"})  # F_c = sigma l a = 24.3 kN
 
 def hand_slopes(d, v, w):
     """Partial slopes of hand() written out (d < d* or d > d*, v where f(v) = 1, w > omega_reg)."""
-    eps, sig, zeta, a, l, dstar = 77e6, 45e6, 0.64, 0.15, 3.6e-3, 1.2e-3
-    full = sig * l * a
+    eps, sig, zeta, a, lw, dstar = 77e6, 45e6, 0.64, 0.15, 3.6e-3, 1.2e-3
+    full = sig * lw * a
     dwf_dd = full / dstar if d < dstar else 0.0
     wf = full * min(d / dstar, 1.0)
     mu = 0.5 + 0.3 * math.exp(-0.9 * w)
