@@ -24,7 +24,8 @@ from downhole.bit.detournay import (contact_speed_factor, cutting, friction_coef
                                     friction_sign)
 from downhole.bit.layout import A, DCONT, FCONT
 
-__all__ = ["aarsnes_contact_force", "aarsnes_wob", "aarsnes_forces_and_slopes"]
+__all__ = ["aarsnes_contact_force", "aarsnes_friction_factor", "aarsnes_wob", "aarsnes_torque",
+           "aarsnes_forces_and_slopes"]
 
 
 @njit(cache=True, inline="always")
@@ -51,15 +52,31 @@ def aarsnes_wob(d, v, p):
 
 
 @njit(cache=True, inline="always")
+def aarsnes_friction_factor(omega, p):
+    """k_f = gamma mu a g(omega) of T_f = k_f W_f and dk_f/domega (no factor 1/2)."""
+    mugam, dmugam = friction_coefficient(omega, p)
+    g, dg = friction_sign(omega, p)
+    a = p[A]
+    return mugam * a * g, a * (dmugam * g + mugam * dg)
+
+
+@njit(cache=True, inline="always")
+def aarsnes_torque(d, wf, omega, p):
+    """TOB and dTOB/domega at depth of cut ``d`` with the contact force ``wf`` held fixed."""
+    if d <= 0.0:
+        return 0.0, 0.0
+    _, tc, _, _, dtc_dw = cutting(d, omega, p)
+    kf, dkf = aarsnes_friction_factor(omega, p)
+    return tc + kf * wf, dtc_dw + dkf * wf
+
+
+@njit(cache=True, inline="always")
 def aarsnes_forces_and_slopes(d, v, omega, p):
     """``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``; zero for d <= 0."""
     if d <= 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     wc, tc, kw, dtc_dd, dtc_dw = cutting(d, omega, p)
     wf, dwf_dd, dwf_dv = aarsnes_contact_force(d, v, p)
-    mugam, dmugam = friction_coefficient(omega, p)
-    g, dg = friction_sign(omega, p)
-    a = p[A]
-    kf = mugam * a * g
+    kf, dkf = aarsnes_friction_factor(omega, p)
     return (wc + wf, tc + kf * wf, kw + dwf_dd, dwf_dv, dtc_dd + kf * dwf_dd, kf * dwf_dv,
-            dtc_dw + a * wf * (dmugam * g + mugam * dg))
+            dtc_dw + dkf * wf)

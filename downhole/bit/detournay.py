@@ -10,7 +10,8 @@ omega <= 0 (smooth ramp of width ``omega_reg``); wear-flat force saturates conti
 (default); the Stribeck law acts on |omega|.
 
 The pieces (:func:`cutting`, :func:`contact_speed_factor`, :func:`friction_coefficient`,
-:func:`friction_sign`) are shared with the other laws, which differ only in the contact force.
+:func:`friction_sign`) are shared with the other laws, which differ in the contact force and in
+the friction torque's factor.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ from downhole.bit.layout import (A, A1, A2, B1, B2, CONT, DSTAR, EPS, GAM, GAMB,
                                  MUGAM, MUS, OMREG, SIG, STRIB, VF, ZETA)
 
 __all__ = ["cutting", "contact_speed_factor", "friction_coefficient", "friction_sign",
-           "wear_flat_force", "detournay_wob", "detournay_forces_and_slopes"]
+           "friction_factor", "wear_flat_force", "detournay_wob", "detournay_torque",
+           "detournay_forces_and_slopes"]
 
 
 @njit(cache=True, inline="always")
@@ -110,6 +112,26 @@ def detournay_wob(d, v, p):
 
 
 @njit(cache=True, inline="always")
+def friction_factor(omega, p):
+    """k_f = 1/2 mu gamma a g(omega) of TOB_f = k_f W_f (Eq. 2.6) and dk_f/domega."""
+    mugam, dmugam = friction_coefficient(omega, p)
+    g, dg = friction_sign(omega, p)
+    a = p[A]
+    return 0.5 * mugam * a * g, 0.5 * a * (dmugam * g + mugam * dg)
+
+
+@njit(cache=True, inline="always")
+def detournay_torque(d, wf, omega, p):
+    """TOB and dTOB/domega at depth of cut ``d`` with the wear-flat force ``wf`` held fixed
+    (what the implicit torsional solve iterates on); zero for d <= 0."""
+    if d <= 0.0:
+        return 0.0, 0.0
+    _, tc, _, _, dtc_dw = cutting(d, omega, p)
+    kf, dkf = friction_factor(omega, p)
+    return tc + kf * wf, dtc_dw + dkf * wf
+
+
+@njit(cache=True, inline="always")
 def detournay_forces_and_slopes(d, v, omega, p):
     """WOB, TOB and their partial slopes for depth of cut ``d`` (m, all blades), axial velocity
     ``v`` (m/s, positive into the rock) and angular velocity ``omega`` (rad/s).
@@ -120,13 +142,9 @@ def detournay_forces_and_slopes(d, v, omega, p):
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     wc, tc, kw, dtc_dd, dtc_dw = cutting(d, omega, p)
     wf, dwf_dd, dwf_dv = wear_flat_force(d, v, p)
-    mugam, dmugam = friction_coefficient(omega, p)
-    g, dg = friction_sign(omega, p)
-    a = p[A]
-    kf = 0.5 * mugam * a * g
-    tob_f = kf * wf
-    return (wc + wf, tc + tob_f, kw + dwf_dd, dwf_dv, dtc_dd + kf * dwf_dd, kf * dwf_dv,
-            dtc_dw + 0.5 * a * wf * (dmugam * g + mugam * dg))
+    kf, dkf = friction_factor(omega, p)
+    return (wc + wf, tc + kf * wf, kw + dwf_dd, dwf_dv, dtc_dd + kf * dwf_dd, kf * dwf_dv,
+            dtc_dw + dkf * wf)
 
 
 _MOVED = ("bit_forces", "bit_force_slopes", "approx_depth_of_cut", "bit_forces_py",

@@ -13,6 +13,9 @@ Interface (all compiled, no allocation):
 - :func:`bit_forces_and_slopes` ``(d, v, omega, p) -> (wob, tob, dwob_dd, dwob_dv, dtob_dd,
   dtob_dv, dtob_domega)``: analytic partial slopes where the law is smooth
 - :func:`bit_wob` ``(d, v, p) -> (wob, dwob_dd, dwob_dv)``: the axial part alone
+- :func:`bit_contact_force` ``(d, v, p) -> (W_f, dW_f/dd, dW_f/dv)`` and
+  :func:`bit_torque_at_contact` ``(d, W_f, omega, p) -> (tob, dtob_domega)``: the torque at a
+  given contact force (the torsional implicit solve computes W_f once per step)
 - :func:`approx_depth_of_cut`, :func:`approx_depth_rate`: the approximated depth of cut
   d = 2 pi v / max(omega, omega*) (Eqs. 2.11, 4.16)
 - :func:`bit_force_slopes`: effective dampers -dWOB/dv, -dTOB/domega by central differences of
@@ -24,11 +27,12 @@ d is the total depth of cut (all blades, m), v the bit axial velocity (m/s, posi
 rock), omega the bit angular velocity (rad/s). The depth of cut itself comes from
 :mod:`downhole.bit.rock_surface` (delayed) or :func:`approx_depth_of_cut`.
 
-Adding a law (see docs/developing.md): write its compiled ``<law>_wob`` and
-``<law>_forces_and_slopes`` in a new module of this package, give it an id in
-:data:`downhole.params.bit.LAW_IDS` (and its parameters in ``BitParams``), add one branch to
-:func:`bit_wob` and :func:`bit_forces_and_slopes` below and one :class:`BitLaw` entry to
-:data:`LAWS`.
+Adding a law (see docs/developing.md): write its compiled ``<law>_wob``,
+``<law>_contact_force``, ``<law>_torque`` and ``<law>_forces_and_slopes`` in a new module of
+this package, give it an id in :data:`downhole.params.bit.LAW_IDS` (and its parameters in
+``BitParams``), add one branch to each of :func:`bit_wob`, :func:`bit_contact_force`,
+:func:`bit_torque_at_contact` and :func:`bit_forces_and_slopes` below and one :class:`BitLaw`
+entry to :data:`LAWS`.
 """
 
 from __future__ import annotations
@@ -39,12 +43,15 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from downhole.bit.aarsnes import aarsnes_forces_and_slopes, aarsnes_wob
-from downhole.bit.detournay import detournay_forces_and_slopes, detournay_wob
+from downhole.bit.aarsnes import (aarsnes_contact_force, aarsnes_forces_and_slopes,
+                                  aarsnes_torque, aarsnes_wob)
+from downhole.bit.detournay import (detournay_forces_and_slopes, detournay_torque,
+                                    detournay_wob, wear_flat_force)
 from downhole.bit.layout import LAW, OMFLOOR
 from downhole.params.bit import LAW_IDS, BitParams
 
-__all__ = ["BitLaw", "LAWS", "law_id", "bit_params_tuple", "bit_forces", "bit_forces_and_slopes", "bit_wob",
+__all__ = ["BitLaw", "LAWS", "law_id", "bit_params_tuple", "bit_forces", "bit_forces_and_slopes",
+           "bit_wob", "bit_contact_force", "bit_torque_at_contact",
            "approx_depth_of_cut", "approx_depth_rate", "bit_force_slopes", "solve_bit_node",
            "bit_forces_py", "bit_forces_vec", "bit_forces_and_slopes_py"]
 
@@ -119,6 +126,27 @@ def bit_wob(d, v, p):
 
 
 @njit(cache=True, inline="always")
+def bit_contact_force(d, v, p):
+    """Contact (wear-flat) force of the selected law and its slopes ``(W_f, dW_f/dd, dW_f/dv)``;
+    zero for d <= 0."""
+    if d <= 0.0:
+        return 0.0, 0.0, 0.0
+    if p[LAW] == _AARSNES:
+        return aarsnes_contact_force(d, v, p)
+    return wear_flat_force(d, v, p)
+
+
+@njit(cache=True, inline="always")
+def bit_torque_at_contact(d, wf, omega, p):
+    """TOB and dTOB/domega of the selected law at depth of cut ``d`` with the contact force
+    ``wf`` (from :func:`bit_contact_force`) held fixed: the torsional implicit solve iterates on
+    omega only, so the contact force is computed once per step."""
+    if p[LAW] == _AARSNES:
+        return aarsnes_torque(d, wf, omega, p)
+    return detournay_torque(d, wf, omega, p)
+
+
+@njit(cache=True, inline="always")
 def bit_forces_and_slopes(d, v, omega, p):
     """WOB (N), TOB (N m) and their partial slopes of the selected law.
 
@@ -190,14 +218,13 @@ def solve_bit_node(field, den, r, h, x, c0, c1, p):
     takes over if Newton leaves the bracket."""
     lo = -1e300
     hi = 1e300
+    wf = bit_contact_force(c0, c1, p)[0] if field == 1 else 0.0
     for _ in range(60):
         if field == 0:
             f, dwd, dwv = bit_wob(c0 + c1 * x, x, p)
             df = dwd * c1 + dwv
         else:
-            r7 = bit_forces_and_slopes(c0, c1, x, p)
-            f = r7[1]
-            df = r7[6]
+            f, df = bit_torque_at_contact(c0, wf, x, p)
         fx = den * x + h * f - r
         if fx == 0.0:
             return x
