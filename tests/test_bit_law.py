@@ -258,3 +258,21 @@ def test_tuple_and_array_forms_of_the_parameters_agree():
         assert tuple(t) == tuple(p)
         for d, v, w in SMOOTH_POINTS:
             assert bit_forces_and_slopes(d, v, w, t) == bit_forces_and_slopes(d, v, w, p)
+
+
+@pytest.mark.parametrize("bit", [BIT, AARSNES], ids=["detournay", "aarsnes"])
+def test_torque_at_a_fixed_contact_force_is_the_law(bit):
+    # the split the FEM's torsional solve uses: W_f(d, v) once, then TOB(d, W_f, omega)
+    from downhole.bit.law import bit_contact_force, bit_torque_at_contact
+
+    p = bit.to_array()
+    for d, v, w in SMOOTH_POINTS + [(-1e-3, 0.01, 3.0)]:
+        r = bit_forces_and_slopes_py(d, v, w, bit)
+        wf, dwf_dd, dwf_dv = bit_contact_force(d, v, p)
+        tob, dtob_dw = bit_torque_at_contact(d, wf, w, p)
+        assert tob == pytest.approx(r[1], rel=1e-14, abs=1e-12)
+        assert dtob_dw == pytest.approx(r[6], rel=1e-14, abs=1e-12)
+        cut = 0.64 * 77e6 * 0.15 * d if d > 0 else 0.0
+        assert wf == pytest.approx(r[0] - cut, rel=1e-12, abs=1e-9)
+        assert r[2] == pytest.approx((0.64 * 77e6 * 0.15 if d > 0 else 0.0) + dwf_dd, rel=1e-12)
+        assert r[3] == pytest.approx(dwf_dv, rel=1e-12)
