@@ -209,30 +209,3 @@ def test_velocity_hook_servo_drives_the_block_and_balances_the_string():
     assert e[sel].mean() - e[0] == pytest.approx(expected, rel=0.1)
     with pytest.raises(DownholeInputError, match="velocity-mode hook"):
         simulate_directional(m, 0.1, 1e-3, hook_velocity=0.01)
-
-
-def test_inline_rock_surface_matches_the_shared_implementation():
-    # the kernel's unpacked rock-surface helpers against downhole.bit.rock_surface
-    from downhole.bit.rock_surface import RockSurfaceSpec, rock_advance, rock_depth, rock_init
-    from downhole.sim.fem_kernels import rock_advance_fast, rock_depth_fast
-
-    rng = np.random.default_rng(3)
-    for memory in (True, False):
-        spec = RockSurfaceSpec(5, 64, memory)
-        s1, i1, rp = rock_init(spec, 0.0, 0.0)
-        s2, i2, _ = rock_init(spec, 0.0, 0.0)
-        j2 = int(i2[0])
-        th, x = 0.0, 0.0
-        for _ in range(3000):
-            dth = rng.normal(0.02, 0.03)           # mostly forward, sometimes backward
-            dx = rng.normal(2e-5, 5e-5)
-            d1 = rock_depth(s1, i1, rp, x + dx, th + dth)
-            d2 = rock_depth_fast(s2, j2, rp[0], rp[1], int(rp[2]), int(rp[3]), rp[4], x + dx,
-                                 th + dth)
-            assert d2 == pytest.approx(d1, rel=1e-12, abs=1e-15)
-            rock_advance(s1, i1, rp, th, x, th + dth, x + dx)
-            j2 = rock_advance_fast(s2, j2, rp[0], rp[1], int(rp[2]), int(rp[3]), memory, th, x,
-                                   th + dth, x + dx)
-            th, x = th + dth, x + dx
-        assert j2 == i1[0]
-        assert np.allclose(s1, s2, rtol=0, atol=1e-15)

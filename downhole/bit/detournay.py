@@ -1,115 +1,161 @@
-"""Compiled PDC bit/rock law (Detournay cutting + wear-flat friction), seed Eqs. 2.2-2.8.
+"""The corrected Detournay PDC bit/rock law (cutting + wear-flat friction), seed Eqs. 2.2-2.8.
+
+The first implementation of the bit-law interface of :mod:`downhole.bit.law`: forces and their
+analytic partial slopes with respect to the depth of cut d, the bit axial velocity v and the bit
+angular velocity omega. Kernels do not call this module directly; they call the dispatch in
+:mod:`downhole.bit.law`, which selects the law named in ``BitParams.law``.
 
 Corrections from SPEC.md applied here (see docs/seed-errata.md): cutting torque vanishes for
 omega <= 0 (smooth ramp of width ``omega_reg``); wear-flat force saturates continuously at d*
 (default); the Stribeck law acts on |omega|.
+
+The pieces (:func:`cutting`, :func:`contact_speed_factor`, :func:`friction_coefficient`,
+:func:`friction_sign`) are shared with the other laws, which differ in the contact force and in
+the friction torque's factor.
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
-from downhole.params.bit import BitParams
+from downhole.bit.layout import (A, A1, A2, B1, B2, CONT, DSTAR, EPS, GAM, GAMB, KC, L, MUC,
+                                 MUGAM, MUS, OMREG, SIG, STRIB, VF, ZETA)
 
-__all__ = ["bit_forces", "bit_forces_py", "approx_depth_of_cut", "bit_force_slopes"]
-
-# indices into the packed parameter array (BIT_ARRAY_LAYOUT)
-_EPS, _SIG, _ZETA, _A, _N, _L, _DSTAR, _KC = 0, 1, 2, 3, 4, 5, 6, 7
-_MUC, _MUS, _GAM, _GAMB, _VF, _MUGAM, _A1, _B1, _A2, _B2 = 8, 9, 10, 11, 12, 13, 14, 15, 16, 17
-_CONT, _STRIB, _OMREG, _OMFLOOR = 18, 19, 20, 21
+__all__ = ["cutting", "contact_speed_factor", "friction_coefficient", "friction_sign",
+           "friction_factor", "wear_flat_force", "detournay_wob", "detournay_torque",
+           "detournay_forces_and_slopes"]
 
 
 @njit(cache=True, inline="always")
-def bit_forces(d, v, omega, p):
-    """Weight and torque on bit for total depth of cut ``d`` (m), axial velocity ``v`` (m/s,
-    positive into the rock) and angular velocity ``omega`` (rad/s). Returns ``(wob, tob)``."""
-    if d <= 0.0:
-        return 0.0, 0.0
-    eps = p[_EPS]
-    a = p[_A]
-    wob_c = p[_ZETA] * eps * a * d
-    # cutting torque only while the bit turns forward (ramp over [0, omega_reg])
-    s = omega / p[_OMREG]
+def cutting(d, omega, p):
+    """Cutting forces of Eqs. 2.3-2.4 with the backward-rotation correction.
+
+    Returns ``(wob_c, tob_c, dwob_c/dd, dtob_c/dd, dtob_c/domega)`` for d > 0. The cutting torque
+    is switched off for omega <= 0 by a linear ramp over [0, omega_reg]."""
+    eps = p[EPS]
+    a = p[A]
+    kw = p[ZETA] * eps * a
+    s = omega / p[OMREG]
+    ds = 1.0 / p[OMREG]
     if s < 0.0:
         s = 0.0
+        ds = 0.0
     elif s > 1.0:
         s = 1.0
-    tob_c = 0.5 * eps * a * a * d * s
-    # wear-flat contact force
-    arg = p[_A1] * v + p[_B1]
-    if arg > 50.0:
-        fv = 0.0
-    else:
-        fv = 1.0 / (1.0 + math.exp(arg))
-    full = p[_SIG] * p[_L] * a
-    if p[_CONT] > 0.5:
-        r = d / p[_DSTAR]
-        if r > 1.0:
-            r = 1.0
-        wob_f = full * r * fv
-    else:
-        if d > p[_DSTAR]:
-            wob_f = full * fv
-        else:
-            wob_f = p[_KC] * d
-    # wear-flat friction torque
-    if p[_STRIB] > 0.5:
-        mu = p[_MUC] + (p[_MUS] - p[_MUC]) * math.exp(-p[_GAMB] / p[_VF] * abs(omega))
-        mugam = mu * p[_GAM]
-    else:
-        mugam = p[_MUGAM]
-    g = math.tanh(p[_A2] * omega + p[_B2])
-    tob_f = 0.5 * mugam * a * g * wob_f
-    return wob_c + wob_f, tob_c + tob_f
+        ds = 0.0
+    kt = 0.5 * eps * a * a
+    return kw * d, kt * d * s, kw, kt * s, kt * d * ds
 
 
 @njit(cache=True, inline="always")
-def approx_depth_of_cut(v, omega, p):
-    """Approximated total depth of cut d = 2 pi v / max(omega, omega*) (Eqs. 2.11, 4.16), m."""
-    w = omega
-    if w < p[_OMFLOOR]:
-        w = p[_OMFLOOR]
-    return 2.0 * math.pi * v / w
+def contact_speed_factor(v, p):
+    """f(v) = 1 / (1 + exp(a1 v + b1)) of Eq. 2.5 and df/dv (contact lost while the bit lifts)."""
+    arg = p[A1] * v + p[B1]
+    if arg > 50.0:
+        return 0.0, 0.0
+    if arg < -40.0:
+        return 1.0, 0.0  # 1 / (1 + e^arg) rounds to 1 exactly: skip the exp
+    fv = 1.0 / (1.0 + math.exp(arg))
+    return fv, -p[A1] * fv * (1.0 - fv)
 
 
-@njit(cache=True)
-def bit_force_slopes(d, v, omega, p, approx):
-    """Non-negative effective dampers -dWOB/dv and -dTOB/domega (finite differences).
-
-    Used by the implicit integrators to apply the stiff regularised friction laws implicitly
-    (frozen coefficients). With ``approx`` true the depth of cut follows v and omega."""
-    hv = 1e-7 + 1e-4 * abs(v)
-    hw = 1e-6 + 1e-4 * abs(omega)
-    if approx:
-        w1, _ = bit_forces(approx_depth_of_cut(v + hv, omega, p), v + hv, omega, p)
-        w0, _ = bit_forces(approx_depth_of_cut(v - hv, omega, p), v - hv, omega, p)
-        _, t1 = bit_forces(approx_depth_of_cut(v, omega + hw, p), v, omega + hw, p)
-        _, t0 = bit_forces(approx_depth_of_cut(v, omega - hw, p), v, omega - hw, p)
-    else:
-        w1, _ = bit_forces(d, v + hv, omega, p)
-        w0, _ = bit_forces(d, v - hv, omega, p)
-        _, t1 = bit_forces(d, v, omega + hw, p)
-        _, t0 = bit_forces(d, v, omega - hw, p)
-    ca = (w1 - w0) / (2.0 * hv)
-    ct = (t1 - t0) / (2.0 * hw)
-    return max(ca, 0.0), max(ct, 0.0)
+@njit(cache=True, inline="always")
+def friction_coefficient(omega, p):
+    """mu * gamma of the wear-flat friction and its omega-slope: Stribeck in |omega| (Eq. 2.8,
+    SPEC correction) or the constant ``mu_gamma``."""
+    if p[STRIB] > 0.5:
+        e = math.exp(-p[GAMB] / p[VF] * abs(omega))
+        mu = p[MUC] + (p[MUS] - p[MUC]) * e
+        sgn = 1.0 if omega > 0.0 else -1.0
+        return mu * p[GAM], -(p[MUS] - p[MUC]) * p[GAM] * p[GAMB] / p[VF] * e * sgn
+    return p[MUGAM], 0.0
 
 
-def bit_forces_py(d, v, omega, bit: BitParams) -> tuple[float, float]:
-    """Convenience wrapper: ``(wob, tob)`` in N and N m for a :class:`BitParams`."""
-    return bit_forces(float(d), float(v), float(omega), bit.to_array())
+@njit(cache=True, inline="always")
+def friction_sign(omega, p):
+    """g(omega) = tanh(a2 omega + b2) of Eq. 2.6 and dg/domega."""
+    z = p[A2] * omega + p[B2]
+    if z > 20.0:
+        return 1.0, 0.0  # tanh rounds to +-1 exactly beyond |z| = 19.1: skip it
+    if z < -20.0:
+        return -1.0, 0.0
+    g = math.tanh(z)
+    return g, p[A2] * (1.0 - g * g)
 
 
-def bit_forces_vec(d, v, omega, bit: BitParams):
-    """Vectorised wrapper over NumPy arrays (for plots and analysis)."""
-    p = bit.to_array()
-    d, v, omega = np.broadcast_arrays(np.asarray(d, float), np.asarray(v, float),
-                                      np.asarray(omega, float))
-    wob = np.empty(d.shape)
-    tob = np.empty(d.shape)
-    for i in np.ndindex(d.shape):
-        wob[i], tob[i] = bit_forces(d[i], v[i], omega[i], p)
-    return wob, tob
+@njit(cache=True, inline="always")
+def wear_flat_force(d, v, p):
+    """Wear-flat contact force W_f of Eq. 2.5 (continuous saturation at d* by default, or the
+    printed piecewise form) and its slopes: ``(W_f, dW_f/dd, dW_f/dv)`` for d > 0."""
+    fv, dfv = contact_speed_factor(v, p)
+    full = p[SIG] * p[L] * p[A]
+    if p[CONT] > 0.5:
+        r = d / p[DSTAR]
+        if r > 1.0:
+            return full * fv, 0.0, full * dfv
+        return full * r * fv, full / p[DSTAR] * fv, full * r * dfv
+    if d > p[DSTAR]:
+        return full * fv, 0.0, full * dfv
+    return p[KC] * d, p[KC], 0.0
+
+
+@njit(cache=True, inline="always")
+def detournay_wob(d, v, p):
+    """Weight on bit and its slopes ``(WOB, dWOB/dd, dWOB/dv)``; zero for d <= 0."""
+    if d <= 0.0:
+        return 0.0, 0.0, 0.0
+    wc, _, kw, _, _ = cutting(d, 0.0, p)
+    wf, dwf_dd, dwf_dv = wear_flat_force(d, v, p)
+    return wc + wf, kw + dwf_dd, dwf_dv
+
+
+@njit(cache=True, inline="always")
+def friction_factor(omega, p):
+    """k_f = 1/2 mu gamma a g(omega) of TOB_f = k_f W_f (Eq. 2.6) and dk_f/domega."""
+    mugam, dmugam = friction_coefficient(omega, p)
+    g, dg = friction_sign(omega, p)
+    a = p[A]
+    return 0.5 * mugam * a * g, 0.5 * a * (dmugam * g + mugam * dg)
+
+
+@njit(cache=True, inline="always")
+def detournay_torque(d, wf, omega, p):
+    """TOB and dTOB/domega at depth of cut ``d`` with the wear-flat force ``wf`` held fixed
+    (what the implicit torsional solve iterates on); zero for d <= 0."""
+    if d <= 0.0:
+        return 0.0, 0.0
+    _, tc, _, _, dtc_dw = cutting(d, omega, p)
+    kf, dkf = friction_factor(omega, p)
+    return tc + kf * wf, dtc_dw + dkf * wf
+
+
+@njit(cache=True, inline="always")
+def detournay_forces_and_slopes(d, v, omega, p):
+    """WOB, TOB and their partial slopes for depth of cut ``d`` (m, all blades), axial velocity
+    ``v`` (m/s, positive into the rock) and angular velocity ``omega`` (rad/s).
+
+    Returns ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``, all zero for d <= 0.
+    TOB = 1/2 eps a^2 d s(omega) + 1/2 mu gamma a g(omega) W_f (Eqs. 2.4, 2.6)."""
+    if d <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    wc, tc, kw, dtc_dd, dtc_dw = cutting(d, omega, p)
+    wf, dwf_dd, dwf_dv = wear_flat_force(d, v, p)
+    kf, dkf = friction_factor(omega, p)
+    return (wc + wf, tc + kf * wf, kw + dwf_dd, dwf_dv, dtc_dd + kf * dwf_dd, kf * dwf_dv,
+            dtc_dw + dkf * wf)
+
+
+_MOVED = ("bit_forces", "bit_force_slopes", "approx_depth_of_cut", "bit_forces_py",
+          "bit_forces_vec")
+
+
+def __getattr__(name):
+    # The dispatching interface moved to downhole.bit.law (it selects the law named in the
+    # parameters); imports written against this module still get it, never a Detournay-only law.
+    if name in _MOVED:
+        from downhole.bit import law
+
+        return getattr(law, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -9,7 +9,10 @@ blade measures against rock, not against its own airborne path. If the bit turns
 forward again over angles it has already cut, the blade meets its own surface.
 
 State lives in two arrays so that compiled kernels can own it: ``surf`` (ring buffer, m) and
-``istate = [j_next]`` (index of the next grid angle not yet reached).
+``istate = [j_next]`` (index of the next grid angle not yet reached). This is the one depth-of-cut
+memory of the package: :func:`rock_depth_at` and :func:`rock_advance_to` take the grid layout
+unpacked (kernels unpack ``rp`` once, before their time loop, and keep ``j_next`` in a local);
+:func:`rock_depth` and :func:`rock_advance` are the same functions on the packed arrays.
 """
 
 from __future__ import annotations
@@ -19,7 +22,8 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["RockSurfaceSpec", "rock_init", "rock_init_helix", "rock_depth", "rock_advance"]
+__all__ = ["RockSurfaceSpec", "rock_init", "rock_init_helix", "rock_depth", "rock_advance",
+           "rock_depth_at", "rock_advance_to"]
 
 
 class RockSurfaceSpec:
@@ -62,72 +66,83 @@ def rock_init(spec: RockSurfaceSpec, x0: float, theta0: float):
     return surf, istate, spec.params(theta0)
 
 
-@njit(cache=True)
-def _surf_at(surf, rp, jf):
-    """Surface interpolated at fractional grid index jf (must be recorded)."""
-    mask = int(rp[3]) - 1
-    j0 = int(math.floor(jf))
-    f = jf - j0
-    s0 = surf[j0 & mask]
-    s1 = surf[(j0 + 1) & mask]
-    return s0 + f * (s1 - s0)
+@njit(cache=True, inline="always")
+def rock_depth_at(surf, j_next, theta_ref, h, nb, cap, nbl, x, theta):
+    """Total depth of cut d = n (x - surface) for the bit at axial position x, angle theta.
 
-
-@njit(cache=True)
-def rock_depth(surf, istate, rp, x, theta):
-    """Total depth of cut d = n (x - surface) for the bit at axial position x, angle theta."""
-    theta_ref, h, nb, cap, nbl = rp[0], rp[1], rp[2], rp[3], rp[4]
-    j_next = istate[0]
+    Parameters are the grid layout of :meth:`RockSurfaceSpec.params` unpacked (``nb``, ``cap``
+    integers) and ``j_next`` the index of the next grid angle not yet reached. At the cutting
+    front the blade meets the previous blade's surface one pitch back (Eq. 2.10); over angles it
+    already cut (after backward rotation) it meets its own surface."""
+    mask = cap - 1
     jf = (theta - theta_ref) / h
     if jf >= j_next - 1:
-        # at the cutting front: previous blade's surface one pitch back (Eq. 2.10)
         q = jf - nb
         if q > j_next - 1.0:
             q = j_next - 1.0
         if q < j_next - cap + 1.0:
             q = j_next - cap + 1.0
-        s = _surf_at(surf, rp, q - 1e-12 if q == j_next - 1.0 else q)
+        if q == j_next - 1.0:
+            q = q - 1e-12
     else:
-        # re-traversing angles this blade already cut (after backward rotation)
         q = jf
         if q < j_next - cap + 1.0:
             q = j_next - cap + 1.0
-        s = _surf_at(surf, rp, q)
+    j0 = int(math.floor(q))
+    f = q - j0
+    s0 = surf[j0 & mask]
+    s = s0 + f * (surf[(j0 + 1) & mask] - s0)
     return nbl * (x - s)
 
 
 @njit(cache=True)
-def rock_advance(surf, istate, rp, theta_prev, x_prev, theta_new, x_new):
-    """Record the blade's path from (theta_prev, x_prev) to (theta_new, x_new)."""
+def rock_advance_to(surf, j_next, theta_ref, h, nb, cap, memory, theta_prev, x_prev, theta_new,
+                    x_new):
+    """Record the blade's path from (theta_prev, x_prev) to (theta_new, x_new); returns the new
+    ``j_next``. Nothing is cut while the bit turns backward or stands still, or when the state is
+    not finite (a diverging run). With ``memory`` the surface keeps the maximum (hole bottom)."""
     if not (theta_new > theta_prev) or not math.isfinite(theta_new + x_new):
-        return  # backward, stuck (or a diverging run): nothing is cut
-    theta_ref, h, nb, cap, memory = rp[0], rp[1], int(rp[2]), int(rp[3]), rp[5]
+        return j_next
+    a0 = (theta_prev - theta_ref) / h
+    a1 = (theta_new - theta_ref) / h
+    if abs(a1) > 1e15 or abs(a0) > 1e15:
+        return j_next  # runaway angle (diverging run): grid indices would overflow
     mask = cap - 1
-    j_next = istate[0]
-    if abs(theta_new - theta_ref) / h > 1e15 or abs(theta_prev - theta_ref) / h > 1e15:
-        return  # runaway angle (diverging run): grid indices would overflow
-    j_lo = int(math.floor((theta_prev - theta_ref) / h)) + 1
-    j_hi = int(math.floor((theta_new - theta_ref) / h))
+    j_lo = int(math.floor(a0)) + 1
+    j_hi = int(math.floor(a1))
     if j_lo < j_next - cap + nb + 1:
         j_lo = j_next - cap + nb + 1
     if j_hi - j_lo >= cap - nb:
         # more than the ring in one step (a runaway): only the last points can be kept
         j_lo = j_hi - cap + nb + 1
-    dth = theta_new - theta_prev
+    slope = (x_new - x_prev) / (theta_new - theta_prev)
     for j in range(j_lo, j_hi + 1):
-        th = theta_ref + j * h
-        xj = x_prev + (x_new - x_prev) * (th - theta_prev) / dth
+        xj = x_prev + slope * (theta_ref + j * h - theta_prev)
         if j >= j_next:
-            if memory > 0.5:
+            if memory:
                 below = surf[(j - nb) & mask]
                 surf[j & mask] = xj if xj > below else below
             else:
                 surf[j & mask] = xj
-        elif memory > 0.5:
+        elif memory:
             if xj > surf[j & mask]:
                 surf[j & mask] = xj
     if j_hi + 1 > j_next:
-        istate[0] = j_hi + 1
+        return j_hi + 1
+    return j_next
+
+
+@njit(cache=True, inline="always")
+def rock_depth(surf, istate, rp, x, theta):
+    """:func:`rock_depth_at` on the packed layout ``rp`` and state ``istate = [j_next]``."""
+    return rock_depth_at(surf, istate[0], rp[0], rp[1], int(rp[2]), int(rp[3]), rp[4], x, theta)
+
+
+@njit(cache=True)
+def rock_advance(surf, istate, rp, theta_prev, x_prev, theta_new, x_new):
+    """:func:`rock_advance_to` on the packed layout ``rp`` and state ``istate = [j_next]``."""
+    istate[0] = rock_advance_to(surf, istate[0], rp[0], rp[1], int(rp[2]), int(rp[3]),
+                                rp[5] > 0.5, theta_prev, x_prev, theta_new, x_new)
 
 
 def rock_init_helix(spec: RockSurfaceSpec, x0: float, theta0: float, depth_of_cut: float):

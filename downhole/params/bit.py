@@ -1,4 +1,11 @@
-"""Parameters of the PDC bit/rock interaction law (Detournay; seed Eqs. 2.2-2.8, 4.9-4.12, 4.16)."""
+"""Parameters of the bit/rock interaction laws (Detournay: seed Eqs. 2.2-2.8, 4.9-4.12, 4.16;
+Aarsnes & van de Wouw 2019: contact force independent of the depth of cut).
+
+The law is chosen by name (``BitParams.law``); :data:`LAW_IDS` gives the integer id that the
+compiled dispatch in :mod:`downhole.bit.law` branches on. Everything is packed once into one
+float64 array (:data:`BIT_ARRAY_LAYOUT`, named slots resolved in :mod:`downhole.bit.layout`) that
+kernels pass through to the law without indexing it.
+"""
 
 from __future__ import annotations
 
@@ -9,14 +16,18 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from downhole.params.quantity import Q
 
-__all__ = ["BitParams", "BIT_ARRAY_LAYOUT"]
+__all__ = ["BitParams", "BIT_ARRAY_LAYOUT", "LAW_IDS"]
 
 #: Order of the packed float array handed to the compiled bit kernels.
 BIT_ARRAY_LAYOUT = (
     "epsilon", "sigma", "zeta", "radius", "n_blades", "wear_length", "d_star", "contact_stiffness",
     "mu_c", "mu_s", "gamma", "gamma_b", "v_f", "mu_gamma", "a1", "b1", "a2", "b2",
     "wear_flat_continuous", "friction_stribeck", "omega_reg", "omega_floor",
+    "law", "contact_force", "contact_depth",
 )
+
+#: Integer id of each bit law in the compiled dispatch (:mod:`downhole.bit.law`).
+LAW_IDS = {"detournay": 0, "aarsnes": 1}
 
 
 class BitParams(BaseModel):
@@ -59,6 +70,16 @@ class BitParams(BaseModel):
         Width of the ramp that switches the cutting torque off for omega <= 0, rad/s.
     omega_floor : float
         Floor omega* of the approximated depth of cut d = 2 pi v / max(omega, omega*) (Eq. 4.16), rad/s.
+    law : {"detournay", "aarsnes"}
+        Bit/rock law. ``detournay`` (default): the corrected seed law above. ``aarsnes``: Aarsnes &
+        van de Wouw (2019), cutting as Detournay, wear-flat contact force ``contact_force``
+        independent of the depth of cut once the bit is in contact, friction torque
+        gamma mu a W_f g(omega) (see ``docs/bit-laws.md``).
+    contact_force : float or None
+        Aarsnes law only: contact force W_f of the wear flats, N. ``None``: sigma l a.
+    contact_depth : float
+        Aarsnes law only: depth of cut over which the contact force rises linearly from 0 to its
+        full value (a regularised Heaviside step at first contact), m.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -85,6 +106,9 @@ class BitParams(BaseModel):
     friction_law: Literal["stribeck", "constant"] = "stribeck"
     omega_reg: Q["angular_velocity"] = Field(0.01, gt=0)
     omega_floor: Q["angular_velocity"] = Field(0.5, gt=0)
+    law: Literal[tuple(LAW_IDS)] = "detournay"  # type: ignore[valid-type]
+    contact_force: Q["force"] | None = Field(None, ge=0)
+    contact_depth: Q["length"] = Field(1e-5, gt=0)
 
     def to_array(self) -> np.ndarray:
         """Pack into the float64 array layout :data:`BIT_ARRAY_LAYOUT` used by compiled kernels."""
@@ -94,6 +118,11 @@ class BitParams(BaseModel):
                 vals.append(1.0 if self.wear_flat_law == "continuous" else 0.0)
             elif name == "friction_stribeck":
                 vals.append(1.0 if self.friction_law == "stribeck" else 0.0)
+            elif name == "law":
+                vals.append(float(LAW_IDS[self.law]))
+            elif name == "contact_force":
+                vals.append(self.sigma * self.wear_length * self.radius
+                            if self.contact_force is None else float(self.contact_force))
             else:
                 vals.append(float(getattr(self, name)))
         return np.array(vals, dtype=np.float64)

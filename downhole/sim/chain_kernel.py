@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from downhole.bit.detournay import approx_depth_of_cut, bit_force_slopes, bit_forces
+from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
 from downhole.bit.rock_surface import rock_advance, rock_depth
 
 __all__ = ["run_chain", "CHANNELS"]

@@ -27,9 +27,10 @@ import math
 import numpy as np
 from numba import njit
 
-from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+from downhole.bit.law import (approx_depth_of_cut, approx_depth_rate, bit_forces,
+                              bit_params_tuple, bit_wob, solve_bit_node)
+from downhole.bit.rock_surface import rock_advance_to, rock_depth_at
 from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
-from downhole.params.bit import BIT_ARRAY_LAYOUT
 from downhole.string.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WP_Z, wave_read_at,
                                   wave_read_plan, wave_source_forces, wave_step_at)
 
@@ -71,215 +72,6 @@ def thomas_solve(d, o, rhs, out, work):
     for i in range(n - 2, -1, -1):
         out[i] -= c[i] * out[i + 1]
 
-
-# indices into the packed bit parameter array (downhole.params.bit.BIT_ARRAY_LAYOUT)
-_B = {name: i for i, name in enumerate(BIT_ARRAY_LAYOUT)}
-_EPS, _SIG, _ZETA, _A, _L, _DSTAR, _KC = (_B["epsilon"], _B["sigma"], _B["zeta"], _B["radius"],
-                                          _B["wear_length"], _B["d_star"],
-                                          _B["contact_stiffness"])
-_MUC, _MUS, _GAM, _GAMB, _VF, _MUGAM = (_B["mu_c"], _B["mu_s"], _B["gamma"], _B["gamma_b"],
-                                        _B["v_f"], _B["mu_gamma"])
-_A1, _B1, _A2, _B2, _CONT, _STRIB, _OMREG = (_B["a1"], _B["b1"], _B["a2"], _B["b2"],
-                                             _B["wear_flat_continuous"],
-                                             _B["friction_stribeck"], _B["omega_reg"])
-_OMFLOOR = _B["omega_floor"]
-
-
-@njit(cache=True)
-def bit_constants(p):
-    """The bit law's constants as a tuple of floats (passed by value into the solves).
-
-    Order: zeta eps a, 0.5 eps a^2, sigma l a, d*, continuous flag, K_c, a1, b1, a2, b2,
-    Stribeck flag, mu_c, mu_s - mu_c, gamma_b / v_f, gamma, mu gamma, omega_reg, 0.5 a."""
-    a = p[_A]
-    eps = p[_EPS]
-    return (p[_ZETA] * eps * a, 0.5 * eps * a * a, p[_SIG] * p[_L] * a, p[_DSTAR], p[_CONT],
-            p[_KC], p[_A1], p[_B1], p[_A2], p[_B2], p[_STRIB], p[_MUC], p[_MUS] - p[_MUC],
-            p[_GAMB] / p[_VF], p[_GAM], p[_MUGAM], p[_OMREG], 0.5 * a)
-
-
-@njit(cache=True)
-def wear_flat_force(d, v, bk):
-    """Wear-flat contact force W_f(d, v) of the bit law, N (0 for d <= 0)."""
-    if d <= 0.0:
-        return 0.0
-    arg = bk[6] * v + bk[7]
-    fv = 0.0 if arg > 50.0 else (1.0 if arg < -40.0 else 1.0 / (1.0 + math.exp(arg)))
-    if bk[4] > 0.5:
-        r = d / bk[3]
-        if r > 1.0:
-            r = 1.0
-        return bk[2] * r * fv
-    if d > bk[3]:
-        return bk[2] * fv
-    return bk[5] * d
-
-
-@njit(cache=True)
-def wob_and_slope(d0, rate, v, bk):
-    """WOB and dWOB/dv for the bit axial velocity ``v`` with depth of cut d = d0 + rate v."""
-    d = d0 + rate * v
-    if d <= 0.0:
-        return 0.0, 0.0
-    arg = bk[6] * v + bk[7]
-    if arg > 50.0:
-        fv = 0.0
-        dfv = 0.0
-    elif arg < -40.0:
-        fv = 1.0  # 1 / (1 + e^arg) rounds to 1 exactly: skip the exp
-        dfv = 0.0
-    else:
-        fv = 1.0 / (1.0 + math.exp(arg))
-        dfv = -bk[6] * fv * (1.0 - fv)
-    full = bk[2]
-    if bk[4] > 0.5:
-        if d < bk[3]:
-            r = d / bk[3]
-            wf = full * r * fv
-            dwf = full * (rate / bk[3] * fv + r * dfv)
-        else:
-            wf = full * fv
-            dwf = full * dfv
-    elif d > bk[3]:
-        wf = full * fv
-        dwf = full * dfv
-    else:
-        wf = bk[5] * d
-        dwf = bk[5] * rate
-    return bk[0] * d + wf, bk[0] * rate + dwf
-
-
-@njit(cache=True)
-def tob_and_slope(d, wobf, omega, bk):
-    """TOB and dTOB/domega at depth of cut ``d`` and wear-flat force ``wobf``."""
-    if d <= 0.0:
-        return 0.0, 0.0
-    s = omega / bk[16]
-    ds = 1.0 / bk[16]
-    if s < 0.0:
-        s = 0.0
-        ds = 0.0
-    elif s > 1.0:
-        s = 1.0
-        ds = 0.0
-    if bk[10] > 0.5:
-        e = math.exp(-bk[13] * abs(omega))
-        mugam = (bk[11] + bk[12] * e) * bk[14]
-        dmugam = -bk[12] * bk[14] * bk[13] * e * (1.0 if omega > 0.0 else -1.0)
-    else:
-        mugam = bk[15]
-        dmugam = 0.0
-    z = bk[8] * omega + bk[9]
-    if z > 20.0:
-        g = 1.0  # tanh rounds to +-1 exactly beyond |z| = 19.1: skip it
-        dg = 0.0
-    elif z < -20.0:
-        g = -1.0
-        dg = 0.0
-    else:
-        g = math.tanh(z)
-        dg = bk[8] * (1.0 - g * g)
-    c = bk[1] * d
-    f = bk[17] * wobf
-    return c * s + f * mugam * g, c * ds + f * (dmugam * g + mugam * dg)
-
-
-@njit(cache=True)
-def solve_bit_node(field, den, r, h, x, c0, c1, bk):
-    """Solve ``den x + h F(x) = r`` for the bit node's new velocity (safeguarded Newton).
-
-    ``field`` 0: F = WOB with depth of cut ``c0 + c1 x``; 1: F = TOB at depth ``c0`` with
-    wear-flat force ``c1``. F is non-decreasing in x for the default laws (Stribeck weakening
-    is bracketed), so the root is bracketed as it goes and bisection takes over if Newton
-    leaves the bracket."""
-    lo = -1e300
-    hi = 1e300
-    for _ in range(60):
-        if field == 0:
-            f, df = wob_and_slope(c0, c1, x, bk)
-        else:
-            f, df = tob_and_slope(c0, c1, x, bk)
-        fx = den * x + h * f - r
-        if fx == 0.0:
-            return x
-        if fx > 0.0:
-            hi = x
-        else:
-            lo = x
-        fp = den + h * df
-        if not fp > 0.0:
-            fp = den
-        xn = x - fx / fp
-        if abs(xn - x) < 1e-13 * (1.0 + abs(x)):
-            return xn
-        if not (lo < xn < hi):
-            if lo > -1e299 and hi < 1e299:
-                xn = 0.5 * (lo + hi)
-            elif xn <= lo:
-                xn = lo + 1.0 + abs(lo)
-            else:
-                xn = hi - 1.0 - abs(hi)
-        x = xn
-    return x
-
-
-@njit(cache=True)
-def rock_depth_fast(surf, j_next, theta_ref, h, nb, cap, nbl, x, theta):
-    """:func:`downhole.bit.rock_surface.rock_depth` with the layout unpacked (same result)."""
-    mask = cap - 1
-    jf = (theta - theta_ref) / h
-    if jf >= j_next - 1:
-        q = jf - nb
-        if q > j_next - 1.0:
-            q = j_next - 1.0
-        if q < j_next - cap + 1.0:
-            q = j_next - cap + 1.0
-        if q == j_next - 1.0:
-            q = q - 1e-12
-    else:
-        q = jf
-        if q < j_next - cap + 1.0:
-            q = j_next - cap + 1.0
-    j0 = int(math.floor(q))
-    f = q - j0
-    s0 = surf[j0 & mask]
-    s = s0 + f * (surf[(j0 + 1) & mask] - s0)
-    return nbl * (x - s)
-
-
-@njit(cache=True)
-def rock_advance_fast(surf, j_next, theta_ref, h, nb, cap, memory, theta_prev, x_prev,
-                      theta_new, x_new):
-    """:func:`downhole.bit.rock_surface.rock_advance` with the layout unpacked and one
-    division per call instead of one per grid point; returns the new ``j_next``."""
-    if not (theta_new > theta_prev) or not math.isfinite(theta_new + x_new):
-        return j_next
-    a0 = (theta_prev - theta_ref) / h
-    a1 = (theta_new - theta_ref) / h
-    if abs(a1) > 1e15 or abs(a0) > 1e15:
-        return j_next
-    mask = cap - 1
-    j_lo = int(math.floor(a0)) + 1
-    j_hi = int(math.floor(a1))
-    if j_lo < j_next - cap + nb + 1:
-        j_lo = j_next - cap + nb + 1
-    if j_hi - j_lo >= cap - nb:
-        j_lo = j_hi - cap + nb + 1
-    slope = (x_new - x_prev) / (theta_new - theta_prev)
-    for j in range(j_lo, j_hi + 1):
-        xj = x_prev + slope * (theta_ref + j * h - theta_prev)
-        if j >= j_next:
-            if memory:
-                below = surf[(j - nb) & mask]
-                surf[j & mask] = xj if xj > below else below
-            else:
-                surf[j & mask] = xj
-        elif memory:
-            if xj > surf[j & mask]:
-                surf[j & mask] = xj
-    if j_hi + 1 > j_next:
-        return j_hi + 1
-    return j_next
 
 @njit(cache=True)
 def _lag_cascade(lag, row, n_lags, al, x):
@@ -405,10 +197,9 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     mu = top[_MU]
     v_eps = top[_VEPS]
     fb0, fc0 = top[_FB0], top[_FC0]
-    omfloor = bitp[_OMFLOOR]
+    bt = bit_params_tuple(bitp)  # the bit law's parameters, by value
     h = 0.5 * dt
     ih = 1.0 / h
-    bk = bit_constants(bitp)
     # rock surface (downhole.bit.rock_surface layout), unpacked
     r_ref, r_h, r_nb, r_cap, r_nbl = rp[0], rp[1], int(rp[2]), int(rp[3]), rp[4]
     r_mem = rp[5] > 0.5
@@ -548,13 +339,10 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         ua_b0 = state[0, ib]
         th_b0 = state[3, ib]
         if approx:
-            w_fl = state[4, ib]
-            if w_fl < omfloor:
-                w_fl = omfloor
             dax0 = 0.0
-            drate = 2.0 * math.pi / w_fl
+            drate = approx_depth_rate(state[4, ib], bt)
         else:
-            d0 = rock_depth_fast(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, ua_b0, th_b0)
+            d0 = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, ua_b0, th_b0)
             dax0 = d0 + drate_rock * state[1, ib]
             drate = drate_rock
         # ---- wave segment between B and C
@@ -599,14 +387,11 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 else:
                     va_new = state[1, ib]
                     if approx:
-                        w_fl = state[4, ib]
-                        if w_fl < omfloor:
-                            w_fl = omfloor
-                        d1 = 2.0 * math.pi * va_new / w_fl
+                        d1 = approx_depth_of_cut(va_new, state[4, ib], bt)
                     else:
                         d1 = dax0 + drate * va_new
                     c0 = d1
-                    c1 = wear_flat_force(d1, va_new, bk)
+                    c1 = va_new
                 for i in range(n):
                     for j in range(n):
                         Aw[i, j] = Ldense[f, i, j]
@@ -618,11 +403,11 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 cw[ib] = 1.0
                 _spd_solve2(Aw, rhs, cw, y, dd, n)
                 den = 1.0 / dd[ib]
-                x = solve_bit_node(f, den, den * y[ib], h, state[ru + 1, ib], c0, c1, bk)
+                x = solve_bit_node(f, den, den * y[ib], h, state[ru + 1, ib], c0, c1, bt)
                 if f == 0:
-                    fb, _ = wob_and_slope(c0, c1, x, bk)
+                    fb, _, _ = bit_wob(c0 + c1 * x, x, bt)
                 else:
-                    fb, _ = tob_and_slope(c0, c1, x, bk)
+                    _, fb = bit_forces(c0, c1, x, bt)
                 for i in range(n):
                     y[i] -= h * fb * dd[i]
                 y[ib] = x
@@ -686,17 +471,13 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                     y[i] = ra * inva
                     cw_t[i] = mats[11, i] * invt
                     y_t[i] = rt * invt
-            va_new = solve_bit_node(0, dena, ra, h, state[1, ib], dax0, drate, bk)
+            va_new = solve_bit_node(0, dena, ra, h, state[1, ib], dax0, drate, bt)
             if approx:
-                w_fl = state[4, ib]
-                if w_fl < omfloor:
-                    w_fl = omfloor
-                d1 = 2.0 * math.pi * va_new / w_fl
+                d1 = approx_depth_of_cut(va_new, state[4, ib], bt)
             else:
                 d1 = dax0 + drate * va_new
             y[ib] = va_new
-            y_t[ib] = solve_bit_node(1, dent, rt, h, state[4, ib], d1,
-                                     wear_flat_force(d1, va_new, bk), bk)
+            y_t[ib] = solve_bit_node(1, dent, rt, h, state[4, ib], d1, va_new, bt)
             for i in range(n - 2, -1, -1):
                 y[i] -= cw[i] * y[i + 1]
                 y_t[i] -= cw_t[i] * y_t[i + 1]
@@ -712,7 +493,7 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 state[3, i] += h * (vo + vn)
                 state[4, i] = vn
         if not approx:
-            j_next = rock_advance_fast(surf, j_next, r_ref, r_h, r_nb, r_cap, r_mem, th_b0,
+            j_next = rock_advance_to(surf, j_next, r_ref, r_h, r_nb, r_cap, r_mem, th_b0,
                                        ua_b0, state[3, ib], state[0, ib])
         if hybrid:
             f_b, f_c = wave_step_at(wa_hist, pos_a, cap_a, za, state[1, iB], state[1, iC], a_in,
@@ -738,11 +519,11 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 status = 1
                 break
             if approx:
-                dn = approx_depth_of_cut(vab, vtb, bitp)
+                dn = approx_depth_of_cut(vab, vtb, bt)
             else:
-                dn = rock_depth_fast(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, state[0, ib],
+                dn = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, state[0, ib],
                                      state[3, ib])
-            wn, tn = bit_forces(dn, vab, vtb, bitp)
+            wn, tn = bit_forces(dn, vab, vtb, bt)
             rec[row, 0] = state[0, ib] - misc[4]
             rec[row, 1] = vab
             rec[row, 2] = state[3, ib]

@@ -4,6 +4,10 @@ Independent of the compiled kernel: the delay of Eq. 2.10 is solved by searching
 history (``np.searchsorted`` + linear interpolation) instead of the rock-surface grid. Used as the
 speed baseline of ``downhole bench`` and as a second method in the tests. No rock-surface memory
 (the printed Eq. 2.9), so compare with ``rock_memory=False`` or in runs without bit bounce.
+
+This is the benchmark's independent baseline (``downhole bench``, group ch2): its stepping and
+its depth-of-cut search are written separately on purpose and must stay so. The bit/rock law is
+not: it is the package's one law (:func:`downhole.bit.law.bit_forces`, called from Python).
 """
 
 from __future__ import annotations
@@ -12,7 +16,7 @@ import math
 
 import numpy as np
 
-from downhole.bit.detournay import bit_forces
+from downhole.bit.law import bit_forces
 from downhole.string.lumped import ChainModel
 
 __all__ = ["simulate_lumped4_numpy"]
@@ -25,7 +29,7 @@ def simulate_lumped4_numpy(model: ChainModel, v0: float, w0: float, duration: fl
     depth_of_cut`` at every step."""
     if model.n != 1:
         raise ValueError("the NumPy reference covers the 4th-order model only")
-    law = bit_forces.py_func  # the same law, interpreted
+    law = bit_forces.py_func  # the one law (its outer function interpreted)
     p = model.bit.to_array()
     n_bl = model.bit.n_blades
     pitch = 2 * math.pi / n_bl

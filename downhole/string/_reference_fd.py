@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
-from downhole.bit.detournay import approx_depth_of_cut, bit_force_slopes, bit_forces
+from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
 from downhole.bit.rock_surface import RockSurfaceSpec, rock_advance, rock_depth, rock_init
 
 __all__ = ["simulate_fd"]

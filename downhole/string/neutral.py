@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from downhole.bit.detournay import approx_depth_of_cut, bit_force_slopes, bit_forces
+from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
 from downhole.bit.rock_surface import RockSurfaceSpec, rock_advance, rock_depth, rock_init
 from downhole.control.eid._kernel import eid_arrays, eid_step
 from downhole.errors import DownholeInputError, SimulationDiverged

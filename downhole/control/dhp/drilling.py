@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numba import njit
 
-from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+from downhole.bit.law import approx_depth_of_cut, bit_forces
 from downhole.control.affine import ControlAffineModel
 from downhole.errors import DownholeInputError
 from downhole.params.bit import BitParams

@@ -13,7 +13,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from downhole.bit import approx_depth_of_cut, bit_forces
+from downhole.bit import (approx_depth_of_cut, approx_depth_rate, bit_forces,
+                          bit_forces_and_slopes)
 
 __all__ = [
     "steady_loads", "node_bit_loads", "transition_lists", "backward_plain", "regions_step",
@@ -22,10 +23,6 @@ __all__ = [
     "path_replay", "path_inputs", "discrete_replay",
 ]
 
-# packed BitParams indices (downhole.params.bit.BIT_ARRAY_LAYOUT)
-_EPS, _SIG, _ZETA, _A, _L, _DSTAR, _MUC, _MUS, _GAM, _GAMB, _VF, _MUGAM = (
-    0, 1, 2, 3, 5, 6, 8, 9, 10, 11, 12, 13)
-_A2, _B2, _CONT, _STRIB, _OMFLOOR = 16, 17, 18, 19, 21
 _INF = np.inf
 
 
@@ -199,32 +196,18 @@ def regions_step(pred_ptr, pred, stage, g2, g4, dt, w1, w3, r1_lo, n_r1, r3_lo, 
 
 @njit(cache=True)
 def _slopes(v, w, p):
-    """Non-negative analytic dampers dWOB/dv and dTOB/dw of the approximated-depth bit law,
-    used to apply the stiff part of the bit law implicitly (linearly implicit Euler)."""
+    """Non-negative dampers dWOB/dv and dTOB/dw of the bit law along the approximated depth of
+    cut (analytic slopes of :func:`downhole.bit.bit_forces_and_slopes`; the torque's depth
+    coupling is left explicit), used to apply the stiff part of the bit law implicitly
+    (linearly implicit Euler)."""
     if v <= 0.0:
         return 0.0, 0.0
-    wf = w if w > p[_OMFLOOR] else p[_OMFLOOR]
-    d = 2.0 * math.pi * v / wf
-    a = p[_A]
-    cv = p[_ZETA] * p[_EPS] * a
-    full = p[_SIG] * p[_L] * a
-    if p[_CONT] > 0.5:
-        if d < p[_DSTAR]:
-            cv += full / p[_DSTAR]
-        wf_load = full * min(d / p[_DSTAR], 1.0)
-    else:
-        wf_load = full
-    cv *= 2.0 * math.pi / wf
-    arg = p[_A2] * w + p[_B2]
-    if abs(arg) > 20.0:  # tanh saturated: the friction torque does not depend on w here
-        return cv, 0.0
-    if p[_STRIB] > 0.5:
-        mugam = (p[_MUC] + (p[_MUS] - p[_MUC]) * math.exp(-p[_GAMB] / p[_VF] * abs(w))) * p[_GAM]
-    else:
-        mugam = p[_MUGAM]
-    g = math.tanh(arg)
-    cw = 0.5 * mugam * a * wf_load * p[_A2] * (1.0 - g * g)
-    return cv, cw
+    rate = approx_depth_rate(w, p)
+    d = approx_depth_of_cut(v, w, p)
+    r = bit_forces_and_slopes(d, v, w, p)
+    cv = r[2] * rate + r[3]
+    cw = r[6]
+    return (cv if cv > 0.0 else 0.0), (cw if cw > 0.0 else 0.0)
 
 
 @njit(cache=True)

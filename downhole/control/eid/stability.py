@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from downhole.bit import bit_forces_and_slopes_py
+
 __all__ = ["channel_loop_matrices", "characteristic_roots", "StabilityReport",
            "bit_rock_open_loop_roots", "regenerative_closed_loop",
            "closed_loop_stability", "plot_roots"]
@@ -262,11 +264,14 @@ def _bit_rock_gains(model, rop, omega):
     returns (k_w, k_t, c, t_n) with W = k_w (1 - e^{-s t_n}) (X - c Theta) and the same for T
     with k_t (per-blade depth d_n = x(t) - x(t - t_n), total d = n d_n; the state-dependent
     delay contributes c = rop/omega). Wear flats saturated (d > d*) and the velocity-weakening
-    factors flat at the operating point, as for Table 3.1 at 10 mm/s, 20 rad/s."""
+    factors flat at the operating point, as for Table 3.1 at 10 mm/s, 20 rad/s. The gains are
+    the depth-of-cut slopes dWOB/dd, dTOB/dd of the model's bit law (:mod:`downhole.bit.law`) at
+    the steady depth of cut 2 pi rop / omega, times n."""
     b = model.bit
     n = b.n_blades
-    kw = b.zeta * b.epsilon * b.radius * n
-    kt = 0.5 * b.epsilon * b.radius ** 2 * n
+    slopes = bit_forces_and_slopes_py(2 * math.pi * rop / omega, rop, omega, b)
+    kw = slopes[2] * n
+    kt = slopes[4] * n
     return kw, kt, rop / omega, 2 * math.pi / (n * omega)
 
 

@@ -1,0 +1,278 @@
+"""The one bit-law interface: forces and their slopes, compiled, dispatched by law id.
+
+Every kernel (lumped chain, neutral, FEM/hybrid), the DP, the EID and the DHP design models call
+the bit/rock law only through this module. A law is chosen by name in the parameters
+(``BitParams.law``); :meth:`downhole.params.BitParams.to_array` packs its parameters and its
+integer id once into one float64 array that kernels pass through unopened. The dispatch is an
+``if`` on that id inside compiled functions inlined into the kernels; the branch is the same at
+every step, so it costs nothing measurable.
+
+Interface (all compiled, no allocation):
+
+- :func:`bit_forces` ``(d, v, omega, p) -> (wob, tob)``
+- :func:`bit_forces_and_slopes` ``(d, v, omega, p) -> (wob, tob, dwob_dd, dwob_dv, dtob_dd,
+  dtob_dv, dtob_domega)``: analytic partial slopes where the law is smooth
+- :func:`bit_wob` ``(d, v, p) -> (wob, dwob_dd, dwob_dv)``: the axial part alone
+- :func:`bit_contact_force` ``(d, v, p) -> (W_f, dW_f/dd, dW_f/dv)`` and
+  :func:`bit_torque_at_contact` ``(d, W_f, omega, p) -> (tob, dtob_domega)``: the torque at a
+  given contact force (the torsional implicit solve computes W_f once per step)
+- :func:`approx_depth_of_cut`, :func:`approx_depth_rate`: the approximated depth of cut
+  d = 2 pi v / max(omega, omega*) (Eqs. 2.11, 4.16)
+- :func:`bit_force_slopes`: effective dampers -dWOB/dv, -dTOB/domega by central differences of
+  the whole law (what the lumped and neutral kernels apply implicitly)
+- :func:`solve_bit_node`: the exact implicit bit force on one node (safeguarded Newton on the
+  analytic slopes), used by the FEM/hybrid kernel
+
+d is the total depth of cut (all blades, m), v the bit axial velocity (m/s, positive into the
+rock), omega the bit angular velocity (rad/s). The depth of cut itself comes from
+:mod:`downhole.bit.rock_surface` (delayed) or :func:`approx_depth_of_cut`.
+
+Adding a law (see docs/developing.md): write its compiled ``<law>_wob``,
+``<law>_contact_force``, ``<law>_torque`` and ``<law>_forces_and_slopes`` in a new module of
+this package, give it an id in :data:`downhole.params.bit.LAW_IDS` (and its parameters in
+``BitParams``), add one branch to each of :func:`bit_wob`, :func:`bit_contact_force`,
+:func:`bit_torque_at_contact` and :func:`bit_forces_and_slopes` below and one :class:`BitLaw`
+entry to :data:`LAWS`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from downhole.bit.aarsnes import (aarsnes_contact_force, aarsnes_forces_and_slopes,
+                                  aarsnes_torque, aarsnes_wob)
+from downhole.bit.detournay import (detournay_forces_and_slopes, detournay_torque,
+                                    detournay_wob, wear_flat_force)
+from downhole.bit.layout import LAW, OMFLOOR
+from downhole.params.bit import LAW_IDS, BitParams
+
+__all__ = ["BitLaw", "LAWS", "law_id", "bit_params_tuple", "bit_forces", "bit_forces_and_slopes",
+           "bit_wob", "bit_contact_force", "bit_torque_at_contact",
+           "approx_depth_of_cut", "approx_depth_rate", "bit_force_slopes", "solve_bit_node",
+           "bit_forces_py", "bit_forces_vec", "bit_forces_and_slopes_py"]
+
+
+@dataclass(frozen=True)
+class BitLaw:
+    """One registered bit law.
+
+    Attributes
+    ----------
+    name : str
+        Name used in ``BitParams.law`` and in a scenario's bit table (``law = "..."``).
+    law_id : int
+        Integer id the compiled dispatch branches on (:data:`downhole.params.bit.LAW_IDS`).
+    module : str
+        Module that holds the law's compiled functions.
+    parameters : tuple of str
+        ``BitParams`` fields the law reads.
+    reference : str
+        Where the law is published.
+    """
+
+    name: str
+    law_id: int
+    module: str
+    parameters: tuple[str, ...]
+    reference: str
+
+
+_COMMON = ("epsilon", "zeta", "radius", "omega_reg", "a1", "b1", "a2", "b2", "friction_law",
+           "mu_c", "mu_s", "gamma", "gamma_b", "v_f", "mu_gamma", "omega_floor")
+
+#: The registered laws, by name.
+LAWS = {
+    "detournay": BitLaw("detournay", LAW_IDS["detournay"], "downhole.bit.detournay",
+                        _COMMON + ("sigma", "wear_length", "d_star", "wear_flat_law",
+                                   "contact_stiffness"),
+                        "Detournay & Defourny (1992); Detournay et al. (2008); seed Eqs. 2.2-2.8"),
+    "aarsnes": BitLaw("aarsnes", LAW_IDS["aarsnes"], "downhole.bit.aarsnes",
+                      _COMMON + ("contact_force", "contact_depth", "sigma", "wear_length"),
+                      "Aarsnes & van de Wouw, J. Sound Vib. 444 (2019) 127-151"),
+}
+
+_DETOURNAY = LAW_IDS["detournay"]
+_AARSNES = LAW_IDS["aarsnes"]
+
+
+def law_id(name: str) -> int:
+    """Integer id of the law ``name``; ``ValueError`` naming the known laws otherwise."""
+    if name not in LAWS:
+        raise ValueError(f"unknown bit law {name!r}: expected one of {sorted(LAWS)}")
+    return LAWS[name].law_id
+
+
+@njit(cache=True, inline="always")
+def bit_params_tuple(p):
+    """The packed parameters as a tuple of floats, for kernels that build it once before their
+    time loop: the law's functions accept either form, and a tuple travels in registers (no
+    reloads of the array, which the compiler cannot hoist past the kernel's stores).
+
+    Its length is that of :data:`downhole.params.bit.BIT_ARRAY_LAYOUT` (checked by the tests)."""
+    return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+            p[13], p[14], p[15], p[16], p[17], p[18], p[19], p[20], p[21], p[22], p[23], p[24])
+
+
+@njit(cache=True, inline="always")
+def bit_wob(d, v, p):
+    """Weight on bit and its partial slopes ``(wob, dwob_dd, dwob_dv)`` of the selected law."""
+    if p[LAW] == _AARSNES:
+        return aarsnes_wob(d, v, p)
+    return detournay_wob(d, v, p)
+
+
+@njit(cache=True, inline="always")
+def bit_contact_force(d, v, p):
+    """Contact (wear-flat) force of the selected law and its slopes ``(W_f, dW_f/dd, dW_f/dv)``;
+    zero for d <= 0."""
+    if d <= 0.0:
+        return 0.0, 0.0, 0.0
+    if p[LAW] == _AARSNES:
+        return aarsnes_contact_force(d, v, p)
+    return wear_flat_force(d, v, p)
+
+
+@njit(cache=True, inline="always")
+def bit_torque_at_contact(d, wf, omega, p):
+    """TOB and dTOB/domega of the selected law at depth of cut ``d`` with the contact force
+    ``wf`` (from :func:`bit_contact_force`) held fixed: the torsional implicit solve iterates on
+    omega only, so the contact force is computed once per step."""
+    if p[LAW] == _AARSNES:
+        return aarsnes_torque(d, wf, omega, p)
+    return detournay_torque(d, wf, omega, p)
+
+
+@njit(cache=True, inline="always")
+def bit_forces_and_slopes(d, v, omega, p):
+    """WOB (N), TOB (N m) and their partial slopes of the selected law.
+
+    Returns ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``; all zero for
+    d <= 0 (bit off bottom)."""
+    if p[LAW] == _AARSNES:
+        return aarsnes_forces_and_slopes(d, v, omega, p)
+    return detournay_forces_and_slopes(d, v, omega, p)
+
+
+@njit(cache=True, inline="always")
+def bit_forces(d, v, omega, p):
+    """Weight and torque on bit ``(wob, tob)`` for total depth of cut ``d`` (m), axial velocity
+    ``v`` (m/s, positive into the rock) and angular velocity ``omega`` (rad/s)."""
+    r = bit_forces_and_slopes(d, v, omega, p)
+    return r[0], r[1]
+
+
+@njit(cache=True, inline="always")
+def approx_depth_of_cut(v, omega, p):
+    """Approximated total depth of cut d = 2 pi v / max(omega, omega*) (Eqs. 2.11, 4.16), m."""
+    w = omega
+    if w < p[OMFLOOR]:
+        w = p[OMFLOOR]
+    return 2.0 * math.pi * v / w
+
+
+@njit(cache=True, inline="always")
+def approx_depth_rate(omega, p):
+    """dd/dv of the approximated depth of cut: 2 pi / max(omega, omega*), s."""
+    w = omega
+    if w < p[OMFLOOR]:
+        w = p[OMFLOOR]
+    return 2.0 * math.pi / w
+
+
+@njit(cache=True)
+def bit_force_slopes(d, v, omega, p, approx):
+    """Non-negative effective dampers -dWOB/dv and -dTOB/domega (central differences).
+
+    Used by the lumped and neutral implicit integrators to apply the stiff regularised friction
+    laws implicitly (frozen coefficients). With ``approx`` true the depth of cut follows v and
+    omega. Differences of the whole law rather than its analytic slopes: they include the
+    depth-of-cut coupling of the approximated depth and keep these kernels' results unchanged."""
+    hv = 1e-7 + 1e-4 * abs(v)
+    hw = 1e-6 + 1e-4 * abs(omega)
+    if approx:
+        w1, _ = bit_forces(approx_depth_of_cut(v + hv, omega, p), v + hv, omega, p)
+        w0, _ = bit_forces(approx_depth_of_cut(v - hv, omega, p), v - hv, omega, p)
+        _, t1 = bit_forces(approx_depth_of_cut(v, omega + hw, p), v, omega + hw, p)
+        _, t0 = bit_forces(approx_depth_of_cut(v, omega - hw, p), v, omega - hw, p)
+    else:
+        w1, _ = bit_forces(d, v + hv, omega, p)
+        w0, _ = bit_forces(d, v - hv, omega, p)
+        _, t1 = bit_forces(d, v, omega + hw, p)
+        _, t0 = bit_forces(d, v, omega - hw, p)
+    ca = (w1 - w0) / (2.0 * hv)
+    ct = (t1 - t0) / (2.0 * hw)
+    return max(ca, 0.0), max(ct, 0.0)
+
+
+@njit(cache=True)
+def solve_bit_node(field, den, r, h, x, c0, c1, p):
+    """Solve ``den x + h F(x) = r`` for the bit node's new velocity (safeguarded Newton).
+
+    ``field`` 0: x is the axial velocity and F = WOB(d = c0 + c1 x, v = x); 1: x is the angular
+    velocity and F = TOB(d = c0, v = c1, omega = x). F is non-decreasing in x for the registered
+    laws (Stribeck weakening is bracketed), so the root is bracketed as it goes and bisection
+    takes over if Newton leaves the bracket."""
+    lo = -1e300
+    hi = 1e300
+    wf = bit_contact_force(c0, c1, p)[0] if field == 1 else 0.0
+    for _ in range(60):
+        if field == 0:
+            f, dwd, dwv = bit_wob(c0 + c1 * x, x, p)
+            df = dwd * c1 + dwv
+        else:
+            f, df = bit_torque_at_contact(c0, wf, x, p)
+        fx = den * x + h * f - r
+        if fx == 0.0:
+            return x
+        if fx > 0.0:
+            hi = x
+        else:
+            lo = x
+        fp = den + h * df
+        if not fp > 0.0:
+            fp = den
+        xn = x - fx / fp
+        if abs(xn - x) < 1e-13 * (1.0 + abs(x)):
+            return xn
+        if not (lo < xn < hi):
+            if lo > -1e299 and hi < 1e299:
+                xn = 0.5 * (lo + hi)
+            elif xn <= lo:
+                xn = lo + 1.0 + abs(lo)
+            else:
+                xn = hi - 1.0 - abs(hi)
+        x = xn
+    return x
+
+
+def _as_array(bit) -> np.ndarray:
+    if isinstance(bit, BitParams):
+        return bit.to_array()
+    return np.asarray(bit, dtype=np.float64)
+
+
+def bit_forces_py(d, v, omega, bit: BitParams) -> tuple[float, float]:
+    """Convenience wrapper: ``(wob, tob)`` in N and N m for a :class:`BitParams`."""
+    return bit_forces(float(d), float(v), float(omega), _as_array(bit))
+
+
+def bit_forces_and_slopes_py(d, v, omega, bit: BitParams) -> tuple[float, ...]:
+    """Convenience wrapper of :func:`bit_forces_and_slopes` for a :class:`BitParams`."""
+    return tuple(float(x) for x in
+                 bit_forces_and_slopes(float(d), float(v), float(omega), _as_array(bit)))
+
+
+def bit_forces_vec(d, v, omega, bit: BitParams):
+    """Vectorised wrapper over NumPy arrays (for plots and analysis): ``(wob, tob)`` arrays."""
+    p = _as_array(bit)
+    d, v, omega = np.broadcast_arrays(np.asarray(d, float), np.asarray(v, float),
+                                      np.asarray(omega, float))
+    wob = np.empty(d.shape)
+    tob = np.empty(d.shape)
+    for i in np.ndindex(d.shape):
+        wob[i], tob[i] = bit_forces(d[i], v[i], omega[i], p)
+    return wob, tob
