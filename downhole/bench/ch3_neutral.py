@@ -26,7 +26,7 @@ def ndde_method_of_steps(model, duration, u_axial, u_angular, grid_dt=1e-4, rtol
     """Solve Eq. 3.9 (approximated depth of cut) by the method of steps; returns (t, v, omega)."""
     from scipy.integrate import solve_ivp
 
-    from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+    from downhole.bit.law import approx_depth_of_cut, bit_forces
 
     p = model.params
     g1, g2, g3 = model.gammas

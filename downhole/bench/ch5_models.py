@@ -22,7 +22,7 @@ __all__ = ["lsoda_seconds", "best_time"]
 
 
 def _ode_rhs(model, top_speed=10.0, wob=120e3, kp=1e4, ki=2e3, j_td=500.0):
-    from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+    from downhole.bit.law import approx_depth_of_cut, bit_forces
     from downhole.contact.softstring import nodal_friction_forces
 
     m = model.design_model()

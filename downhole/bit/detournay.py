@@ -146,16 +146,3 @@ def detournay_forces_and_slopes(d, v, omega, p):
     return (wc + wf, tc + kf * wf, kw + dwf_dd, dwf_dv, dtc_dd + kf * dwf_dd, kf * dwf_dv,
             dtc_dw + dkf * wf)
 
-
-_MOVED = ("bit_forces", "bit_force_slopes", "approx_depth_of_cut", "bit_forces_py",
-          "bit_forces_vec")
-
-
-def __getattr__(name):
-    # The dispatching interface moved to downhole.bit.law (it selects the law named in the
-    # parameters); imports written against this module still get it, never a Detournay-only law.
-    if name in _MOVED:
-        from downhole.bit import law
-
-        return getattr(law, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from downhole.bit.detournay import approx_depth_of_cut, bit_force_slopes, bit_forces
+from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
 from downhole.errors import DownholeInputError
 
 __all__ = ["HILStringPlant", "SoftwareRig", "build_hil_plant", "COUPLING"]

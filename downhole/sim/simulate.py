@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from downhole.bit.detournay import bit_forces
+from downhole.bit.law import bit_forces
 from downhole.bit.rock_surface import RockSurfaceSpec, rock_init, rock_init_helix
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.sim.chain_kernel import CHANNELS, run_chain

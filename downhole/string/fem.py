@@ -253,7 +253,7 @@ class DirectionalModel:
         -------
         downhole.control.affine.ControlAffineModel
         """
-        from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+        from downhole.bit.law import approx_depth_of_cut, bit_forces
         from downhole.control.affine import ControlAffineModel
 
         m = self.design_model()
@@ -596,7 +596,7 @@ def _line_preload(m: DirectionalModel, wob: float):
 
 def _wob_depth(bit: BitParams, wob: float) -> float:
     """Depth of cut d with WOB(d, v=0, omega=0) = wob (bisection), m."""
-    from downhole.bit.detournay import bit_forces
+    from downhole.bit.law import bit_forces
 
     if wob <= 0:
         return 0.0
@@ -887,7 +887,7 @@ def _initial_record_compute(pk: _Packed, st) -> np.ndarray:
     u = st["state"][0]
     out = np.zeros(len(CHANNELS))
     d0 = 0.0 if pk.approx else _wob_depth(m.bit, pk.hook.wob)
-    from downhole.bit.detournay import bit_forces
+    from downhole.bit.law import bit_forces
 
     w, tq = bit_forces(d0, 0.0, 0.0, pk.bitp)
     out[4], out[5], out[6] = d0, w, tq

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from downhole.bit.detournay import approx_depth_of_cut, bit_forces
+from downhole.bit.law import approx_depth_of_cut, bit_forces
 from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
 from downhole.control.affine import ControlAffineModel
 from downhole.control.dhp.riccati import _draw_one, _fit_one
