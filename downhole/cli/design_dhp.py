@@ -83,7 +83,6 @@ where a unit is shown)::
 from __future__ import annotations
 
 import json
-import tomllib
 from pathlib import Path
 
 import typer
@@ -134,14 +133,9 @@ def load_dhp_scenario(path) -> dict:
         Naming the file, the field and what was expected.
     """
 
-    src = str(path)
-    try:
-        text = Path(path).read_text()
-        data = tomllib.loads(text)
-    except FileNotFoundError:
-        raise ScenarioError(src, "", "file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(src, "", f"invalid TOML: {exc}") from None
+    from downhole.scenario import read_toml
+
+    data, src, text = read_toml(path)
     return parse_dhp_scenario(data, src, text, base=Path(path).parent)
 
 

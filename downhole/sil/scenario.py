@@ -24,7 +24,6 @@ See ``docs/sil.md`` for every field.
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 from typing import Literal
 
@@ -138,12 +137,12 @@ class SilScenario(_Strict):
 
 def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
     """Validate a scenario dict; raises :class:`~downhole.errors.ScenarioError`."""
+    from downhole.scenario import _raise_validation
+
     try:
         sc = SilScenario.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        field = ".".join(str(p) for p in err["loc"])
-        raise ScenarioError(source, field, err["msg"]) from None
+        _raise_validation(source, exc)
     if sc.controller.kind == "file" and not sc.controller.file:
         raise ScenarioError(source, "controller.file", "kind = 'file' needs a file path")
     if sc.controller.kind == "dhp" and sc.plant.interface != "state":
@@ -158,14 +157,11 @@ def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
 
 def load_sil_scenario(path) -> SilScenario:
     """Read and validate a SIL scenario TOML file."""
+    from downhole.scenario import read_toml
+
     path = Path(path)
-    if not path.exists():
-        raise ScenarioError(str(path), "", "file does not exist")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(str(path), "", f"not valid TOML: {exc}") from None
-    sc = parse_sil_scenario(data, str(path))
+    data, source, _ = read_toml(path)
+    sc = parse_sil_scenario(data, source)
     if sc.controller.file and not Path(sc.controller.file).is_absolute():
         sc.controller.file = str(path.parent / sc.controller.file)
     return sc

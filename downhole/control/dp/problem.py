@@ -12,7 +12,6 @@ inconsistency is rejected with a precise :class:`~downhole.errors.DownholeInputE
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Optional
 
@@ -359,13 +358,9 @@ def load_problem(path: str | Path) -> DPProblem:
     ScenarioError
         If the file is missing, is not valid TOML or fails validation.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ScenarioError(str(path), "", "file not found")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(str(path), "", f"not valid TOML: {exc}") from None
+    from downhole.scenario import read_toml
+
+    data, _, _ = read_toml(path)
     if "dp" in data and isinstance(data["dp"], dict):
         data = data["dp"]
     return problem_from_dict(data, source=str(path))
