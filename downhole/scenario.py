@@ -12,10 +12,11 @@ from __future__ import annotations
 import math
 import tomllib
 from pathlib import Path
-from typing import Any, Callable, Literal, Union
+from typing import Annotated, Any, Callable, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, ValidationError,
+                      field_validator)
 
 from downhole.errors import ScenarioError
 from downhole.params.quantity import Q
@@ -26,8 +27,15 @@ __all__ = ["load_scenario", "parse_scenario", "run_scenario", "register_model_ty
            "validate_scenario", "build_lumped_model", "read_toml", "read_scenario_text",
            "check_values", "validate_lumped", "euler_stable_dt", "check_step_count"]
 
+def _not_bool(value):
+    if isinstance(value, bool):
+        raise ValueError(f"expected a number, a quantity string or [[time, value], ...], got "
+                         f"boolean {value}")
+    return value
+
+
 #: A profile: a constant, or breakpoints [[t, value], ...] interpolated linearly.
-Profile = Union[float, int, str, list]
+Profile = Annotated[Union[float, int, str, list], BeforeValidator(_not_bool)]
 
 
 def profile_to_signal(value: Profile, dimension: str, field: str):
@@ -440,6 +448,7 @@ def check_values(data, source: str, prefix: str = "") -> None:
                         or ord(c) == 127), None)
             if bad is not None:
                 raise ScenarioError(source, where, f"control character {bad!r} in a string")
+            _check_numeric_string(value, source, where)
         elif isinstance(value, dict):
             for k, v in value.items():
                 ks = str(k)
@@ -476,6 +485,25 @@ def check_step_count(source: str, duration: float, dt: float, record_dt: float |
                             f"(record_dt >= {duration / MAX_SAMPLES:.3g} s)")
 
 
+def _check_numeric_string(value: str, source: str, where: str) -> None:
+    """A string that is a bare number ("1e300", "nan", "inf") reaches plain float fields through
+    pydantic's coercion: hold it to the same rules as a number."""
+    import math
+
+    text = value.strip()
+    if not text or len(text) > 40 or not (text[0].isdigit() or text[0] in "+-.iInN"):
+        return
+    try:
+        number = float(text)
+    except ValueError:
+        return
+    if not math.isfinite(number):
+        raise ScenarioError(source, where, f"expected a finite number, got {value!r}")
+    if abs(number) > MAX_NUMBER:
+        raise ScenarioError(source, where, f"number {value!r} out of range (|value| must be at "
+                            f"most {MAX_NUMBER:g}; see docs/scenarios.md)")
+
+
 def load_scenario(path: str | Path) -> tuple[dict, str, str]:
     """Read a TOML scenario file: returns ``(data, source, text)`` (see :func:`read_toml`)."""
     return read_toml(path)
@@ -491,7 +519,7 @@ def model_type(data: dict, source: str) -> str:
         raise ScenarioError(source, "model.type", "required field is missing "
                             f"(one of {sorted(MODEL_TYPES)})")
     mtype = model["type"]
-    if mtype not in MODEL_TYPES:
+    if not isinstance(mtype, str) or mtype not in MODEL_TYPES:
         raise ScenarioError(source, "model.type",
                             f"unknown model type {mtype!r}; expected one of {sorted(MODEL_TYPES)}")
     return mtype

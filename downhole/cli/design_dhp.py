@@ -113,6 +113,23 @@ def _si(src, field, value, dim):
                                         f"{exc}") from None
 
 
+def _limits(src, value):
+    """``model.input_limits``: [[slack-off min, max] (N), [torque min, max] (N m)]."""
+    field = "model.input_limits"
+    if not (isinstance(value, list) and len(value) == 2
+            and all(isinstance(p, list) and len(p) == 2 for p in value)):
+        raise ScenarioError(src, field, f"expected [[min, max], [min, max]] (slack-off force N, "
+                                        f"surface torque N m), got {value!r:.60}")
+    out = []
+    for (lo, hi), dim, name in zip(value, ("force", "torque"), ("force", "torque")):
+        lo, hi = _si(src, field, lo, dim), _si(src, field, hi, dim)
+        if not lo < hi:
+            raise ScenarioError(src, field, f"{name} limits [{lo:g}, {hi:g}] are empty; expected "
+                                            "min < max")
+        out.append([lo, hi])
+    return out
+
+
 def _check_keys(src, table, data, allowed):
     bad = set(data) - allowed
     if bad:
@@ -158,6 +175,10 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
     bad = set(data) - _TABLES
     if bad:
         raise ScenarioError(src, sorted(bad)[0], f"unknown table; expected {sorted(_TABLES)}")
+    for name in sorted(_TABLES):
+        if name in data and not isinstance(data[name], dict):
+            raise ScenarioError(src, name, f"expected a table [{name}], got "
+                                           f"{type(data[name]).__name__} {data[name]!r:.40}")
 
     # --------------------------------------------------------------------- training
     tt = dict(data.get("training", {}))
@@ -183,7 +204,7 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
     kind = mt.pop("kind", "fem24")
     dt = _si(src, "model.dt", mt.pop("dt", 1e-3), "time")
     bit_over = {k: mt.pop(k) for k in list(mt) if k not in _MODEL_KEYS}
-    limits = mt.pop("input_limits", [[-50e3, 300e3], [-60e3, 60e3]])
+    limits = _limits(src, mt.pop("input_limits", [[-50e3, 300e3], [-60e3, 60e3]]))
     friction = bool(mt.pop("friction", True))
     model, plant_source = _build_model(src, kind, mt, dt, bit_over, limits, friction)
 
@@ -297,6 +318,9 @@ def _build_model(src, kind, mt, dt, bit_over, limits, friction):
     try:
         if kind == "lumped":
             preset = mt.pop("preset", "table_2_1")
+            if not isinstance(preset, str):
+                raise ScenarioError(src, "model.preset", f"expected a preset name, got "
+                                                         f"{preset!r:.40}")
             _check_keys(src, "model", mt, set())
             try:
                 pre = get_preset(preset)

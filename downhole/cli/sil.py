@@ -101,6 +101,11 @@ def sil_controller(port: int = typer.Option(..., "--port", help="plant's UDP por
 
     if sum(x is not None for x in (controller, scenario)) + rig != 1:
         raise DownholeInputError("give exactly one of --controller FILE, --scenario FILE, --rig")
+    sc = None
+    if scenario is not None:  # validated before connecting: a bad file fails at once
+        from downhole.sil.scenario import load_sil_scenario
+
+        sc = load_sil_scenario(scenario)
     client = ControllerClient(host, port, name="downhole sil-controller")
     layout = client.connect(timeout=30.0)
     if rig:
@@ -111,9 +116,8 @@ def sil_controller(port: int = typer.Option(..., "--port", help="plant's UDP por
     elif controller is not None:
         ctrl = load_controller_file(controller)
     else:
-        from downhole.sil.scenario import build_from_scenario, load_sil_scenario
+        from downhole.sil.scenario import build_from_scenario
 
-        sc = load_sil_scenario(scenario)
         sc.controller.remote = False
         _, ctrl = build_from_scenario(sc)
         if ctrl is None:

@@ -398,8 +398,7 @@ def _check_stations(source: str, prefix: str, md, inc, azi, length_unit: str) ->
         field = prefix if prefix.endswith("survey") else f"{prefix}.{name}"
         for i, v in enumerate(np.asarray(values, float)):
             if not (np.isfinite(v) and lo <= v * k <= hi):
-                where = f"{field}.{i}" if field.endswith(name) else field
-                raise ScenarioError(source, where, f"station {i}: {name} {v:g} "
+                raise ScenarioError(source, field, f"station {i}: {name} {v:g} "
                                     f"{'ft' if (name == 'md' and k != 1.0) else unit} is outside "
                                     f"the admissible range {lo:g} to {hi:g} {unit}")
 

@@ -233,12 +233,13 @@ class DPProblem(BaseModel):
                                  ("v_d", self.targets.v_d)) if name == "x2" else
                                 (("x4 initial state", 0.0), ("w_m", self.targets.w_m),
                                  ("w_d", self.targets.w_d))):
+                label = tname if tname.endswith("state") else f"targets.{tname}"
                 if tval < grid.min - _TOL * spacing or tval > grid.max + _TOL * spacing:
-                    raise err(f"target {tname} = {tval} {unit} is outside the {name} grid "
+                    raise err(f"{label} = {tval} {unit} is outside the {name} grid "
                               f"[{grid.min}, {grid.max}] {unit}")
                 off = np.min(np.abs(vals - tval))
                 if off > 1e-6 * spacing:
-                    raise err(f"target {tname} = {tval} {unit} is not on the {name} grid "
+                    raise err(f"{label} = {tval} {unit} is not on the {name} grid "
                               f"(spacing {spacing:.6g} {unit}, nearest point off by {off:.3g}); "
                               f"choose min/max/points so that it is a grid point")
         for name in ("x1_regions", "x3_regions"):
