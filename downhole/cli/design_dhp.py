@@ -189,6 +189,12 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
     if past not in ("stationary", "error"):
         raise ScenarioError(src, "training.past_horizon", f"expected 'stationary' or 'error', "
                                                           f"got {past!r}")
+    for key, most in (("n_samples", 100_000), ("n_iterations", 10_000), ("threads", 1024),
+                      ("resample_every", 100_000)):
+        value = tt.get(key)
+        if isinstance(value, int) and not isinstance(value, bool) and value > most:
+            raise ScenarioError(src, f"training.{key}", f"{value} is more than the {most} "
+                                                        "this setting accepts")
     if "sample_radius" in tt and isinstance(tt["sample_radius"], list):
         tt["sample_radius"] = tuple(tt["sample_radius"])
     try:
@@ -339,9 +345,9 @@ def _build_model(src, kind, mt, dt, bit_over, limits, friction):
                 from downhole.string.fem import fem_model
 
                 ne = mt.pop("n_elements", 5)
-                if not isinstance(ne, int) or ne < 3:
-                    raise ScenarioError(src, "model.n_elements", f"expected an integer >= 3, "
-                                                                 f"got {ne!r}")
+                if not isinstance(ne, int) or isinstance(ne, bool) or not 3 <= ne <= 500:
+                    raise ScenarioError(src, "model.n_elements", f"expected an integer from 3 "
+                                                                 f"to 500, got {ne!r}")
                 dm = fem_model(n_elements=ne)
             else:
                 dm = fem24

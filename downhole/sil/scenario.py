@@ -49,7 +49,7 @@ class PlantSection(_Strict):
     top_drive_speed: Q["angular_velocity"] = 10.0
     surface_torque: Q["torque"] = 0.0
     design: Literal["hybrid24", "hybrid68"] = "hybrid24"
-    n_elements: int = Field(23, ge=1)
+    n_elements: int = Field(23, ge=1, le=5000)
     lumped_preset: str = "table_2_1"
     order: Literal[4, 12] = 4
     axial_velocity: Q["velocity"] = 0.01
@@ -74,7 +74,7 @@ class DHPSection(_Strict):
 
     reference: Literal["step", "sine", "ramp"] = "step"
     horizon: Q["time"] = Field(8.0, gt=0)
-    samples: int = Field(50, ge=2)
+    samples: int = Field(50, ge=2, le=100_000)
     weights: Literal["robust", "design", "planned"] = "robust"
 
 

@@ -108,10 +108,10 @@ class DirectionalModelSettings(_Strict):
 
     type: Literal["fem", "hybrid"]
     preset: str = "table_5_1"
-    elements: Optional[int] = Field(None, ge=1)
+    elements: Optional[int] = Field(None, ge=1, le=5000)
     hybrid: Optional[Literal["hybrid24", "hybrid68", "hybrid108"]] = None
-    nodes_ab: Optional[int] = Field(None, ge=2)
-    nodes_cd: Optional[int] = Field(None, ge=2)
+    nodes_ab: Optional[int] = Field(None, ge=2, le=2000)
+    nodes_cd: Optional[int] = Field(None, ge=2, le=2000)
     md_b: Optional[Q["length"]] = Field(None, gt=0)
     md_c: Optional[Q["length"]] = Field(None, gt=0)
     damping: Literal["rayleigh", "modal"] = "rayleigh"
