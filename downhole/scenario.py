@@ -149,7 +149,8 @@ def _raise_validation(source: str, exc: ValidationError, prefix: str = ""):
         msg = msg[len("Value error, "):]
     if "input" in err and err["type"] not in ("missing", "extra_forbidden") \
             and not isinstance(err["input"], (dict, list)):
-        msg += f" (got {err['input']!r})"
+        got = repr(err["input"])
+        msg += f" (got {got[:80] + '...' if len(got) > 80 else got})"
     raise ScenarioError(source, field, msg) from None
 
 

@@ -167,7 +167,8 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
     # options not given as arguments come from the file's [sweep] table; their errors name it
     from_file = {k for k, v in (("params", params), ("metrics", metrics), ("random", random),
                                 ("seed", seed), ("window", window), ("batch_size", batch_size))
-                 if (v is None or (k in ("params", "metrics") and not v)) and k in settings}
+                 if (v is None or (k in ("params", "metrics") and not v))
+                 and (k in settings or not isinstance(scenario, dict))}
     params = params if params else settings.get("params")
     metrics = metrics if metrics else settings.get("metrics")
     random = random if random is not None else settings.get("random")
