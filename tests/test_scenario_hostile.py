@@ -450,3 +450,20 @@ def test_cli_refuses_hostile_scenarios_in_one_line(name, tmp_path):
     assert "Traceback" not in proc.stderr and len(err.splitlines()) == 1, err
     assert err.startswith("error: ") and fragment in err, err
     assert sorted(os.listdir(tmp_path)) == before  # nothing written
+
+
+def test_sil_lumped_plant_step_is_checked_against_the_euler_bound(tmp_path):
+    from downhole.scenario import euler_stable_dt
+    from downhole.sil.scenario import parse_sil_scenario
+    from downhole.string.lumped import lumped_model
+
+    bound, _ = euler_stable_dt(lumped_model("table_2_1", order=12))
+    plant = {"model": "lumped", "order": 12, "interface": "surface"}
+    parse_sil_scenario({"plant": plant, "runtime": {"dt": 0.9 * bound}, "controller":
+                        {"kind": "none"}})
+    with pytest.raises(ScenarioError, match=r"runtime.dt: .* stable only for dt <"):
+        parse_sil_scenario({"plant": plant, "runtime": {"dt": 0.01}, "controller":
+                            {"kind": "none"}})
+    with pytest.raises(ScenarioError, match="plant.lumped_preset"):
+        parse_sil_scenario({"plant": {**plant, "lumped_preset": "table_5_1"},
+                            "controller": {"kind": "none"}})

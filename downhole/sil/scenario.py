@@ -143,6 +143,8 @@ def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
         sc = SilScenario.model_validate(data)
     except ValidationError as exc:
         _raise_validation(source, exc)
+    if sc.plant.model == "lumped" and sc.link.mode != "hil":
+        _check_lumped_step(sc, source)
     if sc.controller.kind == "file" and not sc.controller.file:
         raise ScenarioError(source, "controller.file", "kind = 'file' needs a file path")
     if sc.controller.kind == "dhp" and sc.plant.interface != "state":
@@ -153,6 +155,28 @@ def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
         raise ScenarioError(source, "controller.kind",
                             "the PI needs interface = 'surface' (speed-controlled top drive)")
     return sc
+
+
+def _check_lumped_step(sc: SilScenario, source: str) -> None:
+    """The lumped SIL plant steps with explicit Euler: ``runtime.dt`` must be below its stability
+    bound (:func:`downhole.scenario.euler_stable_dt`)."""
+    from downhole.params import get_preset
+    from downhole.scenario import euler_stable_dt
+    from downhole.string.lumped import lumped_model
+
+    try:
+        preset = get_preset(sc.plant.lumped_preset)
+    except KeyError as exc:
+        raise ScenarioError(source, "plant.lumped_preset", str(exc.args[0])) from None
+    if preset.kind != "lumped":
+        raise ScenarioError(source, "plant.lumped_preset", f"preset {sc.plant.lumped_preset!r} "
+                            f"is a {preset.kind} model, expected a lumped one")
+    bound, mode = euler_stable_dt(lumped_model(sc.plant.lumped_preset, order=sc.plant.order))
+    if sc.runtime.dt >= bound:
+        raise ScenarioError(source, "runtime.dt", f"dt = {sc.runtime.dt:g} s is too large for "
+                            f"the lumped plant's explicit Euler: stable only for dt < "
+                            f"{bound:.4g} s (2 zeta / omega of the {mode['field']} mode at "
+                            f"{mode['frequency']:.4g} rad/s)")
 
 
 def load_sil_scenario(path) -> SilScenario:
