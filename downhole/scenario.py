@@ -390,8 +390,26 @@ def read_scenario_text(path: str | Path) -> tuple[str, str]:
 
 
 def parse_toml_text(text: str, source: str) -> dict:
-    """Parse TOML text and check every value (:func:`check_values`); raises
-    :class:`ScenarioError`."""
+    """Parse TOML text and check every value (:func:`check_values`).
+
+    Parameters
+    ----------
+    text : str
+        The file's text.
+    source : str
+        The file name for messages.
+
+    Returns
+    -------
+    dict
+        The parsed data.
+
+    Raises
+    ------
+    ScenarioError
+        Not valid TOML (also a 5000-digit integer or nesting too deep for the parser), or a
+        value no field accepts.
+    """
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -404,10 +422,26 @@ def parse_toml_text(text: str, source: str) -> dict:
 
 
 def read_toml(path: str | Path) -> tuple[dict, str, str]:
-    """Read, parse and check a TOML scenario file: ``(data, source, text)``.
+    """Read, parse and check a TOML scenario file.
 
     Every command that reads a scenario goes through here (:func:`read_scenario_text`, then
     :func:`parse_toml_text`), so hostile input gets one error naming the file and the field.
+
+    Parameters
+    ----------
+    path : str or Path
+        The scenario file.
+
+    Returns
+    -------
+    (dict, str, str)
+        The parsed data, the source name (the path as given) and the file's text.
+
+    Raises
+    ------
+    ScenarioError
+        Not a regular file, too large, not UTF-8, NUL characters, not TOML, or a value no field
+        accepts (:func:`check_values`).
     """
     text, source = read_scenario_text(path)
     return parse_toml_text(text, source), source, text
@@ -416,10 +450,23 @@ def read_toml(path: str | Path) -> tuple[dict, str, str]:
 def check_values(data, source: str, prefix: str = "") -> None:
     """Reject values no scenario field accepts, naming the dotted field.
 
-    Non-finite numbers (``inf``, ``nan``), numbers beyond :data:`MAX_NUMBER` (integers beyond
-    :data:`MAX_INTEGER`), strings longer than :data:`MAX_STRING_LENGTH` or with control
-    characters (NUL, ...), lists longer than :data:`MAX_LIST_LENGTH` and nesting deeper than
-    :data:`MAX_DEPTH`. Physical ranges are checked per field later (:mod:`downhole.units`).
+    Parameters
+    ----------
+    data : dict
+        A parsed scenario (nested dicts, lists and scalars).
+    source : str
+        The file name for messages.
+    prefix : str
+        Dotted path of ``data`` inside the scenario (empty for the whole file).
+
+    Raises
+    ------
+    ScenarioError
+        Non-finite numbers (``inf``, ``nan``), numbers beyond :data:`MAX_NUMBER` (integers
+        beyond :data:`MAX_INTEGER`), strings longer than :data:`MAX_STRING_LENGTH` or with
+        control characters (NUL, ...), lists longer than :data:`MAX_LIST_LENGTH`, nesting
+        deeper than :data:`MAX_DEPTH`. Physical ranges are checked per field later
+        (:mod:`downhole.units`).
     """
     import math
 
@@ -473,8 +520,25 @@ MAX_SAMPLES = 10_000_000
 
 def check_step_count(source: str, duration: float, dt: float, record_dt: float | None = None,
                      table: str = "simulation") -> None:
-    """Refuse runs whose step or sample count no machine could hold (``duration / dt`` above
-    :data:`MAX_STEPS`, ``duration / record_dt`` above :data:`MAX_SAMPLES`)."""
+    """Refuse runs whose step or sample count no machine could hold.
+
+    Parameters
+    ----------
+    source : str
+        The file name for messages.
+    duration, dt : float
+        Simulated time and step, s.
+    record_dt : float, optional
+        Output sampling, s.
+    table : str
+        The table holding these fields.
+
+    Raises
+    ------
+    ScenarioError
+        ``duration / dt`` above :data:`MAX_STEPS` (field ``TABLE.dt``) or ``duration /
+        record_dt`` above :data:`MAX_SAMPLES` (field ``TABLE.record_dt``).
+    """
     steps = duration / dt
     if steps > MAX_STEPS:
         raise ScenarioError(source, f"{table}.dt", f"duration / dt = {steps:.3g} steps; at most "
@@ -536,6 +600,7 @@ def validate_data(data: dict, source: str) -> str:
     """Validate a parsed scenario without running it: its model type, then the type's full
     schema, model and run settings (lumped, neutral, FEM / hybrid, DHP; a registered plug-in
     type only by name). Returns the model type; raises :class:`ScenarioError`."""
+    check_values(data, source)
     mtype = model_type(data, source)
     if is_lumped_type(mtype):
         validate_lumped(data, source)
@@ -574,6 +639,7 @@ def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>") -> "Re
     if isinstance(path_or_data, dict):
         import tomli_w
 
+        check_values(path_or_data, source)
         data, text = path_or_data, tomli_w.dumps(path_or_data)
     else:
         data, source, text = load_scenario(path_or_data)
