@@ -29,7 +29,7 @@ from downhole.errors import DownholeInputError
 
 EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.toml"))
 SEED = int(os.environ.get("DOWNHOLE_FUZZ_SEED", "20261201"))  # other seeds: hunt locally
-VARIANTS_PER_EXAMPLE = 24
+VARIANTS_PER_EXAMPLE = int(os.environ.get("DOWNHOLE_FUZZ_VARIANTS", "24"))
 WATCHDOG_S = 10
 
 
