@@ -9,12 +9,14 @@ Model types are pluggable: :func:`register_model_type` adds a runner for ``[mode
 
 from __future__ import annotations
 
+import math
 import tomllib
 from pathlib import Path
-from typing import Any, Callable, Literal, Union
+from typing import Annotated, Any, Callable, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, ValidationError,
+                      field_validator)
 
 from downhole.errors import ScenarioError
 from downhole.params.quantity import Q
@@ -22,10 +24,18 @@ from downhole.units import UnitError, to_si
 
 __all__ = ["load_scenario", "parse_scenario", "run_scenario", "register_model_type",
            "LumpedScenario", "MODEL_TYPES", "model_type", "is_lumped_type", "validate_data",
-           "validate_scenario", "build_lumped_model"]
+           "validate_scenario", "build_lumped_model", "read_toml", "read_scenario_text",
+           "check_values", "validate_lumped", "euler_stable_dt", "check_step_count"]
+
+def _not_bool(value):
+    if isinstance(value, bool):
+        raise ValueError(f"expected a number, a quantity string or [[time, value], ...], got "
+                         f"boolean {value}")
+    return value
+
 
 #: A profile: a constant, or breakpoints [[t, value], ...] interpolated linearly.
-Profile = Union[float, int, str, list]
+Profile = Annotated[Union[float, int, str, list], BeforeValidator(_not_bool)]
 
 
 def profile_to_signal(value: Profile, dimension: str, field: str):
@@ -139,7 +149,8 @@ def _raise_validation(source: str, exc: ValidationError, prefix: str = ""):
         msg = msg[len("Value error, "):]
     if "input" in err and err["type"] not in ("missing", "extra_forbidden") \
             and not isinstance(err["input"], (dict, list)):
-        msg += f" (got {err['input']!r})"
+        got = repr(err["input"])
+        msg += f" (got {got[:80] + '...' if len(got) > 80 else got})"
     raise ScenarioError(source, field, msg) from None
 
 
@@ -169,20 +180,106 @@ def build_lumped_model(sc: LumpedScenario, source: str):
     return lumped_model(string, bit, order=order)
 
 
+def _chain_state_matrix(f, force_mode: bool) -> np.ndarray:
+    """First-order state matrix [[0, I], [-M^-1 K, -M^-1 C]] of one chain field (the top spring
+    and damper only in velocity mode, where the top drive moves the string's top)."""
+    n = f.n
+    k = np.zeros((n, n))
+    c = np.diag(np.asarray(f.c_abs, float))
+    if not force_mode:
+        k[0, 0] += f.k_top
+        c[0, 0] += f.c_top
+    for i, (kl, cl) in enumerate(zip(f.k_link, f.c_link)):
+        for mat, val in ((k, kl), (c, cl)):
+            mat[i, i] += val
+            mat[i + 1, i + 1] += val
+            mat[i, i + 1] -= val
+            mat[i + 1, i] -= val
+    minv = np.diag(1.0 / np.asarray(f.mass, float))
+    return np.block([[np.zeros((n, n)), np.eye(n)], [-minv @ k, -minv @ c]])
+
+
+def euler_stable_dt(model, force_mode: bool = False) -> tuple[float, dict]:
+    """Largest step for which explicit Euler is stable on every mode of a lumped chain.
+
+    Explicit Euler maps a mode ``exp(lambda t)`` to ``(1 + lambda dt)^n``; it decays only if
+    ``|1 + lambda dt| < 1``, i.e. ``dt < 2 Re(-lambda) / |lambda|^2``. For a mode of natural
+    frequency ``omega`` and damping ratio ``zeta`` that is ``dt < 2 zeta / omega``: the highest,
+    least damped mode sets the bound. The bit law is left out (its cutting force damps the axial
+    modes, so this is a sufficient bound for the string itself).
+
+    Parameters
+    ----------
+    model : ChainModel
+        A lumped model (:func:`downhole.string.lumped.lumped_model`).
+    force_mode : bool
+        True when the surface applies forces (no top-drive spring).
+
+    Returns
+    -------
+    (float, dict)
+        The bound in s (0 if a mode is undamped) and the limiting mode: ``field``,
+        ``frequency`` (rad/s, undamped natural frequency) and ``damping_ratio``.
+    """
+    best, info = math.inf, {}
+    for name, f in (("axial", model.axial), ("torsional", model.torsional)):
+        lam = np.linalg.eigvals(_chain_state_matrix(f, force_mode))
+        for lm in lam:
+            mag2 = float(abs(lm) ** 2)
+            if mag2 < 1e-18:   # a rigid-body mode (force mode): |1 + 0 dt| = 1, neutral
+                continue
+            bound = max(0.0, -2.0 * float(lm.real) / mag2)
+            if bound < best:
+                omega = math.sqrt(mag2)
+                best, info = bound, {"field": name, "frequency": omega,
+                                     "damping_ratio": -float(lm.real) / omega}
+    return best, info
+
+
+def validate_lumped(data: dict, source: str):
+    """Validate a lumped scenario for a run without running it: schema, model, step count and,
+    for ``integrator = "euler"``, the explicit-Euler stability of the step
+    (:func:`euler_stable_dt`). Returns ``(scenario, model)``; raises :class:`ScenarioError`."""
+    sc = parse_scenario(data, source, LumpedScenario)
+    model = build_lumped_model(sc, source)
+    sim = sc.simulation
+    if sim.dt > sim.duration:
+        raise ScenarioError(source, "simulation.dt", f"dt ({sim.dt} s) exceeds duration "
+                            f"({sim.duration} s)")
+    check_step_count(source, sim.duration, sim.dt, sim.record_dt)
+    nsteps = round(sim.duration / sim.dt)
+    if abs(nsteps * sim.dt - sim.duration) > 1e-9 * max(1.0, sim.duration):
+        raise ScenarioError(source, "simulation.dt", f"dt = {sim.dt:g} s does not divide the "
+                            f"duration ({sim.duration:g} s) into whole steps")
+    if sim.record_dt is not None and sim.record_dt < sim.dt:
+        raise ScenarioError(source, "simulation.record_dt", f"record_dt ({sim.record_dt:g} s) "
+                            f"is below dt ({sim.dt:g} s)")
+    if sim.integrator == "euler":
+        bound, mode = euler_stable_dt(model, force_mode=sc.surface.mode == "force")
+        if sim.dt >= bound:
+            if bound == 0.0:
+                why = (f"the {mode['field']} mode at {mode['frequency']:.4g} rad/s is undamped, "
+                       "so explicit Euler is unstable at any step")
+            else:
+                why = (f"explicit Euler is stable only for dt < {bound:.4g} s (2 zeta / omega "
+                       f"of the {mode['field']} mode at {mode['frequency']:.4g} rad/s, damping "
+                       f"ratio {mode['damping_ratio']:.3g})")
+            raise ScenarioError(source, "simulation.dt", f"dt = {sim.dt:g} s is too large: "
+                                f"{why}; use a smaller dt or integrator = 'newmark'")
+    return sc, model
+
+
 def _run_lumped(data: dict, source: str, text: str):
     from downhole.sim import SurfaceInputs, simulate
     from downhole.sim.inputs import sample_signal
 
-    sc = parse_scenario(data, source, LumpedScenario)
-    model = build_lumped_model(sc, source)
+    sc, model = validate_lumped(data, source)
     s = sc.surface
     if s.mode == "velocity":
         inputs = SurfaceInputs.velocity(s.axial_velocity, s.angular_velocity)
     else:
         inputs = SurfaceInputs.force(s.hook_load, s.surface_torque)
     sim = sc.simulation
-    if sim.dt > sim.duration:
-        raise ScenarioError(source, "simulation.dt", f"dt ({sim.dt} s) exceeds duration ({sim.duration} s)")
     res = simulate(model, inputs, duration=sim.duration, dt=sim.dt,
                    depth_of_cut=sim.depth_of_cut, integrator=sim.integrator,
                    record_dt=sim.record_dt, rock_memory=sim.rock_memory,
@@ -216,18 +313,265 @@ def parse_scenario(data: dict, source: str, schema=LumpedScenario):
         _raise_validation(source, exc)
 
 
-def load_scenario(path: str | Path) -> tuple[dict, str, str]:
-    """Read a TOML scenario file: returns ``(data, source, text)``."""
+#: Largest scenario file read (bytes); a scenario is a few kB.
+MAX_FILE_BYTES = 1 << 20
+#: Longest string value in a scenario file (characters).
+MAX_STRING_LENGTH = 4096
+#: Longest list in a scenario file (entries: survey stations, profile breakpoints, ...).
+MAX_LIST_LENGTH = 100_000
+#: Deepest nesting of tables and lists.
+MAX_DEPTH = 16
+#: Largest magnitude of a bare number (SI); physical fields have narrower ranges
+#: (:data:`downhole.units.RANGES`).
+MAX_NUMBER = 1e15
+#: Largest magnitude of an integer (seeds, counts, ports).
+MAX_INTEGER = 2**63 - 1
+
+
+def read_scenario_text(path: str | Path) -> tuple[str, str]:
+    """Read a scenario file's text safely: ``(text, source)``.
+
+    Only a regular file is opened (a directory, a FIFO, a device or a socket is refused before
+    opening, so nothing blocks), at most :data:`MAX_FILE_BYTES` are read, and the bytes must be
+    UTF-8 without NUL characters.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and what is wrong with it.
+    """
+    import os
+    import stat
+
     path = Path(path)
     source = str(path)
-    if not path.is_file():
-        raise ScenarioError(source, "", "file not found")
-    text = path.read_text()
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise ScenarioError(source, "", "file not found") from None
+    except (OSError, ValueError) as exc:  # permission, a name too long, an embedded NUL
+        raise ScenarioError(source, "", f"cannot read the file ({exc})") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a directory" if stat.S_ISDIR(st.st_mode) else
+                "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else
+                "a socket" if stat.S_ISSOCK(st.st_mode) else "a device or special file")
+        raise ScenarioError(source, "", f"is {kind}; expected a regular TOML file")
+    if st.st_size > MAX_FILE_BYTES:
+        raise ScenarioError(source, "", f"file of {st.st_size} bytes; a scenario is at most "
+                            f"{MAX_FILE_BYTES} bytes")
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        raise ScenarioError(source, "", f"cannot read the file ({exc.strerror})") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # replaced between stat and open
+            raise ScenarioError(source, "", "is not a regular file")
+        with os.fdopen(fd, "rb", closefd=False) as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise ScenarioError(source, "", f"cannot read the file ({exc.strerror})") from None
+    finally:
+        os.close(fd)
+    if len(raw) > MAX_FILE_BYTES:
+        raise ScenarioError(source, "", f"file larger than {MAX_FILE_BYTES} bytes; a scenario "
+                            "is a few kB")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise ScenarioError(source, "", f"not UTF-8 text: byte 0x{raw[exc.start]:02x} at "
+                            f"offset {exc.start} (line {line}); save the file as UTF-8"
+                            ) from None
+    if "\x00" in text:
+        line = text[:text.index("\x00")].count("\n") + 1
+        raise ScenarioError(source, "", f"NUL character at line {line}; a scenario is text")
+    return text, source
+
+
+def parse_toml_text(text: str, source: str) -> dict:
+    """Parse TOML text and check every value (:func:`check_values`).
+
+    Parameters
+    ----------
+    text : str
+        The file's text.
+    source : str
+        The file name for messages.
+
+    Returns
+    -------
+    dict
+        The parsed data.
+
+    Raises
+    ------
+    ScenarioError
+        Not valid TOML (also a 5000-digit integer or nesting too deep for the parser), or a
+        value no field accepts.
+    """
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(source, "", f"not valid TOML: {exc}") from None
-    return data, source, text
+    except (ValueError, RecursionError, OverflowError) as exc:  # e.g. a 5000-digit integer
+        msg = str(exc).split(";")[0]
+        raise ScenarioError(source, "", f"not valid TOML: {msg}") from None
+    check_values(data, source)
+    return data
+
+
+def read_toml(path: str | Path) -> tuple[dict, str, str]:
+    """Read, parse and check a TOML scenario file.
+
+    Every command that reads a scenario goes through here (:func:`read_scenario_text`, then
+    :func:`parse_toml_text`), so hostile input gets one error naming the file and the field.
+
+    Parameters
+    ----------
+    path : str or Path
+        The scenario file.
+
+    Returns
+    -------
+    (dict, str, str)
+        The parsed data, the source name (the path as given) and the file's text.
+
+    Raises
+    ------
+    ScenarioError
+        Not a regular file, too large, not UTF-8, NUL characters, not TOML, or a value no field
+        accepts (:func:`check_values`).
+    """
+    text, source = read_scenario_text(path)
+    return parse_toml_text(text, source), source, text
+
+
+def check_values(data, source: str, prefix: str = "") -> None:
+    """Reject values no scenario field accepts, naming the dotted field.
+
+    Parameters
+    ----------
+    data : dict
+        A parsed scenario (nested dicts, lists and scalars).
+    source : str
+        The file name for messages.
+    prefix : str
+        Dotted path of ``data`` inside the scenario (empty for the whole file).
+
+    Raises
+    ------
+    ScenarioError
+        Non-finite numbers (``inf``, ``nan``), numbers beyond :data:`MAX_NUMBER` (integers
+        beyond :data:`MAX_INTEGER`), strings longer than :data:`MAX_STRING_LENGTH` or with
+        control characters (NUL, ...), lists longer than :data:`MAX_LIST_LENGTH`, nesting
+        deeper than :data:`MAX_DEPTH`. Physical ranges are checked per field later
+        (:mod:`downhole.units`).
+    """
+    import math
+
+    stack = [(prefix, data, 0)]
+    while stack:
+        field, value, depth = stack.pop()
+        where = field or "<top>"
+        if depth > MAX_DEPTH:
+            raise ScenarioError(source, where, f"nested deeper than {MAX_DEPTH} levels")
+        if isinstance(value, bool):
+            continue
+        if isinstance(value, int):
+            if abs(value) > MAX_INTEGER:
+                raise ScenarioError(source, where, f"integer out of range (|value| must be at "
+                                    f"most {MAX_INTEGER})")
+        elif isinstance(value, float):
+            if not math.isfinite(value):
+                raise ScenarioError(source, where, f"expected a finite number, got {value!r}")
+            if abs(value) > MAX_NUMBER:
+                raise ScenarioError(source, where, f"number {value:g} out of range (|value| "
+                                    f"must be at most {MAX_NUMBER:g}; see docs/scenarios.md)")
+        elif isinstance(value, str):
+            if len(value) > MAX_STRING_LENGTH:
+                raise ScenarioError(source, where, f"string of {len(value)} characters; at most "
+                                    f"{MAX_STRING_LENGTH} are accepted")
+            bad = next((c for c in value if (ord(c) < 32 and c not in "\t\n\r")
+                        or ord(c) == 127), None)
+            if bad is not None:
+                raise ScenarioError(source, where, f"control character {bad!r} in a string")
+            _check_numeric_string(value, source, where)
+        elif isinstance(value, dict):
+            for k, v in value.items():
+                ks = str(k)
+                if len(ks) > 128 or any(ord(c) < 32 or ord(c) == 127 for c in ks):
+                    raise ScenarioError(source, where, f"invalid key {ks[:40]!r}")
+                stack.append((f"{field}.{ks}" if field else ks, v, depth + 1))
+        elif isinstance(value, list):
+            if len(value) > MAX_LIST_LENGTH:
+                raise ScenarioError(source, where, f"list of {len(value)} entries; at most "
+                                    f"{MAX_LIST_LENGTH} are accepted")
+            for i, v in enumerate(value):
+                stack.append((f"{field}.{i}" if field else str(i), v, depth + 1))
+        # TOML dates and times pass through; the schemas reject them where a number is expected
+
+
+#: Most time steps one run may take.
+MAX_STEPS = 200_000_000
+#: Most samples one run may record.
+MAX_SAMPLES = 10_000_000
+
+
+def check_step_count(source: str, duration: float, dt: float, record_dt: float | None = None,
+                     table: str = "simulation") -> None:
+    """Refuse runs whose step or sample count no machine could hold.
+
+    Parameters
+    ----------
+    source : str
+        The file name for messages.
+    duration, dt : float
+        Simulated time and step, s.
+    record_dt : float, optional
+        Output sampling, s.
+    table : str
+        The table holding these fields.
+
+    Raises
+    ------
+    ScenarioError
+        ``duration / dt`` above :data:`MAX_STEPS` (field ``TABLE.dt``) or ``duration /
+        record_dt`` above :data:`MAX_SAMPLES` (field ``TABLE.record_dt``).
+    """
+    steps = duration / dt
+    if steps > MAX_STEPS:
+        raise ScenarioError(source, f"{table}.dt", f"duration / dt = {steps:.3g} steps; at most "
+                            f"{MAX_STEPS:.0e} per run (dt >= {duration / MAX_STEPS:.3g} s for "
+                            f"a duration of {duration:g} s)")
+    if record_dt is not None and duration / record_dt > MAX_SAMPLES:
+        raise ScenarioError(source, f"{table}.record_dt", f"duration / record_dt = "
+                            f"{duration / record_dt:.3g} samples; at most {MAX_SAMPLES:.0e} "
+                            f"(record_dt >= {duration / MAX_SAMPLES:.3g} s)")
+
+
+def _check_numeric_string(value: str, source: str, where: str) -> None:
+    """A string that is a bare number ("1e300", "nan", "inf") reaches plain float fields through
+    pydantic's coercion: hold it to the same rules as a number."""
+    import math
+
+    text = value.strip()
+    if not text or len(text) > 40 or not (text[0].isdigit() or text[0] in "+-.iInN"):
+        return
+    try:
+        number = float(text)
+    except ValueError:
+        return
+    if not math.isfinite(number):
+        raise ScenarioError(source, where, f"expected a finite number, got {value!r}")
+    if abs(number) > MAX_NUMBER:
+        raise ScenarioError(source, where, f"number {value!r} out of range (|value| must be at "
+                            f"most {MAX_NUMBER:g}; see docs/scenarios.md)")
+
+
+def load_scenario(path: str | Path) -> tuple[dict, str, str]:
+    """Read a TOML scenario file: returns ``(data, source, text)`` (see :func:`read_toml`)."""
+    return read_toml(path)
 
 
 def model_type(data: dict, source: str) -> str:
@@ -240,7 +584,7 @@ def model_type(data: dict, source: str) -> str:
         raise ScenarioError(source, "model.type", "required field is missing "
                             f"(one of {sorted(MODEL_TYPES)})")
     mtype = model["type"]
-    if mtype not in MODEL_TYPES:
+    if not isinstance(mtype, str) or mtype not in MODEL_TYPES:
         raise ScenarioError(source, "model.type",
                             f"unknown model type {mtype!r}; expected one of {sorted(MODEL_TYPES)}")
     return mtype
@@ -253,12 +597,35 @@ def is_lumped_type(mtype: str) -> bool:
 
 
 def validate_data(data: dict, source: str) -> str:
-    """Validate a parsed scenario without running it: its model type always, lumped scenarios
-    against their full schema and model. Returns the model type."""
+    """Validate a parsed scenario without running it: its model type, then the type's full
+    schema, model and run settings (lumped, neutral, FEM / hybrid, DHP; a registered plug-in
+    type only by name). Returns the model type; raises :class:`ScenarioError`."""
+    check_values(data, source)
     mtype = model_type(data, source)
     if is_lumped_type(mtype):
-        build_lumped_model(parse_scenario(data, source, LumpedScenario), source)
+        validate_lumped(data, source)
+    elif mtype in _VALIDATORS:
+        import importlib
+
+        module, func = _VALIDATORS[mtype]
+        getattr(importlib.import_module(module), func)(data, source)
     return mtype
+
+
+def _validate_dhp(data: dict, source: str):
+    from downhole.cli.design_dhp import parse_dhp_scenario
+
+    base = Path(source).parent if not source.startswith("<") else None
+    return parse_dhp_scenario(data, source, "", base=base)
+
+
+#: Validators (without running) of the built-in non-lumped model types: module, function.
+_VALIDATORS: dict[str, tuple[str, str]] = {
+    "neutral": ("downhole.string.neutral_scenario", "validate_neutral_scenario"),
+    "fem": ("downhole.string.directional_scenario", "validate_directional_scenario"),
+    "hybrid": ("downhole.string.directional_scenario", "validate_directional_scenario"),
+    "dhp": ("downhole.scenario", "_validate_dhp"),
+}
 
 
 def validate_scenario(path: str | Path) -> None:
@@ -272,6 +639,7 @@ def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>") -> "Re
     if isinstance(path_or_data, dict):
         import tomli_w
 
+        check_values(path_or_data, source)
         data, text = path_or_data, tomli_w.dumps(path_or_data)
     else:
         data, source, text = load_scenario(path_or_data)

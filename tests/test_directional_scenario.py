@@ -67,13 +67,13 @@ def _run_bad(tmp_path, capsys, mtype="fem", model="elements = 20", extra=""):
     ("[well]\nmd = [0, 500, 900]\ninclination = [0, 10, 190]\nazimuth = [0, 0, 0]",
      "well.inclination", "0 to 180"),
     ("[[well.sections]]\ntype = \"vertical\"\nlength = \"-100 m\"",
-     "well.sections.0.length", "greater than 0"),
+     "well.sections.0.length", "admissible range of a length, 0 to 100000 m"),
     ("[[well.sections]]\ntype = \"vertical\"\nlength = 500\n[[well.sections]]\ntype = \"arc\"\n"
      "radius = 300", "well.sections.1", "needs angle"),
     ("[[string.segments]]\nlength = 1000\nouter_diameter = \"5 in\"\ninner_diameter = \"6 in\"",
      "string.segments.0", "must be smaller than outer_diameter"),
     ("[[string.segments]]\nlength = 1000\nouter_diameter = -0.1\ninner_diameter = 0.05",
-     "string.segments.0.outer_diameter", "greater than 0"),
+     "string.segments.0.outer_diameter", "admissible range of a length, 0 to 100000 m"),
     ("[hook]\nwob = \"120 kN\"\nweight = 3", "hook.weight", "unknown key"),
     ("[controller]\ntype = \"pi\"\nspeed = \"10 m/s\"", "controller.speed", "rad/s"),
 ])

@@ -47,5 +47,5 @@ def test_sil_remote_with_the_controller_client_command(tmp_path):
 
 def test_bad_inputs_exit_2(tmp_path, capsys):
     assert main(["sil", str(tmp_path / "missing.toml")]) == 2
-    assert "does not exist" in capsys.readouterr().err
+    assert "file not found" in capsys.readouterr().err
     assert main(["sil-controller", "--port", "1"]) == 2

@@ -83,7 +83,6 @@ where a unit is shown)::
 from __future__ import annotations
 
 import json
-import tomllib
 from pathlib import Path
 
 import typer
@@ -114,6 +113,23 @@ def _si(src, field, value, dim):
                                         f"{exc}") from None
 
 
+def _limits(src, value):
+    """``model.input_limits``: [[slack-off min, max] (N), [torque min, max] (N m)]."""
+    field = "model.input_limits"
+    if not (isinstance(value, list) and len(value) == 2
+            and all(isinstance(p, list) and len(p) == 2 for p in value)):
+        raise ScenarioError(src, field, f"expected [[min, max], [min, max]] (slack-off force N, "
+                                        f"surface torque N m), got {value!r:.60}")
+    out = []
+    for (lo, hi), dim, name in zip(value, ("force", "torque"), ("force", "torque")):
+        lo, hi = _si(src, field, lo, dim), _si(src, field, hi, dim)
+        if not lo < hi:
+            raise ScenarioError(src, field, f"{name} limits [{lo:g}, {hi:g}] are empty; expected "
+                                            "min < max")
+        out.append([lo, hi])
+    return out
+
+
 def _check_keys(src, table, data, allowed):
     bad = set(data) - allowed
     if bad:
@@ -134,14 +150,9 @@ def load_dhp_scenario(path) -> dict:
         Naming the file, the field and what was expected.
     """
 
-    src = str(path)
-    try:
-        text = Path(path).read_text()
-        data = tomllib.loads(text)
-    except FileNotFoundError:
-        raise ScenarioError(src, "", "file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(src, "", f"invalid TOML: {exc}") from None
+    from downhole.scenario import read_toml
+
+    data, src, text = read_toml(path)
     return parse_dhp_scenario(data, src, text, base=Path(path).parent)
 
 
@@ -164,6 +175,10 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
     bad = set(data) - _TABLES
     if bad:
         raise ScenarioError(src, sorted(bad)[0], f"unknown table; expected {sorted(_TABLES)}")
+    for name in sorted(_TABLES):
+        if name in data and not isinstance(data[name], dict):
+            raise ScenarioError(src, name, f"expected a table [{name}], got "
+                                           f"{type(data[name]).__name__} {data[name]!r:.40}")
 
     # --------------------------------------------------------------------- training
     tt = dict(data.get("training", {}))
@@ -174,6 +189,12 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
     if past not in ("stationary", "error"):
         raise ScenarioError(src, "training.past_horizon", f"expected 'stationary' or 'error', "
                                                           f"got {past!r}")
+    for key, most in (("n_samples", 100_000), ("n_iterations", 10_000), ("threads", 1024),
+                      ("resample_every", 100_000)):
+        value = tt.get(key)
+        if isinstance(value, int) and not isinstance(value, bool) and value > most:
+            raise ScenarioError(src, f"training.{key}", f"{value} is more than the {most} "
+                                                        "this setting accepts")
     if "sample_radius" in tt and isinstance(tt["sample_radius"], list):
         tt["sample_radius"] = tuple(tt["sample_radius"])
     try:
@@ -189,7 +210,7 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
     kind = mt.pop("kind", "fem24")
     dt = _si(src, "model.dt", mt.pop("dt", 1e-3), "time")
     bit_over = {k: mt.pop(k) for k in list(mt) if k not in _MODEL_KEYS}
-    limits = mt.pop("input_limits", [[-50e3, 300e3], [-60e3, 60e3]])
+    limits = _limits(src, mt.pop("input_limits", [[-50e3, 300e3], [-60e3, 60e3]]))
     friction = bool(mt.pop("friction", True))
     model, plant_source = _build_model(src, kind, mt, dt, bit_over, limits, friction)
 
@@ -303,6 +324,9 @@ def _build_model(src, kind, mt, dt, bit_over, limits, friction):
     try:
         if kind == "lumped":
             preset = mt.pop("preset", "table_2_1")
+            if not isinstance(preset, str):
+                raise ScenarioError(src, "model.preset", f"expected a preset name, got "
+                                                         f"{preset!r:.40}")
             _check_keys(src, "model", mt, set())
             try:
                 pre = get_preset(preset)
@@ -321,9 +345,9 @@ def _build_model(src, kind, mt, dt, bit_over, limits, friction):
                 from downhole.string.fem import fem_model
 
                 ne = mt.pop("n_elements", 5)
-                if not isinstance(ne, int) or ne < 3:
-                    raise ScenarioError(src, "model.n_elements", f"expected an integer >= 3, "
-                                                                 f"got {ne!r}")
+                if not isinstance(ne, int) or isinstance(ne, bool) or not 3 <= ne <= 500:
+                    raise ScenarioError(src, "model.n_elements", f"expected an integer from 3 "
+                                                                 f"to 500, got {ne!r}")
                 dm = fem_model(n_elements=ne)
             else:
                 dm = fem24

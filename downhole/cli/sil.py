@@ -295,7 +295,7 @@ def sil_controller(port: Optional[int] = typer.Option(
         from downhole.sil.scenario import build_from_scenario, check_code_allowed, \
             load_sil_scenario
 
-        sc = load_sil_scenario(scenario)
+        sc = load_sil_scenario(scenario)  # validated before connecting: a bad file fails at once
         sc.controller.remote = False
         check_code_allowed(sc, allow_code=allow_code)
     if port is None:

@@ -25,7 +25,6 @@ See ``docs/sil.md`` for every field.
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Literal
 
@@ -52,7 +51,7 @@ class PlantSection(_Strict):
     top_drive_speed: Q["angular_velocity"] = 10.0
     surface_torque: Q["torque"] = 0.0
     design: Literal["hybrid24", "hybrid68"] = "hybrid24"
-    n_elements: int = Field(23, ge=1)
+    n_elements: int = Field(23, ge=1, le=5000)
     lumped_preset: str = "table_2_1"
     order: Literal[4, 12] = 4
     axial_velocity: Q["velocity"] = 0.01
@@ -77,7 +76,7 @@ class DHPSection(_Strict):
 
     reference: Literal["step", "sine", "ramp"] = "step"
     horizon: Q["time"] = Field(8.0, gt=0)
-    samples: int = Field(50, ge=2)
+    samples: int = Field(50, ge=2, le=100_000)
     weights: Literal["robust", "design", "planned"] = "robust"
 
 
@@ -148,12 +147,14 @@ class SilScenario(_Strict):
 
 def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
     """Validate a scenario dict; raises :class:`~downhole.errors.ScenarioError`."""
+    from downhole.scenario import _raise_validation
+
     try:
         sc = SilScenario.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        field = ".".join(str(p) for p in err["loc"])
-        raise ScenarioError(source, field, err["msg"]) from None
+        _raise_validation(source, exc)
+    if sc.plant.model == "lumped" and sc.link.mode != "hil":
+        _check_lumped_step(sc, source)
     if sc.controller.kind == "file" and not sc.controller.file:
         raise ScenarioError(source, "controller.file", "kind = 'file' needs a file path")
     r = sc.reference
@@ -187,16 +188,35 @@ def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
     return sc
 
 
+def _check_lumped_step(sc: SilScenario, source: str) -> None:
+    """The lumped SIL plant steps with explicit Euler: ``runtime.dt`` must be below its stability
+    bound (:func:`downhole.scenario.euler_stable_dt`)."""
+    from downhole.params import get_preset
+    from downhole.scenario import euler_stable_dt
+    from downhole.string.lumped import lumped_model
+
+    try:
+        preset = get_preset(sc.plant.lumped_preset)
+    except KeyError as exc:
+        raise ScenarioError(source, "plant.lumped_preset", str(exc.args[0])) from None
+    if preset.kind != "lumped":
+        raise ScenarioError(source, "plant.lumped_preset", f"preset {sc.plant.lumped_preset!r} "
+                            f"is a {preset.kind} model, expected a lumped one")
+    bound, mode = euler_stable_dt(lumped_model(sc.plant.lumped_preset, order=sc.plant.order))
+    if sc.runtime.dt >= bound:
+        raise ScenarioError(source, "runtime.dt", f"dt = {sc.runtime.dt:g} s is too large for "
+                            f"the lumped plant's explicit Euler: stable only for dt < "
+                            f"{bound:.4g} s (2 zeta / omega of the {mode['field']} mode at "
+                            f"{mode['frequency']:.4g} rad/s)")
+
+
 def load_sil_scenario(path) -> SilScenario:
     """Read and validate a SIL scenario TOML file."""
+    from downhole.scenario import read_toml
+
     path = Path(path)
-    if not path.exists():
-        raise ScenarioError(str(path), "", "file does not exist")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(str(path), "", f"not valid TOML: {exc}") from None
-    sc = parse_sil_scenario(data, str(path))
+    data, source, _ = read_toml(path)
+    sc = parse_sil_scenario(data, source)
     if sc.controller.file and not Path(sc.controller.file).is_absolute():
         sc.controller.file = str(path.parent / sc.controller.file)
     if sc.dashboard.token_file and not Path(sc.dashboard.token_file).is_absolute():

@@ -82,14 +82,17 @@ import math
 from pathlib import Path
 from typing import Any, Literal, Optional
 
+import numpy as np
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params.quantity import Q
-from downhole.scenario import Profile, _raise_validation, _Strict, parse_scenario, profile_to_signal
+from downhole.scenario import (Profile, _raise_validation, _Strict, check_step_count,
+                               parse_scenario, profile_to_signal, read_scenario_text)
 from downhole.units import UnitError
 
-__all__ = ["DirectionalScenario", "build_directional", "run_directional_scenario"]
+__all__ = ["DirectionalScenario", "build_directional", "run_directional_scenario",
+           "validate_directional_scenario"]
 
 
 def _profile(value, dim, name):
@@ -105,10 +108,10 @@ class DirectionalModelSettings(_Strict):
 
     type: Literal["fem", "hybrid"]
     preset: str = "table_5_1"
-    elements: Optional[int] = Field(None, ge=1)
+    elements: Optional[int] = Field(None, ge=1, le=5000)
     hybrid: Optional[Literal["hybrid24", "hybrid68", "hybrid108"]] = None
-    nodes_ab: Optional[int] = Field(None, ge=2)
-    nodes_cd: Optional[int] = Field(None, ge=2)
+    nodes_ab: Optional[int] = Field(None, ge=2, le=2000)
+    nodes_cd: Optional[int] = Field(None, ge=2, le=2000)
     md_b: Optional[Q["length"]] = Field(None, gt=0)
     md_c: Optional[Q["length"]] = Field(None, gt=0)
     damping: Literal["rayleigh", "modal"] = "rayleigh"
@@ -381,6 +384,25 @@ def _params(sc: DirectionalScenario, source: str):
     return params, bit
 
 
+#: Admissible survey stations: measured depth (m), inclination and azimuth (deg).
+SURVEY_RANGES = {"md": (0.0, 1e5), "inclination": (0.0, 180.0), "azimuth": (-360.0, 720.0)}
+
+
+def _check_stations(source: str, prefix: str, md, inc, azi, length_unit: str) -> None:
+    """Every station finite and inside :data:`SURVEY_RANGES` (MD in ``length_unit``)."""
+    scale = 0.3048 if length_unit == "ft" else 1.0
+    for name, values, k in (("md", md, scale), ("inclination", inc, 1.0),
+                            ("azimuth", azi, 1.0)):
+        lo, hi = SURVEY_RANGES[name]
+        unit = "m" if name == "md" else "deg"
+        field = prefix if prefix.endswith("survey") else f"{prefix}.{name}"
+        for i, v in enumerate(np.asarray(values, float)):
+            if not (np.isfinite(v) and lo <= v * k <= hi):
+                raise ScenarioError(source, field, f"station {i}: {name} {v:g} "
+                                    f"{'ft' if (name == 'md' and k != 1.0) else unit} is outside "
+                                    f"the admissible range {lo:g} to {hi:g} {unit}")
+
+
 def _well(sc: DirectionalScenario, source: str, params):
     from downhole.well import WellPath, read_survey_csv
 
@@ -391,13 +413,23 @@ def _well(sc: DirectionalScenario, source: str, params):
         path = Path(w.survey)
         if not path.is_absolute():
             path = _base_dir(source) / path
+        try:
+            read_scenario_text(path)  # a regular UTF-8 file of sane size (no FIFO, no device)
+        except ScenarioError as exc:
+            raise ScenarioError(source, "well.survey", f"{path}: {exc.message}") from None
         with _wrap(source, "well.survey"):
-            return read_survey_csv(path, units=w.units)
+            well = read_survey_csv(path, units=w.units)
+        st = well.stations
+        _check_stations(source, "well.survey", st["md"], np.degrees(st["inclination"]),
+                        np.degrees(st["azimuth"]), "m")
+        return well
     if w.md is not None:
         if len(w.md) != len(w.inclination) or len(w.md) != len(w.azimuth):
             raise ScenarioError(source, "well.md",
                                 f"md, inclination and azimuth differ in length ({len(w.md)}, "
                                 f"{len(w.inclination)}, {len(w.azimuth)})")
+        _check_stations(source, "well", w.md, w.inclination, w.azimuth,
+                        "ft" if w.units == "oilfield" else "m")
         try:
             return WellPath.from_survey(w.md, w.inclination, w.azimuth,
                                         length_unit="ft" if w.units == "oilfield" else "m")
@@ -579,6 +611,22 @@ def _run_dhp(sc, source, text, model, attrs):
     return res
 
 
+def validate_directional_scenario(data: dict, source: str):
+    """Validate a directional scenario for a run without running it: the schema, the well, the
+    string, the model and the step settings. Returns ``(scenario, params, model)``.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and the dotted field.
+    """
+    sc = parse_scenario(data, source, DirectionalScenario)
+    params, _ = _params(sc, source)
+    model = build_directional(sc, source)
+    check_step_count(source, sc.simulation.duration, sc.simulation.dt, sc.simulation.record_dt)
+    return sc, params, model
+
+
 def run_directional_scenario(data: dict, source: str, text: str):
     """Validate and run a directional scenario; returns the :class:`~downhole.sim.Result`
     (the TOML text in ``attrs["scenario"]``)."""
@@ -586,9 +634,7 @@ def run_directional_scenario(data: dict, source: str, text: str):
     from downhole.sim.result import Result
     from downhole.string.fem import simulate_directional
 
-    sc = parse_scenario(data, source, DirectionalScenario)
-    params, _ = _params(sc, source)
-    model = build_directional(sc, source)
+    sc, params, model = validate_directional_scenario(data, source)
     sim = sc.simulation
     attrs = {"scenario": text, "scenario_source": source, "title": sc.title}
     if sc.controller.type == "dhp":

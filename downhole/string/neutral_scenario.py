@@ -54,12 +54,12 @@ from pydantic import BeforeValidator, Field, ValidationError, field_validator, m
 
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params.quantity import Q
-from downhole.scenario import Profile, _raise_validation, _Strict, parse_scenario, \
-    profile_to_signal
+from downhole.scenario import Profile, _raise_validation, _Strict, check_step_count, \
+    parse_scenario, profile_to_signal
 from downhole.units import UnitError
 
 __all__ = ["NeutralScenario", "load_neutral_scenario", "build_neutral", "build_controller",
-           "build_reference", "run_neutral_scenario"]
+           "build_reference", "run_neutral_scenario", "validate_neutral_scenario"]
 
 
 def _profile(value, dim, name):
@@ -290,11 +290,9 @@ def build_controller(sc: NeutralScenario, source: str, model, reference=None):
             raise ScenarioError(source, "controller", str(exc)) from None
 
 
-def run_neutral_scenario(data: dict, source: str, text: str):
-    """Run a neutral-model scenario (registered for ``[model] type = "neutral"``); returns a
-    :class:`~downhole.sim.Result` with the scenario text in ``attrs["scenario"]``."""
-    from downhole.string.neutral import simulate_neutral
-
+def validate_neutral_scenario(data: dict, source: str):
+    """Validate a neutral-model scenario for a run without running it: the schema, the model and
+    the step settings. Returns ``(scenario, model)``; raises :class:`ScenarioError`."""
     sc = load_neutral_scenario(data, source)
     if sc.simulation is None:
         raise ScenarioError(source, "simulation", "required table is missing (duration, dt, ...)")
@@ -315,6 +313,17 @@ def run_neutral_scenario(data: dict, source: str, text: str):
     if sc.controller is not None and sc.surface is not None:
         raise ScenarioError(source, "surface", "the [controller] sets U_A/U_T; remove [surface] "
                             "(open-loop commands) or [controller]")
+    check_step_count(source, sim.duration, sim.dt, sim.record_dt)
+    return sc, model
+
+
+def run_neutral_scenario(data: dict, source: str, text: str):
+    """Run a neutral-model scenario (registered for ``[model] type = "neutral"``); returns a
+    :class:`~downhole.sim.Result` with the scenario text in ``attrs["scenario"]``."""
+    from downhole.string.neutral import simulate_neutral
+
+    sc, model = validate_neutral_scenario(data, source)
+    sim = sc.simulation
     reference = build_reference(sc) if sc.controller is not None else None
     ctrl = build_controller(sc, source, model, reference)
     surface = sc.surface or NeutralSurface()

@@ -21,7 +21,7 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from downhole._atomic import atomic_path
-from downhole.errors import DownholeInputError
+from downhole.errors import DownholeInputError, ScenarioError
 from downhole.sweep.spec import (METRICS, ParamSpec, compute_metrics, metric_names, parse_param,
                                  parse_window, set_path, validate_path)
 
@@ -168,6 +168,11 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
         settings = base.pop("sweep", {}) or {}
     else:
         base, source, settings = load_sweep_file(scenario)
+    # options not given as arguments come from the file's [sweep] table; their errors name it
+    from_file = {k for k, v in (("params", params), ("metrics", metrics), ("random", random),
+                                ("seed", seed), ("window", window), ("batch_size", batch_size))
+                 if (v is None or (k in ("params", "metrics") and not v))
+                 and (k in settings or not isinstance(scenario, dict))}
     params = params if params else settings.get("params")
     metrics = metrics if metrics else settings.get("metrics")
     random = random if random is not None else settings.get("random")
@@ -175,28 +180,57 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
     window = window if window is not None else settings.get("window")
     batch_size = batch_size if batch_size is not None else settings.get("batch_size")
 
+    def _checked(key, func, *args, **kwargs):
+        try:
+            return func(*args, **kwargs)
+        except ScenarioError:
+            raise
+        except (DownholeInputError, TypeError, ValueError) as exc:
+            if key in from_file:
+                raise ScenarioError(source, f"sweep.{key}", str(exc)) from None
+            if isinstance(exc, DownholeInputError):
+                raise
+            raise DownholeInputError(f"{key}: {exc}") from None
+
+    def _check_random():
+        if random is not None and (not isinstance(random, int) or isinstance(random, bool)
+                                   or random < 1):
+            raise DownholeInputError(f"--random must be a positive whole number of cases, got "
+                                     f"{random!r}")
+
+    def _check_seed():
+        if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool)
+                                 or seed < 0):
+            raise DownholeInputError(f"seed must be a non-negative whole number, got {seed!r}")
+
+    def _check_batch():
+        if batch_size is not None and (not isinstance(batch_size, int)
+                                       or isinstance(batch_size, bool) or batch_size < 1):
+            raise DownholeInputError(f"batch_size must be a positive whole number, got "
+                                     f"{batch_size!r}")
+
     # ---- validation: nothing runs before all of this passed ---------------------------------
-    if random is not None and (not isinstance(random, int) or isinstance(random, bool)
-                               or random < 1):
-        raise DownholeInputError(f"--random must be a positive whole number of cases, got "
-                                 f"{random!r}")
-    texts = _param_texts(params)
+    _checked("random", _check_random)
+    _checked("seed", _check_seed)
+    texts = _checked("params", _param_texts, params)
     if not texts:
+        if not isinstance(scenario, dict):
+            raise ScenarioError(source, "sweep.params", "no parameter to sweep; give --param "
+                                "NAME=START:STOP:COUNT or params in the [sweep] table")
         raise DownholeInputError("no parameter to sweep; give --param NAME=START:STOP:COUNT")
-    specs = [parse_param(t, random=random is not None) for t in texts]
+    specs = [_checked("params", parse_param, t, random=random is not None) for t in texts]
     names = [s.path for s in specs]
     dup = {n for n in names if names.count(n) > 1}
     if dup:
         raise DownholeInputError(f"--param {sorted(dup)[0]} given more than once")
-    metrics = metric_names(metrics)
-    window = parse_window(window)
+    metrics = _checked("metrics", metric_names, metrics)
+    window = _checked("window", parse_window, window)
     _validate_base(base, source)
     for s in specs:
-        validate_path(base, source, s)
+        _checked("params", validate_path, base, source, s)
     if processes is not None and (not isinstance(processes, int) or processes < 1):
         raise DownholeInputError(f"processes must be a positive whole number, got {processes!r}")
-    if batch_size is not None and (not isinstance(batch_size, int) or batch_size < 1):
-        raise DownholeInputError(f"batch_size must be a positive whole number, got {batch_size!r}")
+    _checked("batch_size", _check_batch)
 
     # ---- cases --------------------------------------------------------------------------------
     if random is None:

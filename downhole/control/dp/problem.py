@@ -12,7 +12,6 @@ inconsistency is rejected with a precise :class:`~downhole.errors.DownholeInputE
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Optional
 
@@ -28,6 +27,11 @@ __all__ = ["GridSpec", "DPProblem", "ModelArrays", "load_problem", "problem_from
 _TOL = 1e-9
 
 
+#: Largest DP grid (points per state axis, input levels per axis) and most DP steps / substeps.
+MAX_GRID_POINTS = 2001
+MAX_DP_STEPS = 100_000
+
+
 class GridSpec(BaseModel):
     """A uniform grid of ``points`` values from ``min`` to ``max`` (both included)."""
 
@@ -35,7 +39,7 @@ class GridSpec(BaseModel):
 
     min: float
     max: float
-    points: int
+    points: int = Field(..., le=MAX_GRID_POINTS)
 
     def values(self) -> np.ndarray:
         """The grid values (``points`` floats from ``min`` to ``max``)."""
@@ -90,7 +94,7 @@ class RobustSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    epsilon_scales: tuple[float, ...] = (0.9, 1.0, 1.1)
+    epsilon_scales: tuple[float, ...] = Field((0.9, 1.0, 1.1), max_length=100)
     substep: float = Field(5e-3, gt=0)
 
 
@@ -100,8 +104,8 @@ class StandardSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    force_levels: int = Field(21, ge=2)
-    torque_levels: int = Field(21, ge=2)
+    force_levels: int = Field(21, ge=2, le=MAX_GRID_POINTS)
+    torque_levels: int = Field(21, ge=2, le=MAX_GRID_POINTS)
     substep: float = Field(5e-3, gt=0)
 
 
@@ -146,8 +150,8 @@ class DPProblem(BaseModel):
     step: Q["time"] = 0.25
     x2: GridSpec = GridSpec(min=0.0, max=0.02, points=21)
     x4: GridSpec = GridSpec(min=0.0, max=20.0, points=21)
-    x1_regions: Optional[int] = None
-    x3_regions: Optional[int] = None
+    x1_regions: Optional[int] = Field(None, le=MAX_GRID_POINTS)
+    x3_regions: Optional[int] = Field(None, le=MAX_GRID_POINTS)
     targets: TargetSpec = TargetSpec()
     weights: WeightSpec = WeightSpec()
     bounds: BoundSpec = BoundSpec()
@@ -219,6 +223,9 @@ class DPProblem(BaseModel):
         if not self.step > 0:
             raise err(f"step must be > 0 s, got {self.step!r}")
         ratio = self.horizon / self.step
+        if ratio > MAX_DP_STEPS:
+            raise err(f"step {self.step} s gives horizon/step = {ratio:.3g} DP steps; at most "
+                      f"{MAX_DP_STEPS} (step >= {self.horizon / MAX_DP_STEPS:.3g} s)")
         if abs(ratio - round(ratio)) > 1e-6 * max(1.0, ratio) or round(ratio) < 1:
             raise err(f"step {self.step} s does not divide horizon {self.horizon} s "
                       f"(horizon/step = {ratio:.6g}; expected a positive integer)")
@@ -234,12 +241,13 @@ class DPProblem(BaseModel):
                                  ("v_d", self.targets.v_d)) if name == "x2" else
                                 (("x4 initial state", 0.0), ("w_m", self.targets.w_m),
                                  ("w_d", self.targets.w_d))):
+                label = tname if tname.endswith("state") else f"targets.{tname}"
                 if tval < grid.min - _TOL * spacing or tval > grid.max + _TOL * spacing:
-                    raise err(f"target {tname} = {tval} {unit} is outside the {name} grid "
+                    raise err(f"{label} = {tval} {unit} is outside the {name} grid "
                               f"[{grid.min}, {grid.max}] {unit}")
                 off = np.min(np.abs(vals - tval))
                 if off > 1e-6 * spacing:
-                    raise err(f"target {tname} = {tval} {unit} is not on the {name} grid "
+                    raise err(f"{label} = {tval} {unit} is not on the {name} grid "
                               f"(spacing {spacing:.6g} {unit}, nearest point off by {off:.3g}); "
                               f"choose min/max/points so that it is a grid point")
         for name in ("x1_regions", "x3_regions"):
@@ -263,6 +271,10 @@ class DPProblem(BaseModel):
             raise err(f"robust.epsilon_scales must be positive factors, got {list(scales)}")
         for name in ("substep",):
             for spec, label in ((self.robust, "robust"), (self.standard, "standard")):
+                if self.step / getattr(spec, name) > MAX_DP_STEPS:
+                    raise err(f"{label}.{name} = {getattr(spec, name)} s is below "
+                              f"{self.step / MAX_DP_STEPS:.3g} s (at most {MAX_DP_STEPS} "
+                              "substeps per DP step)")
                 if getattr(spec, name) > self.step:
                     raise err(f"{label}.{name} = {getattr(spec, name)} s exceeds the DP step "
                               f"{self.step} s")
@@ -359,13 +371,9 @@ def load_problem(path: str | Path) -> DPProblem:
     ScenarioError
         If the file is missing, is not valid TOML or fails validation.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ScenarioError(str(path), "", "file not found")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(str(path), "", f"not valid TOML: {exc}") from None
+    from downhole.scenario import read_toml
+
+    data, _, _ = read_toml(path)
     if "dp" in data and isinstance(data["dp"], dict):
         data = data["dp"]
     return problem_from_dict(data, source=str(path))
