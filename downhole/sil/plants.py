@@ -37,39 +37,36 @@ import math
 import numpy as np
 
 from downhole.errors import DownholeInputError
+from downhole.signals import SIGNALS
 
 __all__ = ["SilPlant", "build_plant", "SIGNAL_UNITS", "COMMAND_RANGES", "REFERENCE_RANGES",
            "check_range"]
 
-#: Units of the signals the adapters expose (others: "").
-SIGNAL_UNITS = {
-    "time": "s", "bit_axial_position": "m", "bit_axial_velocity": "m/s", "bit_angle": "rad",
-    "bit_angular_velocity": "rad/s", "depth_of_cut": "m", "wob": "N", "tob": "N*m",
-    "hook_load": "N", "surface_torque": "N*m", "top_drive_axial_velocity": "m/s",
-    "top_drive_angular_velocity": "rad/s", "force_b": "N", "torque_b": "N*m", "force_c": "N",
-    "torque_c": "N*m", "top_drive_angle": "rad", "reference_angular_velocity": "rad/s",
-    "last_node_axial_velocity": "m/s", "last_node_angular_velocity": "rad/s",
-    "slack_off_force": "N", "reference_axial_velocity": "m/s", "top_drive_set_point": "rad/s",
-}
+#: Units of the signals the adapters expose (others: ""), from :mod:`downhole.signals`.
+SIGNAL_UNITS = {name: SIGNALS[name].unit for name in (
+    "time", "bit_axial_position", "bit_axial_velocity", "bit_angle", "bit_angular_velocity",
+    "depth_of_cut", "wob", "tob", "hook_load", "surface_torque", "top_drive_axial_velocity",
+    "top_drive_angular_velocity", "force_b", "torque_b", "force_c", "torque_c", "top_drive_angle",
+    "reference_angular_velocity", "last_node_axial_velocity", "last_node_angular_velocity",
+    "slack_off_force", "reference_axial_velocity", "top_drive_set_point")}
 
-#: Admissible range ``(low, high)`` of every command signal, in the units above. Finite and
-#: physically sane bounds for a drilling rig (they catch a wrong unit, a corrupted or hostile
-#: packet, an absurd set-point; they are not the rig's operating envelope): a top drive turns
-#: at most 100 rad/s (955 rpm), the hook carries at most 10 MN, a surface torque beyond
-#: 200 kN m or an axial velocity beyond 1 m/s is no drilling command.
+#: Admissible range ``(low, high)`` of every command signal, from the one signal registry
+#: (:mod:`downhole.signals`): finite and physically sane bounds for a drilling rig (they catch a
+#: wrong unit, a corrupted or hostile packet, an absurd set-point; they are not the rig's
+#: operating envelope). The HIL rig sends the measured bit velocities as its commands.
 COMMAND_RANGES = {
-    "hook_load": (0.0, 10e6),
-    "top_drive_angular_velocity": (-100.0, 100.0),
-    "top_drive_axial_velocity": (-1.0, 1.0),
-    "slack_off_force": (-10e6, 10e6),
-    "surface_torque": (-200e3, 200e3),
-    # HIL: the rig's measured bit velocities
-    "bit_axial_velocity": (-1.0, 1.0),
-    "bit_angular_velocity": (-100.0, 100.0),
+    name: (SIGNALS[name].low, SIGNALS[name].high)
+    for name in ("hook_load", "top_drive_angular_velocity", "top_drive_axial_velocity",
+                 "slack_off_force", "surface_torque", "bit_axial_velocity",
+                 "bit_angular_velocity")
 }
 
-#: Admissible bit-velocity references (set-points given to the controller).
-REFERENCE_RANGES = {"axial": (-1.0, 1.0), "angular": (-100.0, 100.0)}
+#: Admissible bit-velocity references (set-points given to the controller), from the registry.
+REFERENCE_RANGES = {
+    "axial": (SIGNALS["reference_axial_velocity"].low, SIGNALS["reference_axial_velocity"].high),
+    "angular": (SIGNALS["reference_angular_velocity"].low,
+                SIGNALS["reference_angular_velocity"].high),
+}
 
 
 def check_range(name: str, value, ranges: dict) -> str | None:
