@@ -1,0 +1,117 @@
+"""``start = "rest" | "off_bottom" | "steady"`` at the distributed fidelities (neutral, FEM,
+hybrid), checked against hand values of the bit law and of the string's static balance."""
+
+import math
+
+import numpy as np
+import pytest
+
+from downhole.errors import DownholeInputError
+from downhole.sim.plant import Plant
+from downhole.string.neutral import (NOMINAL_U_A, NOMINAL_U_T, NeutralPlant, neutral_model,
+                                     simulate_neutral)
+
+
+def _hand_bit_forces(bit, d, v, omega):
+    """Eqs. 2.2-2.8 (corrected) written out for d >= d*, v > 0, omega > omega_reg."""
+    a = bit.radius
+    wf = bit.sigma * bit.wear_length * a / (1.0 + math.exp(bit.a1 * v + bit.b1))
+    if bit.friction_law == "constant":
+        mugam = bit.mu_gamma
+    else:
+        mugam = bit.gamma * (bit.mu_c + (bit.mu_s - bit.mu_c)
+                             * math.exp(-bit.gamma_b / bit.v_f * omega))
+    wob = bit.zeta * bit.epsilon * a * d + wf
+    tob = 0.5 * bit.epsilon * a * a * d + 0.5 * mugam * a * math.tanh(
+        bit.a2 * omega + bit.b2) * wf
+    return wob, tob
+
+
+# ------------------------------------------------------------------------------ neutral
+@pytest.fixture(scope="module")
+def nmodel():
+    return neutral_model("table_3_1")
+
+
+@pytest.mark.parametrize("doc", ["delayed", "approximate"])
+def test_neutral_steady_start_is_an_equilibrium(nmodel, doc):
+    m, p = nmodel, nmodel.params
+    r = simulate_neutral(m, duration=1.0, dt=1e-4, inputs=(NOMINAL_U_A, NOMINAL_U_T),
+                         depth_of_cut=doc, start="steady")
+    v, w = r["bit_axial_velocity"], r["bit_angular_velocity"]
+    # SPEC: the nominal commands give 10 mm/s and 20 rad/s; the bit stays there
+    assert v[0] == pytest.approx(0.01, rel=1e-4) and w[0] == pytest.approx(20.0, rel=1e-4)
+    assert np.max(np.abs(v / 0.01 - 1)) < 0.01 and np.max(np.abs(w / 20.0 - 1)) < 0.01
+    d0 = 2 * math.pi * v[0] / w[0]
+    wob, tob = _hand_bit_forces(m.bit, d0, v[0], w[0])
+    assert r["depth_of_cut"][0] == pytest.approx(d0, rel=1e-9)
+    assert r["wob"][0] == pytest.approx(wob, rel=1e-9)
+    assert r["tob"][0] == pytest.approx(tob, rel=1e-9)
+    # the steady balance of Eq. 3.9: v = U_A - (W + M_S g)/alpha_A, omega = U_T - T/alpha_T
+    assert v[0] == pytest.approx(NOMINAL_U_A - (wob + p.string_mass * p.g) / p.alpha_axial,
+                                 rel=1e-9)
+    assert w[0] == pytest.approx(NOMINAL_U_T - tob / p.alpha_torsional, rel=1e-9)
+    # no wall contact and no damping along the line: surface torque = TOB; hook load =
+    # buoyed weight (M_S + M_B) g minus WOB
+    assert r["surface_torque"][0] == pytest.approx(tob, rel=1e-9)
+    assert r["hook_load"][0] == pytest.approx((p.string_mass + p.bit_mass) * p.g - wob,
+                                              rel=1e-9)
+    assert np.max(np.abs(r["surface_torque"] / tob - 1)) < 0.01
+    # from rest the same commands are far from the steady state at first
+    r0 = simulate_neutral(m, duration=1.0, dt=1e-4, inputs=(NOMINAL_U_A, NOMINAL_U_T),
+                          depth_of_cut=doc)
+    assert np.max(np.abs(r0["bit_angular_velocity"] / 20.0 - 1)) > 0.5
+
+
+def test_neutral_plant_steady_and_off_bottom(nmodel):
+    m = nmodel
+    sp = {"top_drive_axial_velocity": NOMINAL_U_A - m.hang_command,
+          "top_drive_angular_velocity": NOMINAL_U_T}
+    plant = NeutralPlant(m, dt=2e-4)
+    assert isinstance(plant, Plant)
+    assert plant.default_command() == {"top_drive_axial_velocity": 0.0,
+                                       "top_drive_angular_velocity": 0.0}
+    obs = plant.reset(start="steady", set_point=sp)
+    w0 = obs["bit_angular_velocity"]
+    for _ in range(5000):  # 1 s
+        obs = plant.step(sp)
+        assert abs(obs["bit_angular_velocity"] / w0 - 1) < 0.01
+    assert obs["bit_axial_velocity"] == pytest.approx(0.01, rel=0.01)
+    # off bottom: the string moves at the commands (no bit force, so v = U_A - M_S g/alpha_A)
+    clearance = 0.01
+    obs = plant.reset(start="off_bottom", set_point=sp, clearance=clearance)
+    v0 = sp["top_drive_axial_velocity"]
+    assert obs["bit_axial_velocity"] == pytest.approx(v0, rel=1e-12)
+    assert obs["bit_angular_velocity"] == pytest.approx(NOMINAL_U_T, rel=1e-12)
+    t_tag = clearance / v0
+    tag = None
+    for k in range(int(1.5 * t_tag / plant.dt)):
+        obs = plant.step(sp)
+        if obs["wob"] > 0:
+            tag = obs["time"]
+            break
+        assert obs["tob"] == 0.0 and abs(obs["bit_axial_velocity"] / v0 - 1) < 1e-9
+    assert tag == pytest.approx(t_tag, rel=0.01)  # zero bit force until the bit tags bottom
+    # rest is the seed's start whatever the set-point
+    obs = plant.reset(start="rest", set_point=sp)
+    assert obs["bit_axial_velocity"] == 0.0 and obs["wob"] == 0.0
+
+
+def test_neutral_start_errors_are_precise(nmodel):
+    plant = NeutralPlant(nmodel, dt=2e-4)
+    with pytest.raises(DownholeInputError, match="positive angular set-point"):
+        plant.reset(start="steady", set_point={"top_drive_axial_velocity": 0.01})
+    with pytest.raises(DownholeInputError, match="no steady drilling state"):
+        plant.reset(start="steady", set_point={"top_drive_axial_velocity": -0.5,
+                                               "top_drive_angular_velocity": 20.0})
+    with pytest.raises(DownholeInputError, match="clearance"):
+        plant.reset(start="off_bottom", clearance=0.0)
+    with pytest.raises(DownholeInputError, match="start must be one of"):
+        plant.reset(start="hovering")
+    with pytest.raises(DownholeInputError, match="command refused"):
+        plant.step({"top_drive_axial_velocity": math.nan, "top_drive_angular_velocity": 1.0})
+    from downhole.control.eid.controller import EIDController
+
+    with pytest.raises(DownholeInputError, match="open-loop"):
+        simulate_neutral(nmodel, duration=0.01, controller=EIDController((), ()),
+                         start="steady")
