@@ -115,3 +115,136 @@ def test_neutral_start_errors_are_precise(nmodel):
     with pytest.raises(DownholeInputError, match="open-loop"):
         simulate_neutral(nmodel, duration=0.01, controller=EIDController((), ()),
                          start="steady")
+
+
+# ------------------------------------------------------------------------------ FEM, hybrid
+def _directional(kind):
+    from downhole.string.fem import fem_model
+    from downhole.string.hybrid import hybrid_model
+
+    return fem_model(n_elements=23) if kind == "fem" else hybrid_model("hybrid24")
+
+
+def _hand_drags(m, u, v, w):
+    """Wall friction (soft string, N from the element tensions) and damping C 1 (v, omega) per
+    node, summed by hand: axial drag forces and resisting torques (positive)."""
+    from downhole.contact.softstring import element_normal_half
+
+    n = m.n_nodes
+    nrm = np.zeros(n)
+    for e in range(n - 1):
+        if m.elem[e, 7] > 0.5:
+            half = element_normal_half(m.elem, e, -m.Ka[1, e] * (u[e + 1] - u[e]))
+            nrm[e] += half
+            nrm[e + 1] += half
+    c = m.mu * nrm / np.sqrt(v ** 2 + (m.radius * w) ** 2 + m.v_eps ** 2)
+
+    def c_ones(T):
+        out = T[0].copy()
+        out[:-1] += T[1, :-1]
+        out[1:] += T[1, :-1]
+        return out
+    return c * v + c_ones(m.Ca) * v, c * m.radius ** 2 * w + c_ones(m.Ct) * w
+
+
+@pytest.mark.parametrize("kind", ["fem", "hybrid"])
+@pytest.mark.parametrize("doc", ["delayed", "approximate"])
+def test_directional_steady_start_stays_for_a_second(kind, doc):
+    from downhole.params.rig import Hook, TopDrive
+    from downhole.string.fem import simulate_directional
+
+    m = _directional(kind)
+    for hook in (Hook(), Hook(mode="velocity", velocity=0.01)):
+        r = simulate_directional(m, duration=1.0, dt=1e-3, top_drive=TopDrive(speed=20.0),
+                                 hook=hook, depth_of_cut=doc, start="steady", record_dt=None)
+        v, w = r["bit_axial_velocity"], r["bit_angular_velocity"]
+        assert w[0] == pytest.approx(20.0, rel=1e-9)
+        if hook.mode == "velocity":
+            assert v[0] == pytest.approx(0.01, rel=1e-9)
+        assert np.max(np.abs(v / v[0] - 1)) < 0.01 and np.max(np.abs(w / 20.0 - 1)) < 0.01
+        d0 = 2 * math.pi * v[0] / w[0]
+        wob, tob = _hand_bit_forces(m.bit, d0, v[0], w[0])
+        assert r["depth_of_cut"][0] == pytest.approx(d0, rel=1e-9)
+        assert r["wob"][0] == pytest.approx(wob, rel=1e-9)
+        assert r["tob"][0] == pytest.approx(tob, rel=1e-9)
+        assert r.attrs["start"] == "steady"
+
+
+@pytest.mark.parametrize("kind", ["fem", "hybrid"])
+@pytest.mark.parametrize("hook_mode", ["force", "velocity"])
+def test_directional_steady_balance_by_hand(kind, hook_mode):
+    from downhole.params.rig import Hook, TopDrive
+    from downhole.string.fem import DirectionalPlant
+
+    m = _directional(kind)
+    hook = Hook() if hook_mode == "force" else Hook(mode="velocity", velocity=0.01)
+    plant = DirectionalPlant(m, 1e-3, top_drive=TopDrive(speed=20.0), hook=hook,
+                             depth_of_cut="approximate")
+    sp = dict(plant.default_command(), top_drive_angular_velocity=20.0)
+    obs = plant.reset(start="steady", set_point=sp)
+    f = plant.node_fields()
+    v, w = obs["bit_axial_velocity"], obs["bit_angular_velocity"]
+    assert np.allclose(f["axial_velocity"], v) and np.allclose(f["angular_velocity"], w)
+    wob, tob = _hand_bit_forces(m.bit, 2 * math.pi * v / w, v, w)
+    assert obs["wob"] == pytest.approx(wob, rel=1e-9)
+    da, dt_ = _hand_drags(m, f["axial_position"], v, w)
+    assert dt_[1:].sum() > 0.05 * tob  # the wall friction matters in this well
+    # surface torque (the first element's elastic torque) = TOB + friction and damping torque
+    # of every node below the top drive
+    assert obs["surface_torque"] == pytest.approx(tob + dt_[1:].sum(), rel=1e-6)
+    # hook load = buoyed weight - WOB - axial drag; a force-driven hook sets it and the ROP
+    # follows from the bit law at the WOB that is left
+    assert obs["hook_load"] == pytest.approx(m.buoyed_weight - wob - da.sum(), rel=1e-9)
+    if hook_mode == "force":
+        assert obs["hook_load"] == pytest.approx(sp["hook_load"], rel=1e-12)
+        assert 0.001 < v < 0.2
+    for _ in range(200):
+        obs = plant.step(sp)
+    assert obs["bit_axial_velocity"] == pytest.approx(v, rel=1e-6)
+    assert obs["surface_torque"] == pytest.approx(tob + dt_[1:].sum(), rel=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["fem", "hybrid"])
+def test_directional_off_bottom_until_the_bit_tags(kind):
+    from downhole.params.rig import Hook, TopDrive
+    from downhole.string.fem import DirectionalPlant
+
+    m = _directional(kind)
+    plant = DirectionalPlant(m, 1e-3, top_drive=TopDrive(speed=20.0),
+                             hook=Hook(mode="velocity", velocity=0.01))
+    sp = plant.default_command()
+    clearance = 0.002
+    obs = plant.reset(start="off_bottom", set_point=sp, clearance=clearance)
+    assert obs["wob"] == 0.0 and obs["bit_angular_velocity"] == pytest.approx(20.0)
+    tag = None
+    for _ in range(400):
+        obs = plant.step(sp)
+        if obs["wob"] > 0:
+            tag = obs["time"]
+            break
+        assert obs["tob"] == 0.0
+        assert abs(obs["bit_axial_velocity"] / 0.01 - 1) < 1e-6
+        assert abs(obs["bit_angular_velocity"] / 20.0 - 1) < 1e-6
+    assert tag == pytest.approx(clearance / 0.01, abs=2e-3)
+
+
+def test_directional_start_errors_are_precise():
+    from downhole.params.rig import Hook, TopDrive
+    from downhole.string.fem import DirectionalPlant
+
+    m = _directional("fem")
+    force = DirectionalPlant(m, 1e-3)
+    with pytest.raises(DownholeInputError, match="off bottom nothing but drag"):
+        force.reset(start="off_bottom")
+    with pytest.raises(DownholeInputError, match="no steady drilling state under hook_load"):
+        force.reset(start="steady", set_point={"hook_load": 2 * m.buoyed_weight})
+    with pytest.raises(DownholeInputError, match="positive top-drive speed"):
+        force.reset(start="steady", set_point={"top_drive_angular_velocity": 0.0})
+    p_only = DirectionalPlant(m, 1e-3, top_drive=TopDrive(ki=0.0))
+    with pytest.raises(DownholeInputError, match="integral gain"):
+        p_only.reset(start="steady")
+    vel = DirectionalPlant(m, 1e-3, hook=Hook(mode="velocity", velocity=0.01))
+    with pytest.raises(DownholeInputError, match="clearance"):
+        vel.reset(start="off_bottom", clearance=-0.1)
+    with pytest.raises(DownholeInputError, match="lacks"):
+        vel.step({"top_drive_angular_velocity": 10.0})
