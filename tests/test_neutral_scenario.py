@@ -25,8 +25,11 @@ def test_examples_run_through_simulate(name, tmp_path):
     assert res.attrs["scenario"] == (EXAMPLES / f"{name}.toml").read_text()
     t, v, w = res.time, res["bit_axial_velocity"], res["bit_angular_velocity"]
     if name == "eid_tracking":
-        # Eqs. 3.34/3.35 tracked after the first ramp (epsilon 67.5 MPa, noise)
-        late = t > 40
+        # Eqs. 3.34/3.35 tracked once the start-up transient is over (epsilon 67.5 MPa, noise).
+        # The start-up ramp passes the regenerative region of the delayed depth of cut: the bit
+        # bounces (+/-1 m/s) for 30-80 s, a chaotic transient whose length moves with round-off
+        # (docs/reproduce.md); the tracking after it is the claim checked here.
+        late = t > 100
         assert np.sqrt(np.mean((v[late] - res["reference_axial_velocity"][late]) ** 2)) < 1e-3
         assert np.sqrt(np.mean((w[late] - res["reference_angular_velocity"][late]) ** 2)) < 1.0
         assert res.attrs["controller"] == "eid"
