@@ -248,3 +248,29 @@ def test_directional_start_errors_are_precise():
         vel.reset(start="off_bottom", clearance=-0.1)
     with pytest.raises(DownholeInputError, match="lacks"):
         vel.step({"top_drive_angular_velocity": 10.0})
+
+
+def test_directional_steady_under_a_torque_driven_top_drive():
+    """Torque-driven top drive: omega follows from T_surface = TOB(2 pi v/omega) + drag torque.
+    (With a force hook too, TOB hardly depends on omega at a fixed WOB and the balance is
+    nearly degenerate: no steady rotation below 100 rad/s for most torques.)"""
+    from downhole.params.rig import Hook, TopDrive
+    from downhole.string.fem import DirectionalPlant
+
+    m = _directional("hybrid")
+    plant = DirectionalPlant(m, 1e-3, top_drive=TopDrive(mode="torque", speed=16e3),
+                             hook=Hook(mode="velocity", velocity=0.01),
+                             depth_of_cut="approximate")
+    obs = plant.reset(start="steady")
+    v, w = obs["bit_axial_velocity"], obs["bit_angular_velocity"]
+    assert v > 0 and w > 0
+    f = plant.node_fields()
+    da, dt_ = _hand_drags(m, f["axial_position"], v, w)
+    assert v == pytest.approx(0.01, rel=1e-12) and 5.0 < w < 100.0
+    assert obs["tob"] + dt_.sum() == pytest.approx(16e3, rel=1e-9)
+    assert obs["wob"] + da.sum() == pytest.approx(m.buoyed_weight - obs["hook_load"], rel=1e-9)
+    for _ in range(500):
+        obs = plant.step(plant.default_command())
+    assert obs["bit_angular_velocity"] == pytest.approx(w, rel=1e-6)
+    with pytest.raises(DownholeInputError, match="no steady rotation"):
+        plant.reset(start="steady", set_point={"surface_torque": 1.0})

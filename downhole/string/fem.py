@@ -703,8 +703,8 @@ def _directional_start(pk: "_Packed", start: str, ax_cmd: float, tq_cmd: float,
         c = m.mu * nrm / np.sqrt(v * v + (r * w) ** 2 + m.v_eps ** 2) if m.mu > 0 else 0.0 * nrm
         return ca1 * v + c * v, ct1 * w + c * r * r * w
 
-    v = 0.0 if force_hook else float(ax_cmd)
-    w = 1.0 if torque_td else float(tq_cmd)
+    v = 0.01 if force_hook else float(ax_cmd)  # first guesses of the roots
+    w = 10.0 if torque_td else float(tq_cmd)
     if steady and not torque_td and not w > 0:
         raise DownholeInputError(f"a steady drilling start needs a positive top-drive speed "
                                  f"set-point, got {w!r} rad/s")
@@ -726,24 +726,27 @@ def _directional_start(pk: "_Packed", start: str, ax_cmd: float, tq_cmd: float,
             _, dt_ = drags(nrm, vv, ww)
             return tq_cmd - dt_.sum() - bit(vv, ww)[1]
 
-        for _inner in range(40 if (force_hook and torque_td) else 1):
-            if torque_td:
-                try:
-                    w = brentq(res_w, 1e-3, 100.0, args=(max(v, 1e-9),), xtol=1e-13)
-                except ValueError:
-                    raise DownholeInputError(
-                        f"no steady rotation under surface_torque = {tq_cmd:g} N m within "
-                        "(0, 100] rad/s: the torque does not balance TOB and wall "
-                        "friction") from None
-            if force_hook:
-                try:
-                    v = brentq(res_v, 1e-9, 1.0, args=(w,), xtol=1e-15)
-                except ValueError:
-                    raise DownholeInputError(
-                        f"no steady drilling state under hook_load = {ax_cmd:g} N: the weight "
-                        f"left for the bit (buoyed weight {W:g} N minus hook load and drag) "
-                        "gives no rate of penetration in (0, 1] m/s by the bit law; start "
-                        "from 'rest' or lower the hook load") from None
+        def v_of(ww):
+            if not force_hook:
+                return v
+            try:
+                return brentq(res_v, 1e-9, 1.0, args=(ww,), xtol=1e-15)
+            except ValueError:
+                raise DownholeInputError(
+                    f"no steady drilling state under hook_load = {ax_cmd:g} N: the weight "
+                    f"left for the bit (buoyed weight {W:g} N minus hook load and drag) "
+                    "gives no rate of penetration in (0, 1] m/s by the bit law; start "
+                    "from 'rest' or lower the hook load") from None
+
+        if torque_td:
+            try:
+                w = brentq(lambda ww: res_w(ww, v_of(ww)), 1e-2, 100.0, xtol=1e-13)
+            except ValueError:
+                raise DownholeInputError(
+                    f"no steady rotation under surface_torque = {tq_cmd:g} N m within "
+                    "[0.01, 100] rad/s: the torque does not balance TOB, wall friction and "
+                    "damping there") from None
+        v = v_of(w)
         wob, tob = bit(v, w)
         da, dt_ = drags(nrm, v, w)
         fa = m.gravity - da
