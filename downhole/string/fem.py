@@ -718,17 +718,17 @@ def _directional_start(pk: "_Packed", start: str, ax_cmd: float, tq_cmd: float,
             nrm[e] += half
             nrm[e + 1] += half
 
-        def res_v(vv, ww):
+        def res_v(vv, ww, nrm=nrm):
             da, _ = drags(nrm, vv, ww)
             return W - da.sum() - bit(vv, ww)[0] - ax_cmd
 
-        def res_w(ww, vv):
+        def res_w(ww, vv, nrm=nrm):
             _, dt_ = drags(nrm, vv, ww)
             return tq_cmd - dt_.sum() - bit(vv, ww)[1]
 
-        def v_of(ww):
+        def v_of(ww, v_hook=v, res_v=res_v):
             if not force_hook:
-                return v
+                return v_hook
             try:
                 return brentq(res_v, 1e-9, 1.0, args=(ww,), xtol=1e-15)
             except ValueError:
@@ -740,7 +740,8 @@ def _directional_start(pk: "_Packed", start: str, ax_cmd: float, tq_cmd: float,
 
         if torque_td:
             try:
-                w = brentq(lambda ww: res_w(ww, v_of(ww)), 1e-2, 100.0, xtol=1e-13)
+                w = brentq(lambda ww, res_w=res_w, v_of=v_of: res_w(ww, v_of(ww)), 1e-2, 100.0,
+                           xtol=1e-13)
             except ValueError:
                 raise DownholeInputError(
                     f"no steady rotation under surface_torque = {tq_cmd:g} N m within "
@@ -831,7 +832,7 @@ def _steady_fields(m: DirectionalModel, fa, ft, iB, iC, hybrid):
     u, th = np.zeros(n), np.zeros(n)
     u[iC:] = _solve_pinned(m.Ka[0, iC:], m.Ka[1, iC:], fa[iC:], n - 1 - iC, 0.0)
     th[iC:] = _solve_pinned(m.Kt[0, iC:], m.Kt[1, iC:], ft[iC:], n - 1 - iC, 0.0)
-    seg_a, seg_t = wv["segments"]
+    seg_t = wv["segments"][1]
     L = wv["length"]
     delta = (n_c * L + 0.5 * wv["line_weight"] * L) / wv["EA"]
     twist = t_c * seg_t.delay / seg_t.impedance  # T L / GJ with GJ = Z L / tau
