@@ -24,7 +24,8 @@ Reward of one step (the mean over its plant steps j)::
 (stuck_weight = bounce_weight = 1 by default), so perfect tracking without stick-slip or bit
 bounce scores 0. The episode is truncated after ``episode_seconds``; it terminates (reward
 -100) if the simulation diverges. The reference is drawn at reset from ``reference_range`` (or
-fixed by ``reference``); ``info`` carries the unscaled signals.
+fixed by ``reference``); ``info`` carries the unscaled signals. ``reset(options={"start":
+"steady", "set_point": {...}})`` starts from a mode of the Plant contract (default: rest).
 """
 
 from __future__ import annotations
@@ -119,7 +120,9 @@ class DrillingEnv(gym.Env):
             (v0, v1), (w0, w1) = self.reference_range
             self._ref = (float(self.np_random.uniform(v0, v1)),
                          float(self.np_random.uniform(w0, w1)))
-        self._obs = self.plant.reset()
+        start = {k: v for k, v in (options or {}).items() if k in ("start", "set_point",
+                                                                  "clearance")}
+        self._obs = self.plant.reset(**start)  # the Plant contract's start modes
         self._k = 0
         return self._observe(self._obs), {"reference": self._ref}
 

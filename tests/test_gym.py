@@ -42,3 +42,19 @@ def test_reward_is_the_documented_formula():
                          + ((o["bit_angular_velocity"] - 20.0) / 20.0) ** 2
                          + (abs(o["bit_angular_velocity"]) < 0.1) + (o["wob"] <= 0))
         assert r == pytest.approx(-np.mean(terms), rel=1e-9)
+
+
+@pytest.mark.parametrize("model", ["neutral", "hybrid24"])
+def test_env_starts_in_the_steady_drilling_state(model):
+    # the environment resets through the Plant contract: from the steady state at the held
+    # commands the bit does not move off its velocities, from rest it starts still
+    env = DrillingEnv(model=model, reference=(0.01, 20.0), control_dt=0.01)
+    hold = env.plant.default_command()
+    obs, _ = env.reset(seed=0, options={"start": "steady", "set_point": hold})
+    w0 = env.plant.last_observation["bit_angular_velocity"]
+    assert w0 > 5.0 and obs[1] == pytest.approx(w0 / 20.0, rel=1e-6)
+    for _ in range(20):  # 0.2 s holding the same commands, stepped by hand
+        o = env.plant.step(hold)
+    assert o["bit_angular_velocity"] == pytest.approx(w0, rel=0.01)
+    env.reset(seed=0)
+    assert env.plant.last_observation["bit_angular_velocity"] == 0.0

@@ -61,12 +61,13 @@ def test_wave_segment_delays_a_torque_step_by_tau_with_impedance_z():
     from downhole.string.fem import DirectionalPlant
     plant = DirectionalPlant(pl, 1e-4, top_drive=TopDrive(mode="torque", speed=5000.0),
                              hook=Hook(wob=0.0))
+    hold = plant.default_command()
     for _ in range(i):
-        plant.step()
+        plant.step(hold)
     fields = plant.node_fields()
     omega_b = fields["angular_velocity"][pl.node_b]
     assert plant._obs["torque_b"] == pytest.approx(Z * omega_b, rel=0.02)
-    obs = plant.step()
+    obs = plant.step(hold)
     fields = plant.node_fields()
     assert fields["angular_velocity"][-1] == obs["last_node_angular_velocity"]
     assert fields["axial_velocity"][-1] == obs["last_node_axial_velocity"]

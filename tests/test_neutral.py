@@ -119,12 +119,14 @@ def test_plant_steps_like_the_compiled_run(model):
     assert obs["wob"] == 0.0 and obs["time"] == 0.0
     vs = [obs["bit_axial_velocity"]]
     for _ in range(2500):
-        obs = plant.step({"command_axial": NOMINAL_U_A, "command_angular": NOMINAL_U_T})
+        obs = plant.step({"top_drive_axial_velocity": NOMINAL_U_A - model.hang_command,
+                          "top_drive_angular_velocity": NOMINAL_U_T})
         vs.append(obs["bit_axial_velocity"])
     assert obs["time"] == pytest.approx(0.5)
-    assert np.array_equal(np.array(vs), ref["bit_axial_velocity"])
-    with pytest.raises(DownholeInputError, match="command_angular"):
-        plant.step({"command_axial": 1.0})
+    # the relative command (U_A - M_S g / alpha_A) is added back in floating point
+    assert np.allclose(np.array(vs), ref["bit_axial_velocity"], rtol=1e-9, atol=1e-12)
+    with pytest.raises(DownholeInputError, match="top_drive_angular_velocity"):
+        plant.step({"top_drive_axial_velocity": 0.01})
 
 
 class _PI:
@@ -139,13 +141,14 @@ class _PI:
         self.t = None
 
     def command(self, t, obs, reference):
-        e = reference - np.array([obs["bit_axial_velocity"], obs["bit_angular_velocity"]])
+        r = np.array([reference["reference_axial_velocity"],
+                      reference["reference_angular_velocity"]])
+        e = r - np.array([obs["bit_axial_velocity"], obs["bit_angular_velocity"]])
         dt = 0.0 if self.t is None else t - self.t
         self.t = t
         self.i += e * dt
-        u = np.array([self.m.hang_command, 0.0]) + np.array([0.1, 0.1]) * e + \
-            np.array([1.0, 0.5]) * self.i
-        return {"command_axial": u[0], "command_angular": u[1]}
+        u = np.array([0.1, 0.1]) * e + np.array([1.0, 0.5]) * self.i
+        return {"top_drive_axial_velocity": u[0], "top_drive_angular_velocity": u[1]}
 
 
 def test_python_loop_runs_any_controller(model):

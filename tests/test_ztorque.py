@@ -82,7 +82,7 @@ def test_ztorque_removes_the_stuck_phases_on_the_fem(system):
         c.reset()
         w = []
         for k in range(40000):
-            obs = plant.step(c.command(k * 1e-3, obs, None))
+            obs = plant.step({**plant.default_command(), **c.command(k * 1e-3, obs, None)})
             w.append(obs["bit_angular_velocity"])
         out[name] = _severity(np.array(w[20000:]))
     assert out["stiff"][1] > 0.2 and out["stiff"][0] > 1.0

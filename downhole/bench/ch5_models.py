@@ -125,12 +125,13 @@ def _realtime(quick):
     simulate_directional(m, duration=0.01, dt=1e-3)
     sec, cpu = best_time(simulate_directional, m, 10.0, 1e-3)
     plant = DirectionalPlant(m, 1e-3)
-    plant.step()
+    hold = plant.default_command()
+    plant.step(hold)
 
     def stepped():
         plant.reset()
         for _ in range(1000):
-            plant.step()
+            plant.step(hold)
 
     psec, _ = best_time(stepped, repeat=3)
     base = lsoda_seconds(m, 1.0) * 10.0

@@ -40,6 +40,9 @@ class Controller:
 
     needs: tuple = ()
     commands: tuple = ()
+    #: Sample time, s, for a discrete-time controller (None: continuous or self-timed). A
+    #: runner sets it to its control step before :meth:`reset`; ``reset`` takes no arguments.
+    dt: float | None = None
 
     def reset(self) -> None:
         """Forget the history (integrators, filters) before a new run."""
@@ -115,6 +118,8 @@ def run_closed_loop(plant, controller, duration: float, *, reference=None,
                                  f"{duration!r}")
     n = int(round(duration / plant.dt))
     obs = plant.reset(start=start, set_point=set_point, **start_options)
+    if getattr(controller, "dt", None) is not None:
+        controller.dt = plant.dt  # the control step of this loop: every plant step
     controller.reset()
     held = plant.default_command() if set_point is None else dict(plant.default_command(),
                                                                   **set_point)

@@ -2,9 +2,12 @@
 
 The real-time runtime, the UDP link, the FMU and the Gymnasium environment all need a plant
 whose observations and commands are a *fixed*, ordered list of named floats.
-:class:`SilPlant` wraps a step-by-step plant (``reset() -> obs``, ``step(command) -> obs``:
-:class:`~downhole.sim.LumpedPlant`, :class:`~downhole.string.fem.DirectionalPlant`,
-:class:`~downhole.control.dhp.directional.DirectionalStatePlant` or the HIL string) and adds:
+:class:`SilPlant` wraps a plant of the :class:`~downhole.sim.plant.Plant` contract
+(``reset(start=..., set_point=...) -> obs``, ``step(command) -> obs``:
+:class:`~downhole.sim.LumpedPlant`, :class:`~downhole.string.neutral.NeutralPlant`,
+:class:`~downhole.string.fem.DirectionalPlant`,
+:class:`~downhole.control.dhp.directional.DirectionalStatePlant`; the HIL string takes the
+same two calls) and adds:
 
 - ``observation_names`` / ``command_names`` / ``units`` (the layout announced on the link);
 - a vector ``"state"`` observation (the DHP design state) flattened into its state names
@@ -28,6 +31,10 @@ Interfaces (``interface`` of :func:`build_plant`):
 ``"lumped"``
     The lumped chain (velocity-driven top): ``top_drive_axial_velocity`` (m/s) and
     ``top_drive_angular_velocity`` (rad/s). Safe state: both 0.
+``"neutral"``
+    The neutral-type wave model of Ch. 3 with the same two commands (the axial one relative to
+    the hanging equilibrium, so 0 holds the string still). Default: the nominal commands of
+    10 mm/s and 20 rad/s; safe state: both 0.
 """
 
 from __future__ import annotations
@@ -193,8 +200,10 @@ class SilPlant:
     def last_observation(self) -> dict:
         return self._last
 
-    def reset(self) -> dict:
-        self._last = self._flatten(self.plant.reset())
+    def reset(self, **start) -> dict:
+        """Reset the plant (``start``: ``start=``, ``set_point=``, ... of
+        :meth:`downhole.sim.plant.Plant.reset`; none: from rest)."""
+        self._last = self._flatten(self.plant.reset(**start))
         return dict(self._last)
 
     def step(self, command: dict) -> dict:
@@ -237,7 +246,7 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
 
     Parameters
     ----------
-    model : {"hybrid24", "hybrid68", "hybrid108", "fem", "lumped"}
+    model : {"hybrid24", "hybrid68", "hybrid108", "fem", "lumped", "neutral"}
         The plant (``fem``: Table 5.1 FEM with ``n_elements`` elements).
     interface : {"surface", "state"}
         See the module docstring (``lumped`` models always use the lumped interface).
@@ -273,6 +282,15 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         return SilPlant(p, names, {names[0]: axial_velocity, names[1]: top_drive_speed},
                         {names[0]: 0.0, names[1]: 0.0}, name=f"lumped {lumped_preset} order "
                         f"{order}", info={"model": "lumped", "interface": "lumped"})
+    if model == "neutral":
+        from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, NeutralPlant
+
+        p = NeutralPlant("table_3_1", dt=dt, depth_of_cut=depth_of_cut)
+        names = p.command_names
+        return SilPlant(p, names, {names[0]: NOMINAL_U_A - p.model.hang_command,
+                                   names[1]: NOMINAL_U_T},
+                        {names[0]: 0.0, names[1]: 0.0}, name="neutral table_3_1",
+                        info={"model": "neutral", "interface": "neutral"})
     from downhole.string.fem import fem_model
     from downhole.string.hybrid import HYBRID_PRESETS, hybrid_model
 
@@ -282,7 +300,7 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         dmodel = fem_model(n_elements=n_elements)
     else:
         raise DownholeInputError(f"unknown plant model {model!r}; expected one of "
-                                 f"{(*HYBRID_PRESETS, 'fem', 'lumped')}")
+                                 f"{(*HYBRID_PRESETS, 'fem', 'lumped', 'neutral')}")
     info = {"model": model, "interface": interface, "n_states": dmodel.n_states}
     if interface == "surface":
         from downhole.control.topdrive import Hook, TopDrive

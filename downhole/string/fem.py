@@ -28,6 +28,7 @@ from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, DirectionalWellParams
 from downhole.params.presets import get_preset
 from downhole.sim.fem_kernels import CHANNELS, TOP_LAYOUT, run_directional
+from downhole.sim.plant import Plant
 from downhole.sim.result import Result
 from downhole.string.drillstring import DrillString
 from downhole.string.zoh import zoh
@@ -615,6 +616,233 @@ def _wob_depth(bit: BitParams, wob: float) -> float:
     return 0.5 * (lo + hi)
 
 
+# ------------------------------------------------------------------------ start states
+def _tri_ones(T):
+    """``T @ 1`` for a tridiagonal (2, n) matrix (row 0 diagonal, row 1 off-diagonal)."""
+    out = T[0].copy()
+    out[:-1] += T[1, :-1]
+    out[1:] += T[1, :-1]
+    return out
+
+
+def _directional_start(pk: "_Packed", start: str, ax_cmd: float, tq_cmd: float,
+                       clearance: float = 0.05):
+    """Kernel state and the record of t = 0 for ``start`` under the commands
+    ``(ax_cmd, tq_cmd)`` (hook load N or block velocity m/s; speed set-point rad/s or surface
+    torque N m).
+
+    ``rest`` is the static equilibrium of :meth:`_Packed.initial_state`. ``off_bottom`` and
+    ``steady`` move every node at the bit velocities (v, omega): the string is stretched by
+    gravity and compressed by WOB, and wound up by TOB, by the wall friction of the soft-string
+    contact (normal forces from the steady tension, friction c = mu N / |(v, r omega)|,
+    regularized as in the kernel) and by the damping forces C 1 v, C 1 omega (Rayleigh: the
+    mass-proportional part; K 1 = 0). Accelerations are zero; the hook servo reference, the PI
+    integrator angle and the soft-torque low-pass hold the steady top forces; the wave
+    segment (hybrid) moves uniformly and carries the steady tension and torque at C beyond
+    its static preload; its lag cascades hold their steady inputs. With a force-driven hook
+    the ROP is the root of WOB(2 pi v / omega, v, omega) = buoyed weight - hook load - axial
+    drag (the bit law at the hook's WOB); with a torque-driven top drive omega is the root of
+    the torque balance. Returns ``(state dict, record row)``.
+    """
+    from scipy.optimize import brentq
+
+    from downhole.bit.law import approx_depth_of_cut, bit_forces
+    from downhole.bit.rock_surface import rock_init_helix
+    from downhole.contact.softstring import contact_elements, element_normal_half
+    from downhole.sim.plant import check_start
+    from downhole.string.wave import initial_waves, wave_push, wave_state
+
+    check_start(start)
+    st = pk.initial_state()
+    if start == "rest":
+        return st, _initial_record(pk, st)
+    m, td, hook = pk.model, pk.top_drive, pk.hook
+    n, iB, iC = m.n_nodes, m.node_b, m.node_c
+    bp = pk.bitp
+    force_hook = hook.mode == "force"
+    torque_td = td.mode == "torque"
+    if start == "off_bottom":
+        if not (isinstance(clearance, (int, float)) and math.isfinite(clearance)
+                and clearance > 0):
+            raise DownholeInputError(f"clearance must be a positive distance in m, got "
+                                     f"{clearance!r}")
+        if force_hook or torque_td:
+            raise DownholeInputError(
+                "start='off_bottom' needs a velocity-driven hook (Hook(mode='velocity')) and a "
+                "speed-controlled top drive: off bottom nothing but drag balances a hook load "
+                "or a surface torque, so the string has no steady motion to start from")
+    if not torque_td and not td.ki > 0:
+        raise DownholeInputError("a moving start needs the top drive's integral gain ki > 0 "
+                                 "(the PI integrator holds the steady surface torque)")
+    steady = start == "steady"
+    W = m.buoyed_weight
+    ca1 = (m.Cdense[0] @ np.ones(n)) if m.Cdense is not None else _tri_ones(m.Ca)
+    ct1 = (m.Cdense[1] @ np.ones(n)) if m.Cdense is not None else _tri_ones(m.Ct)
+    ce = contact_elements(m.elem) if m.mu > 0 else np.empty(0, np.int64)
+    r = m.radius
+    hybrid = m.wave is not None
+    u = st["state"][0].copy()
+    th = np.zeros(n)
+
+    def depth(v, w):
+        if pk.approx:
+            return approx_depth_of_cut(v, w, bp)
+        return 2.0 * math.pi * v / w
+
+    lag = 0.0 if pk.approx else m.bit.n_blades * pk.dt
+
+    def bit(v, w):
+        # the forces the kernel applies: with the delayed depth of cut its implicit bit solve
+        # predicts d(t + dt) from the surface of t (d + n v dt at steady state, the one-step
+        # explicit lag of the hole bottom's rise); the recorded WOB/TOB are at d itself
+        if not steady:
+            return 0.0, 0.0
+        return bit_forces(depth(v, w) + lag * v, v, w, bp)
+
+    def drags(nrm, v, w):
+        c = m.mu * nrm / np.sqrt(v * v + (r * w) ** 2 + m.v_eps ** 2) if m.mu > 0 else 0.0 * nrm
+        return ca1 * v + c * v, ct1 * w + c * r * r * w
+
+    v = 0.01 if force_hook else float(ax_cmd)  # first guesses of the roots
+    w = 10.0 if torque_td else float(tq_cmd)
+    if steady and not torque_td and not w > 0:
+        raise DownholeInputError(f"a steady drilling start needs a positive top-drive speed "
+                                 f"set-point, got {w!r} rad/s")
+    if steady and not force_hook and not v > 0:
+        raise DownholeInputError(f"a steady drilling start needs a positive block velocity, "
+                                 f"got {v!r} m/s")
+    for _ in range(60):
+        nrm = np.zeros(n)
+        for e in ce:
+            half = element_normal_half(m.elem, e, -m.Ka[1, e] * (u[e + 1] - u[e]))
+            nrm[e] += half
+            nrm[e + 1] += half
+
+        def res_v(vv, ww, nrm=nrm):
+            da, _ = drags(nrm, vv, ww)
+            return W - da.sum() - bit(vv, ww)[0] - ax_cmd
+
+        def res_w(ww, vv, nrm=nrm):
+            _, dt_ = drags(nrm, vv, ww)
+            return tq_cmd - dt_.sum() - bit(vv, ww)[1]
+
+        def v_of(ww, v_hook=v, res_v=res_v):
+            if not force_hook:
+                return v_hook
+            try:
+                return brentq(res_v, 1e-9, 1.0, args=(ww,), xtol=1e-15)
+            except ValueError:
+                raise DownholeInputError(
+                    f"no steady drilling state under hook_load = {ax_cmd:g} N: the weight "
+                    f"left for the bit (buoyed weight {W:g} N minus hook load and drag) "
+                    "gives no rate of penetration in (0, 1] m/s by the bit law; start "
+                    "from 'rest' or lower the hook load") from None
+
+        if torque_td:
+            try:
+                w = brentq(lambda ww, res_w=res_w, v_of=v_of: res_w(ww, v_of(ww)), 1e-2, 100.0,
+                           xtol=1e-13)
+            except ValueError:
+                raise DownholeInputError(
+                    f"no steady rotation under surface_torque = {tq_cmd:g} N m within "
+                    "[0.01, 100] rad/s: the torque does not balance TOB, wall friction and "
+                    "damping there") from None
+        v = v_of(w)
+        wob, tob = bit(v, w)
+        da, dt_ = drags(nrm, v, w)
+        fa = m.gravity - da
+        fa[-1] -= wob
+        ft = -dt_
+        ft[-1] -= tob
+        hl = fa.sum() + (m.wave["line_weight"] if hybrid else 0.0)
+        ts = -ft.sum()
+        fa[0] -= hl
+        ft[0] += ts
+        u_new, th = _steady_fields(m, fa, ft, iB, iC, hybrid)
+        if np.max(np.abs(u_new - u)) <= 1e-12 * max(1.0, np.max(np.abs(u_new))):
+            u = u_new
+            break
+        u = u_new
+    state = np.zeros((6, n))
+    state[0], state[1], state[3], state[4] = u, v, th, w
+    st["state"] = state
+    misc = st["misc"]
+    misc[4] = u[-1]
+    if not force_hook:
+        misc[1] = u[0] + (pk.top[TOP_LAYOUT.index("hook_load0")] - hl) / hook.servo_stiffness
+    if not torque_td:
+        misc[2] = th[0] + ts / td.ki
+    tq0 = m.Kt[1, 0] * (th[1] - th[0]) if n > 1 else 0.0
+    misc[3] = tq0
+    spec = RockSurfaceSpec(m.bit.n_blades)
+    d0 = depth(v, w) if steady else 0.0
+    if steady:
+        st["surf"], st["istate"], st["rp"] = rock_init_helix(spec, u[-1], th[-1], d0)
+    else:
+        st["surf"], st["istate"], st["rp"] = rock_init(spec, u[-1] + clearance, th[-1])
+    rec = np.zeros(len(CHANNELS))
+    rec[1], rec[2], rec[3], rec[4] = v, th[-1], w, d0
+    rec[5], rec[6] = bit_forces(d0, v, w, bp) if steady else (0.0, 0.0)
+    rec[7], rec[8], rec[9], rec[10], rec[15] = hl, tq0, v, w, th[0]
+    rec[16] = tq_cmd
+    if hybrid:
+        segs = m.wave["segments"]
+        n_c = float(m.gravity[iC:].sum() - da[iC:].sum()) - wob  # tension at C
+        t_c = float(dt_[iC:].sum()) + tob  # torque the line delivers to C
+        fb0 = pk.top[TOP_LAYOUT.index("fb0")]
+        fc0 = pk.top[TOP_LAYOUT.index("fc0")]
+        n_dyn = n_c + fc0  # fc0 = -(preload tension at C)
+        wa = wave_state(segs[0], pk.dt, v, n_dyn)
+        wt = wave_state(segs[1], pk.dt, w, -t_c)
+        a0, b0 = initial_waves(segs[0].impedance, v, n_dyn)
+        a0t, b0t = initial_waves(segs[1].impedance, w, -t_c)
+        wave_push(*wa, a0, b0)
+        wave_push(*wt, a0t, b0t)
+        st["wa"], st["wt"] = wa, wt
+        lag = st["lag"]
+        lag[0], lag[1], lag[2], lag[3] = b0, a0, b0t, a0t
+        rec[11], rec[12], rec[13], rec[14] = fb0 + n_dyn, t_c, -fc0 + n_dyn, t_c
+    else:
+        ten = -m.Ka[1, :-1] * (u[1:] - u[:-1])
+        tor = m.Kt[1, :-1] * (th[1:] - th[:-1])
+
+        def at(x, i):
+            if 0 < i < x.size:
+                return 0.5 * (x[i - 1] + x[i])
+            return x[min(max(i, 0), x.size - 1)]
+        rec[11], rec[12], rec[13], rec[14] = at(ten, iB), at(tor, iB), at(ten, iC), at(tor, iC)
+    return st, rec
+
+
+def _steady_fields(m: DirectionalModel, fa, ft, iB, iC, hybrid):
+    """Static displacements and angles (bit node at 0) under balanced nodal loads ``fa``,
+    ``ft``; in a hybrid the wave segment carries the tension and torque at C to B."""
+    n = m.n_nodes
+    if not hybrid:
+        return (_solve_pinned(m.Ka[0], m.Ka[1], fa, n - 1, 0.0),
+                _solve_pinned(m.Kt[0], m.Kt[1], ft, n - 1, 0.0))
+    wv = m.wave
+    n_c = float(fa[iC:].sum())  # tension at C (the loads below C hang from it)
+    t_c = -float(ft[iC:].sum())  # torque at C
+    fa, ft = fa.copy(), ft.copy()
+    fa[iC] -= n_c
+    ft[iC] += t_c
+    fa[iB] += n_c + wv["line_weight"]
+    ft[iB] -= t_c
+    u, th = np.zeros(n), np.zeros(n)
+    u[iC:] = _solve_pinned(m.Ka[0, iC:], m.Ka[1, iC:], fa[iC:], n - 1 - iC, 0.0)
+    th[iC:] = _solve_pinned(m.Kt[0, iC:], m.Kt[1, iC:], ft[iC:], n - 1 - iC, 0.0)
+    seg_t = wv["segments"][1]
+    L = wv["length"]
+    delta = (n_c * L + 0.5 * wv["line_weight"] * L) / wv["EA"]
+    twist = t_c * seg_t.delay / seg_t.impedance  # T L / GJ with GJ = Z L / tau
+    u[:iB + 1] = _solve_pinned(m.Ka[0, :iB + 1], m.Ka[1, :iB + 1], fa[:iB + 1], iB,
+                               u[iC] - delta)
+    th[:iB + 1] = _solve_pinned(m.Kt[0, :iB + 1], m.Kt[1, :iB + 1], ft[:iB + 1], iB,
+                                th[iC] + twist)
+    return u, th
+
+
 # ------------------------------------------------------------------------ kernel packing
 class _Packed:
     """Kernel arrays for one (model, dt, top drive, hook, depth-of-cut) combination."""
@@ -764,8 +992,9 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
                          top_drive: TopDrive | None = None, hook: Hook | None = None,
                          depth_of_cut: str = "delayed", record_dt: float | None = 0.01,
                          hook_load=None, hook_velocity=None, speed=None, scenario: str = "",
-                         record_nodes: bool = False, attrs: dict | None = None) -> Result:
-    """Run a directional FEM or hybrid model from its static equilibrium.
+                         record_nodes: bool = False, attrs: dict | None = None,
+                         start: str = "rest", clearance: float = 0.05) -> Result:
+    """Run a directional FEM or hybrid model from its static equilibrium (or a moving start).
 
     Parameters
     ----------
@@ -790,6 +1019,17 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
     record_nodes : bool
         Also record ``node_axial_velocity`` and ``node_angular_velocity`` (time x node) at
         the recording interval (node depths in the attr ``node_md``).
+    start : {"rest", "off_bottom", "steady"}
+        Initial state under the commands of the first step: ``rest`` (static equilibrium, bit
+        carrying ``hook.wob``); ``off_bottom`` (every node moving at the block velocity and the
+        speed set-point, the bit ``clearance`` m above a flat bottom; needs a velocity hook and
+        a speed-controlled top drive); ``steady`` (the steady drilling state: string wound up
+        by TOB, wall friction and damping, compressed by WOB, PI integrator and hook servo
+        holding the steady top forces, wave segments carrying the steady waves, a helical
+        bottom of depth of cut 2 pi v / omega). With a force-driven hook the steady ROP is the
+        root of WOB(2 pi v / omega, v, omega) = buoyed weight - hook load - axial drag.
+    clearance : float
+        Bit height above the hole bottom for ``start="off_bottom"``, m.
 
     Returns
     -------
@@ -821,10 +1061,11 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
         cmd[:, 0] = hook.velocity if hook_velocity is None else _signal(hook_velocity, t,
                                                                           "hook_velocity")
     cmd[:, 1] = top_drive.command(t) if speed is None else _signal(speed, t, "speed")
-    st = pk.initial_state()
+    if n_steps < 1:
+        raise DownholeInputError(f"duration = {duration} s is shorter than one step dt = {dt} s")
+    st, rec0 = _directional_start(pk, start, float(cmd[0, 0]), float(cmd[0, 1]), clearance)
     n_rec = n_steps // every
     rec = np.zeros((n_rec + 1, len(CHANNELS)))
-    rec0 = _initial_record(pk, st)
     rec[0] = rec0
     if record_nodes:
         nodes_a = np.zeros((n_rec + 1, model.n_nodes))
@@ -845,7 +1086,7 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
     time = np.concatenate([[0.0], (np.arange(1, rows + 1)) * every * dt])
     channels = {name: rec[:rows + 1, i] for i, name in enumerate(CHANNELS)}
     sp0 = (top_drive.command(np.array([0.0]))[0] if speed is None
-           else _signal(speed, np.array([0.0]), "speed")[0])
+           else _signal(speed, np.array([0.0]), "speed")[0]) if start == "rest" else cmd[0, 1]
     channels["reference_angular_velocity"] = np.concatenate(
         [[sp0], channels["reference_angular_velocity"][1:]])
     if top_drive.mode == "torque":
@@ -859,7 +1100,7 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
                   attrs={"bit_radius": model.bit.radius, "model": model.name,
                          "model_kind": model.kind, "n_states": model.n_states, "dt": dt,
                          "depth_of_cut": depth_of_cut, "top_drive_mode": top_drive.mode,
-                         "hook_mode": hook.mode, "scenario": scenario,
+                         "hook_mode": hook.mode, "scenario": scenario, "start": start,
                          "node_md": model.node_md.tolist(), **(attrs or {})})
 
 
@@ -906,16 +1147,19 @@ def _initial_record_compute(pk: _Packed, st) -> np.ndarray:
     return out
 
 
-class DirectionalPlant:
-    """Step-by-step plant over a directional model: ``reset() -> obs``, ``step(cmd) -> obs``.
+class DirectionalPlant(Plant):
+    """Step-by-step plant over a directional model (the :class:`~downhole.sim.plant.Plant`
+    contract).
 
-    Commands (named): ``hook_load`` (N; or ``top_drive_axial_velocity`` m/s with a velocity
-    hook) and ``top_drive_angular_velocity`` (speed set-point, rad/s; PI/soft-torque top drive)
-    or ``surface_torque`` (N m; ``TopDrive(mode="torque")``). Missing commands keep their last
-    value. Observations: the standard channels (``bit_axial_velocity``, ``bit_angular_velocity``,
+    Commands (named, all held over the step): ``hook_load`` (N; or ``top_drive_axial_velocity``
+    m/s with a velocity hook) and ``top_drive_angular_velocity`` (speed set-point, rad/s;
+    PI/soft-torque top drive) or ``surface_torque`` (N m; ``TopDrive(mode="torque")``).
+    Observations: the standard channels (``bit_axial_velocity``, ``bit_angular_velocity``,
     ``wob``, ``tob``, ``hook_load``, ``surface_torque``, ``top_drive_*_velocity``, ...), forces
     at B and C, ``time`` and, for hardware-in-the-loop, ``last_node_axial_velocity`` and
     ``last_node_angular_velocity`` (the string's last node, where a rig replaces the bit).
+    ``reset(start=...)``: ``"rest"`` (static equilibrium, bit carrying ``hook.wob``),
+    ``"off_bottom"`` or ``"steady"`` (see :func:`simulate_directional`).
 
     Parameters
     ----------
@@ -926,6 +1170,9 @@ class DirectionalPlant:
         As in :func:`simulate_directional`.
     depth_of_cut : {"delayed", "approximate"}
     """
+
+    observation_names = (*CHANNELS, "time", "last_node_axial_velocity",
+                         "last_node_angular_velocity")
 
     def __init__(self, model: DirectionalModel, dt: float = 1e-3, *,
                  top_drive: TopDrive | None = None, hook: Hook | None = None,
@@ -944,15 +1191,21 @@ class DirectionalPlant:
         tq = "surface_torque" if self.top_drive.mode == "torque" else "top_drive_angular_velocity"
         return ax, tq
 
-    def reset(self) -> dict:
-        """Back to the static equilibrium; returns the observation at t = 0."""
-        self._st = self._pk.initial_state()
+    def default_command(self) -> dict:
+        """The hook's static hook load (buoyed weight - ``hook.wob``) or block velocity, and
+        the top drive's ``speed``."""
         ax = self._pk.hook_load0 if self.hook.mode == "force" else self.hook.velocity
-        self._cmd = np.array([[ax, float(self.top_drive.speed)]])
-        self._obs = dict(zip(CHANNELS, _initial_record(self._pk, self._st)))
+        return dict(zip(self.command_names, (float(ax), float(self.top_drive.speed))))
+
+    def _reset(self, start: str, set_point: dict, clearance: float = 0.05) -> dict:
+        ax, tq = (float(set_point[k]) for k in self.command_names)
+        self._st, rec0 = _directional_start(self._pk, start, ax, tq, clearance)
+        self._cmd = np.array([[ax, tq]])
+        self._obs = dict(zip(CHANNELS, rec0.tolist()))
         self._obs["time"] = 0.0
-        self._obs["last_node_axial_velocity"] = 0.0
-        self._obs["last_node_angular_velocity"] = 0.0
+        s = self._st["state"]
+        self._obs["last_node_axial_velocity"] = float(s[1, -1])
+        self._obs["last_node_angular_velocity"] = float(s[4, -1])
         return dict(self._obs)
 
     @property
@@ -969,15 +1222,9 @@ class DirectionalPlant:
                 "axial_acceleration": s[2].copy(), "angle": s[3].copy(),
                 "angular_velocity": s[4].copy(), "angular_acceleration": s[5].copy()}
 
-    def step(self, command: dict | None = None) -> dict:
+    def _step(self, command: np.ndarray) -> dict:
         """Hold ``command`` over one step and advance ``dt``; returns the new observation."""
-        if command:
-            names = self.command_names
-            for key, val in command.items():
-                if key not in names:
-                    raise DownholeInputError(
-                        f"unknown command {key!r} for this plant; expected {names}")
-                self._cmd[0, names.index(key)] = float(val)
+        self._cmd[0] = command
         status, _ = self._pk.run(self._st, self._cmd, self._rec, 1, 0)
         if status != 0:
             raise SimulationDiverged(self.time, "bit_angular_velocity")

@@ -25,10 +25,12 @@ import numpy as np
 from numba import njit
 
 from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
-from downhole.bit.rock_surface import RockSurfaceSpec, rock_advance, rock_depth, rock_init
+from downhole.bit.rock_surface import (RockSurfaceSpec, rock_advance, rock_depth, rock_init,
+                                       rock_init_helix)
 from downhole.control.eid._kernel import eid_arrays, eid_step
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, NeutralStringParams, get_preset
+from downhole.sim.plant import Plant, check_start, steady_depth_of_cut
 from downhole.sim.result import Result
 from downhole.string.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WaveSegment,
                                   segments_from_pipe, wave_read_at, wave_read_plan,
@@ -342,15 +344,92 @@ def _sample(sig, t, name):
     return sample_signal(sig, t, name)
 
 
-class NeutralPlant:
-    """Step-by-step neutral-type plant: ``reset() -> observation``, ``step(command) ->
-    observation`` over named signals (the same compiled kernel as :func:`simulate_neutral`).
+def _neutral_steady(model: NeutralModel, u_rel: float, u_t: float):
+    """Steady drilling state ``(v, omega, W, T)`` of the neutral model under the constant
+    commands ``u_rel = U_A - M_S g / alpha_A`` (m/s) and ``U_T`` (rad/s): the root of
+    ``v = u_rel - W / alpha_A``, ``omega = U_T - T / alpha_T`` with the bit law at the steady
+    depth of cut d = 2 pi v / omega (Eq. 3.9 at rest in a frame moving with the bit)."""
+    from scipy.optimize import fsolve
 
-    Commands (named, held over the step): ``command_axial`` (U_A, m/s, the seed's convention
-    including M_S g / alpha_A) and ``command_angular`` (U_T, rad/s) -- exactly what
-    :meth:`EIDController.command <downhole.control.eid.controller.EIDController.command>` returns.
-    Observations: ``time`` and the channels of :data:`NEUTRAL_CHANNELS` (``bit_axial_velocity``,
-    ``bit_angular_velocity``, ``wob``, ``tob``, ``hook_load``, ``surface_torque``, ...).
+    p = model.params
+    bp = model.bit.to_array()
+    if not (u_t > 0):
+        raise DownholeInputError(f"a steady drilling start needs a positive angular set-point, "
+                                 f"got top_drive_angular_velocity = {u_t!r} rad/s")
+
+    def res(z):
+        v, w = z
+        wob, tob = bit_forces(steady_depth_of_cut(v, w) if w > 0 else 0.0, v, w, bp)
+        return [(v - u_rel + wob / p.alpha_axial) / max(abs(u_rel), 1e-6),
+                (w - u_t + tob / p.alpha_torsional) / u_t]
+
+    v0, w0, _, _ = model.steady_state(u_rel + model.hang_command, u_t)
+    guess = (v0, w0) if v0 > 0 and w0 > 0 else (max(u_rel, 1e-6), u_t)
+    (v, w), _info, ok, _ = fsolve(res, guess, full_output=True, xtol=1e-13)
+    if ok != 1 or not (v > 0 and w > 0) or max(abs(x) for x in res((v, w))) > 1e-9:
+        raise DownholeInputError(
+            f"no steady drilling state of the neutral model at top_drive_axial_velocity = "
+            f"{u_rel:g} m/s, top_drive_angular_velocity = {u_t:g} rad/s (the bit does not cut "
+            f"steadily: v = {v:.4g} m/s, omega = {w:.4g} rad/s); start from 'rest' or "
+            "'off_bottom', or raise the axial set-point")
+    wob, tob = bit_forces(steady_depth_of_cut(v, w), v, w, bp)
+    return float(v), float(w), float(wob), float(tob)
+
+
+def _neutral_start(model: NeutralModel, dt: float, start: str, u_rel: float, u_t: float,
+                   rock_points_per_pitch: int, clearance: float = 0.05):
+    """Wave buffers, rock surface and bit state ``[x, v, theta, omega]`` for ``start``.
+
+    ``rest``: hanging still (uniform tension M_B g in the line, the string weight carried at the
+    top), the bit touching a flat bottom with zero WOB. ``off_bottom``: the whole string moving
+    at (u_rel, U_T) (no bit force, so the top damper carries nothing but the weight), the bit
+    ``clearance`` m above a flat bottom. ``steady``: the steady drilling state of
+    :func:`_neutral_steady`: the line moving at (v, omega) and carrying M_B g - W axially and
+    the torque T (tension N_T = -T in the wave variables, the line dragging its top backward),
+    the bit on a helical bottom of depth of cut 2 pi v / omega. Returns
+    ``(waves, rock, bstate)`` with ``waves = (ha, pa, wpa, ht, pt, wpt)``.
+    """
+    check_start(start)
+    p = model.params
+    spec = RockSurfaceSpec(model.bit.n_blades, int(rock_points_per_pitch), True)
+    bstate = np.zeros(4)
+    if start == "rest":
+        waves = (wave_state(model.axial, dt, 0.0, p.bit_mass * p.g)
+                 + wave_state(model.torsional, dt, 0.0, 0.0))
+        return waves, rock_init(spec, 0.0, 0.0), bstate
+    if start == "off_bottom":
+        if not (isinstance(clearance, (int, float)) and math.isfinite(clearance)
+                and clearance > 0):
+            raise DownholeInputError(f"clearance must be a positive distance in m, got "
+                                     f"{clearance!r}")
+        v, w, wob, tob = u_rel, u_t, 0.0, 0.0
+        rock = rock_init(spec, clearance, 0.0)
+    else:
+        v, w, wob, tob = _neutral_steady(model, u_rel, u_t)
+        rock = rock_init_helix(spec, 0.0, 0.0, steady_depth_of_cut(v, w))
+    waves = (wave_state(model.axial, dt, v, p.bit_mass * p.g - wob)
+             + wave_state(model.torsional, dt, w, -tob))
+    bstate[1], bstate[3] = v, w
+    return waves, rock, bstate
+
+
+class NeutralPlant(Plant):
+    """Step-by-step neutral-type plant (the :class:`~downhole.sim.plant.Plant` contract) over
+    the same compiled kernel as :func:`simulate_neutral`.
+
+    Commands (named, held over the step), the same names as at every other fidelity:
+    ``top_drive_axial_velocity`` (m/s): the top velocity command relative to the hanging
+    equilibrium, U_A - M_S g / alpha_A, so that 0 holds the string still; and
+    ``top_drive_angular_velocity`` (U_T, rad/s). Observations: ``time`` and the channels of
+    :data:`NEUTRAL_CHANNELS` (``bit_axial_velocity``, ``bit_angular_velocity``, ``wob``,
+    ``tob``, ``hook_load``, ``surface_torque``, the top nodes' actual velocities
+    ``top_drive_*_velocity`` and the seed-convention commands ``command_axial`` (U_A) and
+    ``command_angular`` (U_T)).
+
+    ``reset(start=...)``: ``"rest"`` (hanging still, bit touching the rock), ``"off_bottom"``
+    (moving at the set-point, bit ``clearance`` m above a flat bottom) or ``"steady"`` (the
+    steady drilling state under the set-point commands; the bit velocities are the root of
+    v = u_A - W/alpha_A, omega = U_T - T/alpha_T with the bit law at d = 2 pi v/omega).
 
     Parameters
     ----------
@@ -366,10 +445,15 @@ class NeutralPlant:
     --------
     >>> plant = NeutralPlant("table_3_1", dt=1e-4)
     >>> obs = plant.reset()                       # hanging at rest, bit on bottom, zero WOB
-    >>> obs = plant.step({"command_axial": 1.147224, "command_angular": 22.5196})
+    >>> u = {"top_drive_axial_velocity": NOMINAL_U_A - plant.model.hang_command,
+    ...      "top_drive_angular_velocity": NOMINAL_U_T}
+    >>> obs = plant.reset(start="steady", set_point=u)
+    >>> round(obs["bit_angular_velocity"], 2)
+    20.0
     """
 
-    command_names = ("command_axial", "command_angular")
+    command_names = ("top_drive_axial_velocity", "top_drive_angular_velocity")
+    observation_names = NEUTRAL_CHANNELS
 
     def __init__(self, model: "NeutralModel | str" = "table_3_1", dt: float = 1e-4,
                  depth_of_cut: str = "delayed", rock_points_per_pitch: int = 512):
@@ -402,16 +486,16 @@ class NeutralPlant:
         """Current time, s."""
         return self._k * self.dt
 
-    def reset(self) -> dict:
-        """Hanging at rest (U_A = M_S g/alpha_A, U_T = 0), bit touching the rock; t = 0."""
-        m, p = self.model, self.model.params
-        self._waves = (wave_state(m.axial, self.dt, 0.0, p.bit_mass * p.g)
-                       + wave_state(m.torsional, self.dt, 0.0, 0.0))
-        spec = RockSurfaceSpec(m.bit.n_blades, self._rpp, True)
-        self._rock = rock_init(spec, 0.0, 0.0)
-        self._bstate = np.zeros(4)
+    def _reset(self, start: str, set_point: dict, clearance: float = 0.05) -> dict:
+        m = self.model
+        u_rel = float(set_point["top_drive_axial_velocity"])
+        u_t = float(set_point["top_drive_angular_velocity"])
+        self._waves, self._rock, self._bstate = _neutral_start(
+            m, self.dt, start, u_rel, u_t, self._rpp, clearance)
         self._k = 0
-        self._u = np.array([m.hang_command, 0.0])
+        # rest: the commands before t = 0 held the string still whatever the set-point
+        self._u = (np.array([m.hang_command, 0.0]) if start == "rest"
+                   else np.array([u_rel + m.hang_command, u_t]))
         return self._advance(self._u, 0, None)
 
     def _advance(self, u, steps, fnoise):
@@ -436,21 +520,14 @@ class NeutralPlant:
         row = self._out[1 if steps > 0 else 0]
         return {name: float(row[i]) for i, name in enumerate(NEUTRAL_CHANNELS)}
 
-    def step(self, command: dict, steps: int = 1) -> dict:
-        """Hold ``command`` for ``steps`` steps of ``dt``; return the observation at the end."""
-        try:
-            u = np.array([float(command[n]) for n in self.command_names])
-        except KeyError as exc:
-            raise DownholeInputError(f"command lacks {exc.args[0]!r}; expected "
-                                     f"{self.command_names}") from None
-        if not np.all(np.isfinite(u)):
-            raise DownholeInputError(f"command must be finite, got {command!r}")
-        if int(steps) < 1:
-            raise DownholeInputError(f"steps must be >= 1, got {steps!r}")
-        self._u = u
-        return self._advance(u, int(steps), None)
+    def _step(self, command: np.ndarray) -> dict:
+        """Hold ``command`` (relative axial, angular) over one step of ``dt``."""
+        self._u = np.array([command[0] + self.model.hang_command, command[1]])
+        return self._advance(self._u, 1, None)
 
     def _step_noisy(self, u, steps, fnoise):
+        """``steps`` steps under the seed-convention commands ``u = (U_A, U_T)`` with bit-force
+        noise (the Python closed loop of :func:`simulate_neutral`)."""
         self._u = u
         return self._advance(u, steps, fnoise)
 
@@ -461,7 +538,8 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
                      depth_of_cut: str = "delayed", record_dt: float | None = None,
                      seed: int = 0, rock_points_per_pitch: int = 512,
                      control_dt: float | None = None, python_loop: bool = False,
-                     attrs: dict | None = None) -> Result:
+                     attrs: dict | None = None, start: str = "rest",
+                     clearance: float = 0.05) -> Result:
     """Simulate the neutral-type (wave) model, open loop or closed loop.
 
     Parameters
@@ -502,6 +580,14 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
     python_loop : bool
         Run an EIDController through the Python loop too (same numbers as the compiled path;
         for checking controllers stepped from Python, e.g. in the SIL loop).
+    start : {"rest", "off_bottom", "steady"}
+        Initial state (:data:`downhole.sim.plant.START_MODES`), open loop only: hanging at
+        rest; moving at the commands of t = 0 with the bit ``clearance`` m off a flat bottom; or
+        the steady drilling state under the commands of t = 0 (see :class:`NeutralPlant`). A
+        closed loop starts from rest (the controllers' states are not initialized at an
+        equilibrium).
+    clearance : float
+        Bit height above the hole bottom for ``start="off_bottom"``, m.
 
     Returns
     -------
@@ -564,6 +650,12 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
             "epsilon": model.bit.epsilon}
 
     use_eid = controller is not None
+    check_start(start)
+    if use_eid and start != "rest":
+        raise DownholeInputError(f"start={start!r} needs an open-loop run: a closed loop "
+                                 "starts from 'rest' (the controller's integrators and "
+                                 "predictor have no equilibrium initialization)")
+    meta["start"] = start
     u_in = np.zeros((2, nsteps + 1))
     ref = np.zeros((2, nsteps + 1))
     if use_eid:
@@ -609,10 +701,9 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         u_in[0] = _sample(sigs[0], t, "inputs axial (U_A)")
         u_in[1] = _sample(sigs[1], t, "inputs angular (U_T)")
 
-    ha, pa, wpa = wave_state(model.axial, dt, 0.0, p.bit_mass * g)
-    ht, pt, wpt = wave_state(model.torsional, dt, 0.0, 0.0)
-    spec = RockSurfaceSpec(model.bit.n_blades, rock_points_per_pitch, True)
-    surf, istate, rp = rock_init(spec, 0.0, 0.0)
+    (ha, pa, wpa, ht, pt, wpt), (surf, istate, rp), bstate = _neutral_start(
+        model, dt, start, float(u_in[0, 0]) - model.hang_command, float(u_in[1, 0]),
+        rock_points_per_pitch, clearance)
     nrec = nsteps // every + 1 + (1 if nsteps % every else 0)
     out = np.empty((nrec, len(NEUTRAL_CHANNELS)))
     sigout = np.zeros((nrec, 6))
@@ -621,7 +712,7 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         p.alpha_axial, p.alpha_torsional, (p.string_mass + p.bit_mass) * g,
         p.string_mass * g, p.bit_mass * g, model.bit.to_array(), depth_of_cut == "approximate",
         ha, pa, wpa, ht, pt, wpt, surf, istate, rp, u_in, use_eid, cp, cs, ch, cpos, ref,
-        mnoise, fnoise, nsteps, dt, every, out, sigout, np.zeros(4), 0.0)
+        mnoise, fnoise, nsteps, dt, every, out, sigout, bstate, 0.0)
     if status != 0:
         raise SimulationDiverged(kfail * dt, NEUTRAL_CHANNELS[cfail])
     channels = {name: out[:, i] for i, name in enumerate(NEUTRAL_CHANNELS) if name != "time"}
@@ -641,8 +732,6 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
 def _simulate_python_loop(model, controller, dt, nsteps, every, ref, mnoise, fnoise,
                           depth_of_cut, rock_points_per_pitch, control_dt, meta) -> Result:
     """Closed loop with a controller stepped from Python over a :class:`NeutralPlant`."""
-    import inspect
-
     if control_dt is None:
         sub = 1
     else:
@@ -653,14 +742,9 @@ def _simulate_python_loop(model, controller, dt, nsteps, every, ref, mnoise, fno
     if nsteps % sub:
         raise DownholeInputError(f"duration must be a multiple of control_dt = {sub * dt} s")
     plant = NeutralPlant(model, dt, depth_of_cut, rock_points_per_pitch)
-    try:
-        has_dt = "dt" in inspect.signature(controller.reset).parameters
-    except (TypeError, ValueError):
-        has_dt = False
-    if has_dt:
-        controller.reset(dt=sub * dt)
-    else:
-        controller.reset()
+    if getattr(controller, "dt", None) is not None:
+        controller.dt = sub * dt  # the contract's sample time (downhole.control.base)
+    controller.reset()
     rec_every = max(1, int(round(every / sub))) * sub
     names = NEUTRAL_CHANNELS
     rows, meas = [], []
@@ -669,12 +753,13 @@ def _simulate_python_loop(model, controller, dt, nsteps, every, ref, mnoise, fno
         o = dict(obs)
         o["bit_axial_velocity"] += mnoise[0, k]
         o["bit_angular_velocity"] += mnoise[1, k]
-        cmd = controller.command(k * dt, o, ref[:, k].copy())
-        try:
-            u = np.array([float(cmd[n]) for n in NeutralPlant.command_names])
-        except (KeyError, TypeError):
+        cmd = controller.command(k * dt, o, {"reference_axial_velocity": float(ref[0, k]),
+                                             "reference_angular_velocity": float(ref[1, k])})
+        if not isinstance(cmd, dict):
             raise DownholeInputError(f"{type(controller).__name__}.command must return a dict "
-                                     f"with {NeutralPlant.command_names}, got {cmd!r}") from None
+                                     f"with {NeutralPlant.command_names}, got {cmd!r}")
+        u = plant.command_vector(cmd)
+        u[0] += model.hang_command
         if k % rec_every == 0 or k == nsteps:
             # the record at t_k shows the top nodes under the new command (as the compiled path)
             rec = plant._advance(u, 0, fnoise[:, k:k + 1])

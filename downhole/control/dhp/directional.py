@@ -25,6 +25,7 @@ from downhole.contact.softstring import contact_elements, element_normal_half, f
 from downhole.control.affine import ControlAffineModel
 from downhole.control.dhp.riccati import _draw_one, _fit_one
 from downhole.errors import DownholeInputError
+from downhole.sim.plant import Plant
 
 __all__ = ["directional_affine_model", "DirectionalStatePlant", "table_5_1_models"]
 
@@ -245,8 +246,11 @@ def table_5_1_models():
     return fem24, hyb68
 
 
-class DirectionalStatePlant:
-    """A directional plant that reports the design model's full state and takes DHP commands.
+class DirectionalStatePlant(Plant):
+    """A directional plant that reports the design model's full state and takes DHP commands
+    (the :class:`~downhole.sim.plant.Plant` contract: commands ``slack_off_force`` (N, the
+    hook load is the buoyed weight minus it) and ``surface_torque`` (N m); observations the
+    inner :class:`~downhole.string.fem.DirectionalPlant`'s plus ``state``).
 
     Parameters
     ----------
@@ -294,19 +298,22 @@ class DirectionalStatePlant:
         z[2 * n + 1::2] = np.interp(self._dmd, self._md, f["angular_velocity"])
         return z
 
-    def reset(self) -> dict:
-        obs = self.plant.reset()
+    command_names = ("slack_off_force", "surface_torque")
+
+    @property
+    def observation_names(self) -> tuple:
+        return (*self.plant.observation_names, "state")
+
+    def _reset(self, start: str, set_point: dict, **options) -> dict:
+        obs = self.plant.reset(start=start, set_point={
+            "hook_load": self.weight - set_point["slack_off_force"],
+            "surface_torque": set_point["surface_torque"]}, **options)
         self._ref = None
         obs["state"] = self._state()
         return obs
 
-    def step(self, command: dict) -> dict:
-        try:
-            slack = float(command["slack_off_force"])
-            torque = float(command["surface_torque"])
-        except KeyError as exc:
-            raise DownholeInputError(f"command lacks {exc.args[0]!r}; expected "
-                                     "slack_off_force and surface_torque") from None
-        obs = self.plant.step({"hook_load": self.weight - slack, "surface_torque": torque})
+    def _step(self, command: np.ndarray) -> dict:
+        obs = self.plant.step({"hook_load": self.weight - command[0],
+                               "surface_torque": command[1]})
         obs["state"] = self._state()
         return obs

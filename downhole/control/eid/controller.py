@@ -55,6 +55,11 @@ class EIDController:
     delayed_input_observer: bool = True
     reports: list | None = None
     u_limits: tuple = ((-1e3, 1e3), (-1e3, 1e3))
+    dt: float = 1e-3
+
+    #: the controller contract (downhole.control.base): signals read and commands set
+    needs = ("bit_axial_velocity", "bit_angular_velocity")
+    commands = ("top_drive_axial_velocity", "top_drive_angular_velocity")
 
     # --- compiled parameters ------------------------------------------------------------------
     def compiled_params(self, dt: float) -> np.ndarray:
@@ -71,9 +76,10 @@ class EIDController:
         return cp
 
     # --- Python stepping (SIL / generic plants) -----------------------------------------------
-    def reset(self, dt: float = 1e-3) -> None:
-        """Zero the controller state for steps of ``dt`` seconds."""
-        self._dt = float(dt)
+    def reset(self) -> None:
+        """Zero the controller state for steps of :attr:`dt` seconds (the sample time; a
+        runner sets it to its control step before calling ``reset``)."""
+        self._dt = float(self.dt)
         self._cp = self.compiled_params(self._dt)
         self._cs, self._ch, self._cpos = eid_arrays(self._cp)
         self._u = np.zeros(2)
@@ -81,9 +87,12 @@ class EIDController:
 
     def command(self, t: float, observation: dict, reference=None) -> dict:
         """One controller step: observation needs ``bit_axial_velocity`` and
-        ``bit_angular_velocity``; returns ``{"command_axial": U_A, "command_angular": U_T}``
-        (seed convention, U_A including M_S g/alpha_A). Call :meth:`reset` first; call once
-        per ``dt``."""
+        ``bit_angular_velocity``; ``reference`` a mapping with ``reference_axial_velocity`` and
+        ``reference_angular_velocity`` (or an array [axial, angular]; default
+        :attr:`reference`). Returns ``{"top_drive_axial_velocity": U_A - M_S g/alpha_A,
+        "top_drive_angular_velocity": U_T}``, the commands of the Plant contract (the axial
+        one relative to the hanging equilibrium). Call :meth:`reset` first; call once per
+        ``dt``."""
         if not hasattr(self, "_cp"):
             self.reset()
         try:
@@ -93,10 +102,17 @@ class EIDController:
             raise DownholeInputError(f"observation lacks {exc.args[0]!r}") from None
         if reference is None:
             r = self.reference.sample(np.array([t]))[:, 0]
+        elif hasattr(reference, "keys"):
+            try:
+                r = np.array([reference["reference_axial_velocity"],
+                              reference["reference_angular_velocity"]], float)
+            except KeyError as exc:
+                raise DownholeInputError(f"reference lacks {exc.args[0]!r}") from None
         else:
             r = np.asarray(reference, float).reshape(2)
         eid_step(self._cp, self._cs, self._ch, self._cpos, y, r, self._dt, self._u, self._sig)
-        return {"command_axial": float(self._u[0]), "command_angular": float(self._u[1])}
+        return {"top_drive_axial_velocity": float(self._u[0] - self.model_coeffs[0]["offset"]),
+                "top_drive_angular_velocity": float(self._u[1])}
 
     # --- persistence --------------------------------------------------------------------------
     def to_dict(self) -> dict:
