@@ -99,3 +99,55 @@ def test_check_pair_names_what_does_not_fit(system):
     assert "takes" in check_pair(ZTorque(480.0), plant)  # force mode: no speed command
     with pytest.raises(DownholeInputError, match="takes"):
         run_closed_loop(plant, ZTorque(480.0), 1.0)
+
+
+def test_ztorque_absorbs_the_torsional_wave_on_the_neutral_line(system):
+    """A set-point step launches a torsional wave down the lossless line; a stiff drive reflects
+    it back for ever (quarter-wave ringing), the impedance-matched drive absorbs it."""
+    from downhole.string.neutral import NeutralPlant
+
+    m = system.build("neutral")
+    z = m.torsional.impedance
+
+    class StepStiff(_Stiff):
+        def command(self, t, observation, reference=None):
+            return {"top_drive_angular_velocity": 10.0 if t < 1.0 else 12.0}
+
+    class StepZ(ZTorque):
+        def command(self, t, observation, reference=None):
+            self.speed = 10.0 if t < 1.0 else 12.0
+            return super().command(t, observation, reference)
+
+    span = {}
+    for name, c in (("stiff", StepStiff(10.0)), ("z", StepZ(z, speed=10.0, tau=20.0, dt=1e-3))):
+        plant = NeutralPlant(m, dt=1e-3)
+        assert check_pair(c, plant) is None
+        r = run_closed_loop(plant, c, 20.0, start="off_bottom", clearance=1.0,
+                            set_point={"top_drive_axial_velocity": 0.0,
+                                       "top_drive_angular_velocity": 10.0})
+        assert np.all(r["wob"] == 0.0)  # off bottom throughout: the line and the bit only
+        w = r["bit_angular_velocity"][r["time"] > 4 * m.tau2]
+        span[name] = w.max() - w.min()
+    assert span["stiff"] > 1.5 * 2.0  # rings at +/- the step and more
+    assert span["z"] < 0.35 * span["stiff"]
+
+
+@pytest.mark.parametrize("fidelity", ["lumped4", "lumped12", "neutral", "fem", "hybrid"])
+def test_ztorque_runs_at_every_fidelity_of_one_description(system, fidelity):
+    from downhole.string.neutral import NeutralPlant
+
+    model = system.build(fidelity)
+    z = torsional_impedance(system.string.segments[0].section)
+    if fidelity.startswith("lumped"):
+        plant = LumpedPlant(model, dt=2e-4, integrator="newmark")
+    elif fidelity == "neutral":
+        plant = NeutralPlant(model, dt=1e-3)
+    else:
+        plant = DirectionalPlant(model, 1e-3, top_drive=TopDrive(speed=8.0), hook=Hook(wob=80e3))
+    c = ZTorque(z, speed=8.0, tau=2.0, dt=plant.dt)
+    assert check_pair(c, plant) is None
+    r = run_closed_loop(plant, c, 2.0)
+    cmd = r["command:top_drive_angular_velocity"]
+    assert np.all(np.isfinite(cmd)) and np.all((cmd >= 0) & (cmd <= 16.0))
+    assert np.ptp(cmd) > 0  # the torque feedback acts
+    assert np.all(np.isfinite(r["bit_angular_velocity"]))
