@@ -63,8 +63,10 @@ class SurfacePI:
 
     def command(self, t: float, observation: dict, reference=None) -> dict:
         ref = reference or {}
-        w_ref = float(ref.get("angular", observation.get("reference_angular_velocity", 20.0)))
-        v_ref = float(ref.get("axial", observation.get("reference_axial_velocity", 0.01)))
+        w_ref = float(ref.get("reference_angular_velocity",
+                              observation.get("reference_angular_velocity", 20.0)))
+        v_ref = float(ref.get("reference_axial_velocity",
+                              observation.get("reference_axial_velocity", 0.01)))
         ew = w_ref - observation["bit_angular_velocity"]
         self._iw = float(np.clip(self._iw + self.dt * ew, -50.0, 50.0))
         sp = max(0.0, w_ref + self.kp_w * ew + self.ki_w * self._iw)

@@ -793,8 +793,8 @@ class ControllerClient:
             obs = dict(zip(names, vals.tolist()))
             ref = reference
             if ref is None and has_ref:
-                ref = {"axial": obs["reference_axial_velocity"],
-                       "angular": obs["reference_angular_velocity"]}
+                ref = {"reference_axial_velocity": obs["reference_axial_velocity"],
+                       "reference_angular_velocity": obs["reference_angular_velocity"]}
             probe = t < 0
             cmd = controller.command(max(t, 0.0), obs, ref)
             if probe:  # readiness probe: the call above warmed the controller up

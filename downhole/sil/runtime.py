@@ -156,7 +156,8 @@ class RealTimeRunner:
         velocities ``bit_axial_velocity``, ``bit_angular_velocity``, which the plant (a
         :class:`~downhole.sil.hil.HILStringPlant`) takes as its bit motion.
     reference : dict, optional
-        ``{"axial": m/s, "angular": rad/s}`` passed to the controller (default 0.01, 20).
+        ``{"axial": m/s, "angular": rad/s}`` (default 0.01, 20); the controller receives it as
+        the named signals ``reference_axial_velocity`` and ``reference_angular_velocity``.
     paced : bool
         Pace to the wall clock (False: as fast as possible, for benchmarks).
     record_every : int
@@ -382,6 +383,11 @@ class RealTimeRunner:
         out.update({f"stat_{k}": v for k, v in self.stats.items()})
         return out
 
+    def _controller_reference(self) -> dict:
+        """The reference handed to the controller: named signals of :mod:`downhole.signals`."""
+        return {"reference_axial_velocity": self.reference["axial"],
+                "reference_angular_velocity": self.reference["angular"]}
+
     def _controller_obs(self, obs: dict) -> dict:
         o = dict(obs)
         o["reference_axial_velocity"] = self.reference["axial"]
@@ -477,7 +483,7 @@ class RealTimeRunner:
         elif self._safe_since is not None:
             cmd = self._safe_command(t)
         elif self.controller is not None:
-            raw = self.controller.command(t, self._controller_obs(obs), dict(self.reference))
+            raw = self.controller.command(t, self._controller_obs(obs), self._controller_reference())
             why = self.plant.check_command(raw)
             if why is None:
                 cmd = {k: float(raw[k]) for k in self.plant.command_names}
@@ -556,7 +562,7 @@ class RealTimeRunner:
         obs = self.plant.reset()
         cmd = self.plant.default_command()
         if self.controller is not None:
-            c = self.controller.command(0.0, self._controller_obs(obs), dict(self.reference))
+            c = self.controller.command(0.0, self._controller_obs(obs), self._controller_reference())
             cmd = {k: float(c.get(k, cmd[k])) for k in cmd}
         self.plant.step(cmd)
 
