@@ -106,7 +106,7 @@ def test_dhp_controller_file_drives_the_directional_plant(tmp_path, capsys):
     from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
     from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
     from downhole.scenario import load_scenario, parse_scenario
-    from downhole.string.directional_scenario import (
+    from downhole.scenario.directional import (
         DirectionalScenario,
         _dhp_design_depths,
         build_directional,
