@@ -360,11 +360,19 @@ def load_scenario(path: str | Path) -> tuple[dict, str, str]:
 
 
 def model_type(data: dict, source: str) -> str:
-    """The scenario's ``[model] type``, checked against the registered types."""
+    """The scenario's ``[model] type``, checked against the registered types; ``"system"`` for a
+    file that describes the system and chooses ``[model] fidelity``
+    (:mod:`downhole.scenario.system`)."""
     model = data.get("model", {})
     if not isinstance(model, dict):
         raise ScenarioError(source, "model", "expected a table [model]")
     _load_plugins()
+    if "fidelity" in model:
+        if "type" in model:
+            raise ScenarioError(source, "model.type", "give either [model] fidelity (a system "
+                                "description: [well], [string], [bit], [rig], [operation]) or "
+                                "the older [model] type, not both")
+        return "system"
     if "type" not in model:
         raise ScenarioError(source, "model.type", "required field is missing "
                             f"(one of {sorted(MODEL_TYPES)})")
@@ -381,13 +389,26 @@ def is_lumped_type(mtype: str) -> bool:
     return MODEL_TYPES.get(mtype) is _run_lumped
 
 
-def validate_data(data: dict, source: str) -> str:
+def _check_override(mtype: str, fidelity: str | None, source: str) -> None:
+    if fidelity is not None and mtype != "system":
+        raise ScenarioError(source, "model.type", f"--fidelity {fidelity} needs a file that "
+                            "describes the system ([model] fidelity, [well], [string], [bit], "
+                            f"[rig], [operation]); this one is [model] type = {mtype!r}")
+
+
+def validate_data(data: dict, source: str, fidelity: str | None = None) -> str:
     """Validate a parsed scenario without running it: its model type, then the type's full
-    schema, model and run settings (lumped, neutral, FEM / hybrid, DHP; a registered plug-in
-    type only by name). Returns the model type; raises :class:`ScenarioError`."""
+    schema, model and run settings (system description at its fidelity, lumped, neutral,
+    FEM / hybrid, DHP; a registered plug-in type only by name). ``fidelity`` overrides a system
+    scenario's ``[model] fidelity``. Returns the model type; raises :class:`ScenarioError`."""
     check_values(data, source)
     mtype = model_type(data, source)
-    if is_lumped_type(mtype):
+    _check_override(mtype, fidelity, source)
+    if mtype == "system":
+        from downhole.scenario.system import validate_system_scenario
+
+        validate_system_scenario(data, source, fidelity)
+    elif is_lumped_type(mtype):
         validate_lumped(data, source)
     elif mtype in _VALIDATORS:
         import importlib
@@ -413,14 +434,27 @@ _VALIDATORS: dict[str, tuple[str, str]] = {
 }
 
 
-def validate_scenario(path: str | Path) -> None:
-    """Validate a scenario file without running it (raises :class:`ScenarioError`)."""
+def validate_scenario(path: str | Path, fidelity: str | None = None) -> None:
+    """Validate a scenario file without running it (raises :class:`ScenarioError`);
+    ``fidelity`` overrides a system scenario's ``[model] fidelity``."""
     data, source, _ = load_scenario(path)
-    validate_data(data, source)
+    validate_data(data, source, fidelity)
 
 
-def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>") -> "Result":  # noqa: F821
-    """Run a scenario file (or an already-parsed dict) and return its Result."""
+def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>",
+                 fidelity: str | None = None) -> "Result":  # noqa: F821
+    """Run a scenario file (or an already-parsed dict) and return its Result.
+
+    Parameters
+    ----------
+    path_or_data : str, Path or dict
+        The scenario file, or its parsed content.
+    source : str
+        Name used in messages for a dict.
+    fidelity : str, optional
+        Overrides ``[model] fidelity`` of a system scenario (``lumped4``, ``lumped12``,
+        ``neutral``, ``fem``, ``hybrid``); refused for the older ``[model] type`` files.
+    """
     if isinstance(path_or_data, dict):
         import tomli_w
 
@@ -429,6 +463,11 @@ def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>") -> "Re
     else:
         data, source, text = load_scenario(path_or_data)
     mtype = model_type(data, source)
+    _check_override(mtype, fidelity, source)
+    if mtype == "system":
+        from downhole.scenario.system import run_system_scenario
+
+        return run_system_scenario(data, source, text, fidelity)
     return MODEL_TYPES[mtype](data, source, text)
 
 

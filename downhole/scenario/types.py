@@ -31,3 +31,12 @@ def _dhp(data, source, text):
 
 
 register_model_type("dhp", _dhp)
+
+
+def _system(data, source, text):
+    from downhole.scenario.system import run_system_scenario
+
+    return run_system_scenario(data, source, text)
+
+
+register_model_type("system", _system)
