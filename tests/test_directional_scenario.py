@@ -14,7 +14,7 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 @pytest.mark.parametrize("name", ["directional_fem_stickslip", "directional_hybrid68_stickslip",
-                                  "directional_survey"])
+                                  "directional_survey_soft_torque"])
 def test_examples_run_through_the_cli(name, tmp_path):
     path = EXAMPLES / f"{name}.toml"
     out = tmp_path / "run"

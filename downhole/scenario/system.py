@@ -40,7 +40,7 @@ the scenario's set-points. Schema (``docs/scenarios.md``, "Describing the system
     record_dt = "10 ms"
     depth_of_cut = "delayed"      # or "approximate"
     start = "rest"                # rest | off_bottom | steady (where the fidelity supports it)
-    integrator = "euler"          # lumped only: euler | newmark
+    integrator = "newmark"        # lumped only: newmark (default) | euler (dt checked)
 
 How each fidelity is driven by the set-points: lumped, the top drive moves at ``rop`` and
 ``surface_speed`` (velocity inputs); neutral, the open-loop commands of the steady state at those
@@ -239,7 +239,7 @@ class SystemSimulation(_Strict):
     record_dt: Optional[Q["time"]] = Field(0.01, gt=0)
     depth_of_cut: Literal["delayed", "approximate"] = "delayed"
     start: Literal["rest", "off_bottom", "steady"] = "rest"
-    integrator: Literal["euler", "newmark"] = "euler"
+    integrator: Literal["euler", "newmark"] = "newmark"
 
 
 class SystemScenario(_Strict):
