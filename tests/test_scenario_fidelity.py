@@ -74,7 +74,7 @@ def test_each_file_validates_and_runs_at_every_fidelity(name, fidelity, tmp_path
 
 
 def _frequencies(data, source, fidelity):
-    _, _, system, model = validate_system_scenario(data, source, fidelity)
+    model = validate_system_scenario(data, source, fidelity)[3]
     if fidelity == "fem":
         return tuple(float(model.natural_frequencies(f, 1, top="fixed")[0])
                      for f in ("axial", "torsional"))

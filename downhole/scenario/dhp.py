@@ -2,9 +2,10 @@
 
 The command ``downhole design dhp SCENARIO.toml --out DIR`` (:mod:`downhole.cli.design_dhp`)
 trains a DHP (SNAC) tracking controller from such a file and writes
-``DIR/dhp_controller.npz`` + ``DIR/dhp_controller.json`` (load with :func:`downhole.control.dhp.load_controller`), ``DIR/report.json`` (training diagnostics and, with
-a ``[simulation]`` table, the closed-loop summary) and, when simulated, ``DIR/closed_loop.nc`` and
-``DIR/closed_loop.png``.
+``DIR/dhp_controller.npz`` + ``DIR/dhp_controller.json`` (load with
+:func:`downhole.control.dhp.load_controller`), ``DIR/report.json`` (training diagnostics and,
+with a ``[simulation]`` table, the closed-loop summary) and, when simulated,
+``DIR/closed_loop.nc`` and ``DIR/closed_loop.png``.
 
 The same file runs with ``downhole simulate SCENARIO.toml --out DIR`` (``[model] type = "dhp"``
 selects this runner): it trains the controller (or loads ``[controller] file``) and returns the
