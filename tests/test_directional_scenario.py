@@ -14,7 +14,7 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 @pytest.mark.parametrize("name", ["directional_fem_stickslip", "directional_hybrid68_stickslip",
-                                  "directional_survey"])
+                                  "directional_survey_soft_torque"])
 def test_examples_run_through_the_cli(name, tmp_path):
     path = EXAMPLES / f"{name}.toml"
     out = tmp_path / "run"
@@ -106,7 +106,7 @@ def test_dhp_controller_file_drives_the_directional_plant(tmp_path, capsys):
     from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
     from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
     from downhole.scenario import load_scenario, parse_scenario
-    from downhole.string.directional_scenario import (
+    from downhole.scenario.directional import (
         DirectionalScenario,
         _dhp_design_depths,
         build_directional,

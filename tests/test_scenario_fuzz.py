@@ -85,7 +85,7 @@ def _dp(path):
 
 
 def _design_dhp(path):
-    from downhole.cli.design_dhp import load_dhp_scenario
+    from downhole.scenario.dhp import load_dhp_scenario
 
     load_dhp_scenario(path)
 

@@ -2,7 +2,7 @@
 closed loop with the input delay, write the gains (npz + JSON), a short report and a root plot.
 
 The scenario is the neutral-model scenario of ``downhole simulate`` (schema in
-:mod:`downhole.string.neutral_scenario`): ``[model]`` (type "neutral", preset, ``[model.string]``,
+:mod:`downhole.scenario.neutral`): ``[model]`` (type "neutral", preset, ``[model.string]``,
 ``[model.bit]`` overrides), ``[controller] type = "eid"`` with the design options
 (``internal_model_gain``, ``filter_bandwidth``, ``observer_gain``, ``gain_bound``, ``predictor``,
 ``delayed_input_observer``; all optional) and an optional ``[reference]``. ``[surface]`` and
@@ -25,7 +25,7 @@ from downhole.errors import ScenarioError
 def load_eid_scenario(path: Path):
     """Parse and validate an EID design scenario; returns (model, design kwargs, reference)."""
     from downhole.scenario import load_scenario
-    from downhole.string.neutral_scenario import (build_neutral, build_reference,
+    from downhole.scenario.neutral import (build_neutral, build_reference,
                                                   load_neutral_scenario)
 
     data, source, _ = load_scenario(path)

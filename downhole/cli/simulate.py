@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Optional
 
 import typer
 from rich.console import Console
@@ -56,15 +57,22 @@ def summary_table(rows: dict[str, dict]) -> Table:
 def simulate(
     scenario: Path = typer.Argument(..., help="scenario TOML file"),
     out: Path = typer.Option(Path("out/simulate"), "--out", help="output folder"),
+    fidelity: Optional[str] = typer.Option(
+        None, "--fidelity", help="model fidelity of a system scenario ([model] fidelity): "
+        "lumped4, lumped12, neutral, fem or hybrid; overrides the file's"),
 ):
     """Run a scenario; write OUT/result.nc, OUT/summary.json and OUT/overview.png."""
-    from downhole.scenario import load_scenario, run_scenario
+    from downhole.scenario import load_scenario, run_scenario, validate_data
+    from downhole.scenario.system import check_fidelity
 
     check_output_path(out, kind="folder")
     data, source, _ = load_scenario(scenario)
+    if fidelity is not None:
+        check_fidelity(fidelity, source, "--fidelity")
+    validate_data(data, source, fidelity)  # every check before the output folder is touched
     with OutputFolder(out, RUN_FILES, "simulate") as folder:
         with console.status(f"simulating {scenario}"):
-            result = run_scenario(scenario)
+            result = run_scenario(scenario, fidelity=fidelity)
         folder.writing()
         summary = write_run(result, out, title=data.get("title", ""))
     console.print(summary_table({scenario.stem: summary}))

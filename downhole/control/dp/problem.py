@@ -371,7 +371,7 @@ def load_problem(path: str | Path) -> DPProblem:
     ScenarioError
         If the file is missing, is not valid TOML or fails validation.
     """
-    from downhole.scenario import read_toml
+    from downhole._reader import read_toml
 
     data, _, _ = read_toml(path)
     if "dp" in data and isinstance(data["dp"], dict):

@@ -8,13 +8,13 @@ from downhole.scenario import register_model_type
 
 
 def _neutral(data, source, text):
-    from downhole.string.neutral_scenario import run_neutral_scenario
+    from downhole.scenario.neutral import run_neutral_scenario
 
     return run_neutral_scenario(data, source, text)
 
 
 def _directional(data, source, text):
-    from downhole.string.directional_scenario import run_directional_scenario
+    from downhole.scenario.directional import run_directional_scenario
 
     return run_directional_scenario(data, source, text)
 
@@ -25,9 +25,18 @@ register_model_type("hybrid", _directional)
 
 
 def _dhp(data, source, text):
-    from downhole.cli.design_dhp import run_dhp_scenario
+    from downhole.scenario.dhp import run_dhp_scenario
 
     return run_dhp_scenario(data, source, text)
 
 
 register_model_type("dhp", _dhp)
+
+
+def _system(data, source, text):
+    from downhole.scenario.system import run_system_scenario
+
+    return run_system_scenario(data, source, text)
+
+
+register_model_type("system", _system)

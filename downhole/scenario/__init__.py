@@ -10,7 +10,6 @@ Model types are pluggable: :func:`register_model_type` adds a runner for ``[mode
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Callable, Literal, Union
 
@@ -18,6 +17,10 @@ import numpy as np
 from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, ValidationError,
                       field_validator)
 
+from downhole._reader import (MAX_DEPTH, MAX_FILE_BYTES, MAX_INTEGER,  # noqa: F401
+                              MAX_LIST_LENGTH, MAX_NUMBER, MAX_STRING_LENGTH,
+                              _check_numeric_string, check_values, parse_toml_text,
+                              read_scenario_text, read_toml)
 from downhole.errors import ScenarioError
 from downhole.params.quantity import Q
 from downhole.units import UnitError, to_si
@@ -313,205 +316,6 @@ def parse_scenario(data: dict, source: str, schema=LumpedScenario):
         _raise_validation(source, exc)
 
 
-#: Largest scenario file read (bytes); a scenario is a few kB.
-MAX_FILE_BYTES = 1 << 20
-#: Longest string value in a scenario file (characters).
-MAX_STRING_LENGTH = 4096
-#: Longest list in a scenario file (entries: survey stations, profile breakpoints, ...).
-MAX_LIST_LENGTH = 100_000
-#: Deepest nesting of tables and lists.
-MAX_DEPTH = 16
-#: Largest magnitude of a bare number (SI); physical fields have narrower ranges
-#: (:data:`downhole.units.RANGES`).
-MAX_NUMBER = 1e15
-#: Largest magnitude of an integer (seeds, counts, ports).
-MAX_INTEGER = 2**63 - 1
-
-
-def read_scenario_text(path: str | Path) -> tuple[str, str]:
-    """Read a scenario file's text safely: ``(text, source)``.
-
-    Only a regular file is opened (a directory, a FIFO, a device or a socket is refused before
-    opening, so nothing blocks), at most :data:`MAX_FILE_BYTES` are read, and the bytes must be
-    UTF-8 without NUL characters.
-
-    Raises
-    ------
-    ScenarioError
-        Naming the file and what is wrong with it.
-    """
-    import os
-    import stat
-
-    path = Path(path)
-    source = str(path)
-    try:
-        st = os.stat(path)
-    except FileNotFoundError:
-        raise ScenarioError(source, "", "file not found") from None
-    except (OSError, ValueError) as exc:  # permission, a name too long, an embedded NUL
-        raise ScenarioError(source, "", f"cannot read the file ({exc})") from None
-    if not stat.S_ISREG(st.st_mode):
-        kind = ("a directory" if stat.S_ISDIR(st.st_mode) else
-                "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else
-                "a socket" if stat.S_ISSOCK(st.st_mode) else "a device or special file")
-        raise ScenarioError(source, "", f"is {kind}; expected a regular TOML file")
-    if st.st_size > MAX_FILE_BYTES:
-        raise ScenarioError(source, "", f"file of {st.st_size} bytes; a scenario is at most "
-                            f"{MAX_FILE_BYTES} bytes")
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
-    try:
-        fd = os.open(path, flags)
-    except OSError as exc:
-        raise ScenarioError(source, "", f"cannot read the file ({exc.strerror})") from None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):  # replaced between stat and open
-            raise ScenarioError(source, "", "is not a regular file")
-        with os.fdopen(fd, "rb", closefd=False) as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
-    except OSError as exc:
-        raise ScenarioError(source, "", f"cannot read the file ({exc.strerror})") from None
-    finally:
-        os.close(fd)
-    if len(raw) > MAX_FILE_BYTES:
-        raise ScenarioError(source, "", f"file larger than {MAX_FILE_BYTES} bytes; a scenario "
-                            "is a few kB")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw[:exc.start].count(b"\n") + 1
-        raise ScenarioError(source, "", f"not UTF-8 text: byte 0x{raw[exc.start]:02x} at "
-                            f"offset {exc.start} (line {line}); save the file as UTF-8"
-                            ) from None
-    if "\x00" in text:
-        line = text[:text.index("\x00")].count("\n") + 1
-        raise ScenarioError(source, "", f"NUL character at line {line}; a scenario is text")
-    return text, source
-
-
-def parse_toml_text(text: str, source: str) -> dict:
-    """Parse TOML text and check every value (:func:`check_values`).
-
-    Parameters
-    ----------
-    text : str
-        The file's text.
-    source : str
-        The file name for messages.
-
-    Returns
-    -------
-    dict
-        The parsed data.
-
-    Raises
-    ------
-    ScenarioError
-        Not valid TOML (also a 5000-digit integer or nesting too deep for the parser), or a
-        value no field accepts.
-    """
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(source, "", f"not valid TOML: {exc}") from None
-    except (ValueError, RecursionError, OverflowError) as exc:  # e.g. a 5000-digit integer
-        msg = str(exc).split(";")[0]
-        raise ScenarioError(source, "", f"not valid TOML: {msg}") from None
-    check_values(data, source)
-    return data
-
-
-def read_toml(path: str | Path) -> tuple[dict, str, str]:
-    """Read, parse and check a TOML scenario file.
-
-    Every command that reads a scenario goes through here (:func:`read_scenario_text`, then
-    :func:`parse_toml_text`), so hostile input gets one error naming the file and the field.
-
-    Parameters
-    ----------
-    path : str or Path
-        The scenario file.
-
-    Returns
-    -------
-    (dict, str, str)
-        The parsed data, the source name (the path as given) and the file's text.
-
-    Raises
-    ------
-    ScenarioError
-        Not a regular file, too large, not UTF-8, NUL characters, not TOML, or a value no field
-        accepts (:func:`check_values`).
-    """
-    text, source = read_scenario_text(path)
-    return parse_toml_text(text, source), source, text
-
-
-def check_values(data, source: str, prefix: str = "") -> None:
-    """Reject values no scenario field accepts, naming the dotted field.
-
-    Parameters
-    ----------
-    data : dict
-        A parsed scenario (nested dicts, lists and scalars).
-    source : str
-        The file name for messages.
-    prefix : str
-        Dotted path of ``data`` inside the scenario (empty for the whole file).
-
-    Raises
-    ------
-    ScenarioError
-        Non-finite numbers (``inf``, ``nan``), numbers beyond :data:`MAX_NUMBER` (integers
-        beyond :data:`MAX_INTEGER`), strings longer than :data:`MAX_STRING_LENGTH` or with
-        control characters (NUL, ...), lists longer than :data:`MAX_LIST_LENGTH`, nesting
-        deeper than :data:`MAX_DEPTH`. Physical ranges are checked per field later
-        (:mod:`downhole.units`).
-    """
-    import math
-
-    stack = [(prefix, data, 0)]
-    while stack:
-        field, value, depth = stack.pop()
-        where = field or "<top>"
-        if depth > MAX_DEPTH:
-            raise ScenarioError(source, where, f"nested deeper than {MAX_DEPTH} levels")
-        if isinstance(value, bool):
-            continue
-        if isinstance(value, int):
-            if abs(value) > MAX_INTEGER:
-                raise ScenarioError(source, where, f"integer out of range (|value| must be at "
-                                    f"most {MAX_INTEGER})")
-        elif isinstance(value, float):
-            if not math.isfinite(value):
-                raise ScenarioError(source, where, f"expected a finite number, got {value!r}")
-            if abs(value) > MAX_NUMBER:
-                raise ScenarioError(source, where, f"number {value:g} out of range (|value| "
-                                    f"must be at most {MAX_NUMBER:g}; see docs/scenarios.md)")
-        elif isinstance(value, str):
-            if len(value) > MAX_STRING_LENGTH:
-                raise ScenarioError(source, where, f"string of {len(value)} characters; at most "
-                                    f"{MAX_STRING_LENGTH} are accepted")
-            bad = next((c for c in value if (ord(c) < 32 and c not in "\t\n\r")
-                        or ord(c) == 127), None)
-            if bad is not None:
-                raise ScenarioError(source, where, f"control character {bad!r} in a string")
-            _check_numeric_string(value, source, where)
-        elif isinstance(value, dict):
-            for k, v in value.items():
-                ks = str(k)
-                if len(ks) > 128 or any(ord(c) < 32 or ord(c) == 127 for c in ks):
-                    raise ScenarioError(source, where, f"invalid key {ks[:40]!r}")
-                stack.append((f"{field}.{ks}" if field else ks, v, depth + 1))
-        elif isinstance(value, list):
-            if len(value) > MAX_LIST_LENGTH:
-                raise ScenarioError(source, where, f"list of {len(value)} entries; at most "
-                                    f"{MAX_LIST_LENGTH} are accepted")
-            for i, v in enumerate(value):
-                stack.append((f"{field}.{i}" if field else str(i), v, depth + 1))
-        # TOML dates and times pass through; the schemas reject them where a number is expected
-
-
 #: Most time steps one run may take.
 MAX_STEPS = 200_000_000
 #: Most samples one run may record.
@@ -550,36 +354,25 @@ def check_step_count(source: str, duration: float, dt: float, record_dt: float |
                             f"(record_dt >= {duration / MAX_SAMPLES:.3g} s)")
 
 
-def _check_numeric_string(value: str, source: str, where: str) -> None:
-    """A string that is a bare number ("1e300", "nan", "inf") reaches plain float fields through
-    pydantic's coercion: hold it to the same rules as a number."""
-    import math
-
-    text = value.strip()
-    if not text or len(text) > 40 or not (text[0].isdigit() or text[0] in "+-.iInN"):
-        return
-    try:
-        number = float(text)
-    except ValueError:
-        return
-    if not math.isfinite(number):
-        raise ScenarioError(source, where, f"expected a finite number, got {value!r}")
-    if abs(number) > MAX_NUMBER:
-        raise ScenarioError(source, where, f"number {value!r} out of range (|value| must be at "
-                            f"most {MAX_NUMBER:g}; see docs/scenarios.md)")
-
-
 def load_scenario(path: str | Path) -> tuple[dict, str, str]:
     """Read a TOML scenario file: returns ``(data, source, text)`` (see :func:`read_toml`)."""
     return read_toml(path)
 
 
 def model_type(data: dict, source: str) -> str:
-    """The scenario's ``[model] type``, checked against the registered types."""
+    """The scenario's ``[model] type``, checked against the registered types; ``"system"`` for a
+    file that describes the system and chooses ``[model] fidelity``
+    (:mod:`downhole.scenario.system`)."""
     model = data.get("model", {})
     if not isinstance(model, dict):
         raise ScenarioError(source, "model", "expected a table [model]")
     _load_plugins()
+    if "fidelity" in model:
+        if "type" in model:
+            raise ScenarioError(source, "model.type", "give either [model] fidelity (a system "
+                                "description: [well], [string], [bit], [rig], [operation]) or "
+                                "the older [model] type, not both")
+        return "system"
     if "type" not in model:
         raise ScenarioError(source, "model.type", "required field is missing "
                             f"(one of {sorted(MODEL_TYPES)})")
@@ -596,13 +389,26 @@ def is_lumped_type(mtype: str) -> bool:
     return MODEL_TYPES.get(mtype) is _run_lumped
 
 
-def validate_data(data: dict, source: str) -> str:
+def _check_override(mtype: str, fidelity: str | None, source: str) -> None:
+    if fidelity is not None and mtype != "system":
+        raise ScenarioError(source, "model.type", f"--fidelity {fidelity} needs a file that "
+                            "describes the system ([model] fidelity, [well], [string], [bit], "
+                            f"[rig], [operation]); this one is [model] type = {mtype!r}")
+
+
+def validate_data(data: dict, source: str, fidelity: str | None = None) -> str:
     """Validate a parsed scenario without running it: its model type, then the type's full
-    schema, model and run settings (lumped, neutral, FEM / hybrid, DHP; a registered plug-in
-    type only by name). Returns the model type; raises :class:`ScenarioError`."""
+    schema, model and run settings (system description at its fidelity, lumped, neutral,
+    FEM / hybrid, DHP; a registered plug-in type only by name). ``fidelity`` overrides a system
+    scenario's ``[model] fidelity``. Returns the model type; raises :class:`ScenarioError`."""
     check_values(data, source)
     mtype = model_type(data, source)
-    if is_lumped_type(mtype):
+    _check_override(mtype, fidelity, source)
+    if mtype == "system":
+        from downhole.scenario.system import validate_system_scenario
+
+        validate_system_scenario(data, source, fidelity)
+    elif is_lumped_type(mtype):
         validate_lumped(data, source)
     elif mtype in _VALIDATORS:
         import importlib
@@ -613,7 +419,7 @@ def validate_data(data: dict, source: str) -> str:
 
 
 def _validate_dhp(data: dict, source: str):
-    from downhole.cli.design_dhp import parse_dhp_scenario
+    from downhole.scenario.dhp import parse_dhp_scenario
 
     base = Path(source).parent if not source.startswith("<") else None
     return parse_dhp_scenario(data, source, "", base=base)
@@ -621,21 +427,34 @@ def _validate_dhp(data: dict, source: str):
 
 #: Validators (without running) of the built-in non-lumped model types: module, function.
 _VALIDATORS: dict[str, tuple[str, str]] = {
-    "neutral": ("downhole.string.neutral_scenario", "validate_neutral_scenario"),
-    "fem": ("downhole.string.directional_scenario", "validate_directional_scenario"),
-    "hybrid": ("downhole.string.directional_scenario", "validate_directional_scenario"),
+    "neutral": ("downhole.scenario.neutral", "validate_neutral_scenario"),
+    "fem": ("downhole.scenario.directional", "validate_directional_scenario"),
+    "hybrid": ("downhole.scenario.directional", "validate_directional_scenario"),
     "dhp": ("downhole.scenario", "_validate_dhp"),
 }
 
 
-def validate_scenario(path: str | Path) -> None:
-    """Validate a scenario file without running it (raises :class:`ScenarioError`)."""
+def validate_scenario(path: str | Path, fidelity: str | None = None) -> None:
+    """Validate a scenario file without running it (raises :class:`ScenarioError`);
+    ``fidelity`` overrides a system scenario's ``[model] fidelity``."""
     data, source, _ = load_scenario(path)
-    validate_data(data, source)
+    validate_data(data, source, fidelity)
 
 
-def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>") -> "Result":  # noqa: F821
-    """Run a scenario file (or an already-parsed dict) and return its Result."""
+def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>",
+                 fidelity: str | None = None) -> "Result":  # noqa: F821
+    """Run a scenario file (or an already-parsed dict) and return its Result.
+
+    Parameters
+    ----------
+    path_or_data : str, Path or dict
+        The scenario file, or its parsed content.
+    source : str
+        Name used in messages for a dict.
+    fidelity : str, optional
+        Overrides ``[model] fidelity`` of a system scenario (``lumped4``, ``lumped12``,
+        ``neutral``, ``fem``, ``hybrid``); refused for the older ``[model] type`` files.
+    """
     if isinstance(path_or_data, dict):
         import tomli_w
 
@@ -644,6 +463,11 @@ def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>") -> "Re
     else:
         data, source, text = load_scenario(path_or_data)
     mtype = model_type(data, source)
+    _check_override(mtype, fidelity, source)
+    if mtype == "system":
+        from downhole.scenario.system import run_system_scenario
+
+        return run_system_scenario(data, source, text, fidelity)
     return MODEL_TYPES[mtype](data, source, text)
 
 
@@ -658,7 +482,7 @@ def _load_plugins() -> None:
     _PLUGINS_LOADED = True
     import importlib
 
-    for mod in ("downhole.scenario_types",):
+    for mod in ("downhole.scenario.types",):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:

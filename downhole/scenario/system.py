@@ -1,0 +1,494 @@
+"""Scenario files that describe the drilling system once and choose the model fidelity.
+
+``[model] fidelity = "lumped4" | "lumped12" | "neutral" | "fem" | "hybrid"`` selects this dialect
+(``downhole simulate FILE --fidelity NAME`` overrides the file's choice). The well, the string,
+the bit and the rig are described once and turned into a :class:`~downhole.system.DrillingSystem`,
+which builds the model of the chosen fidelity; the run uses that fidelity's simulate function with
+the scenario's set-points. Schema (``docs/scenarios.md``, "Describing the system")::
+
+    title = "..."
+    [model]
+    fidelity = "fem"              # lumped4 | lumped12 | neutral | fem | hybrid
+    friction = 0.0                # wellbore friction; > 0 in a deviated well: fem / hybrid only
+    rayleigh_alpha = 0.05         # 1/s   string damping alpha0 M + beta0 K
+    rayleigh_beta = 0.03          # s
+    lump_length = "10 m"          # neutral, no BHA: bottom length lumped into the bit
+    wave_section = ["2000 m", "3000 m"]   # hybrid: MD of B and C (default: DrillingSystem's)
+    [model.fem]                   # per-fidelity options (each table optional)
+    elements = 107
+    [model.hybrid]
+    preset = "hybrid68"           # or nodes_ab / nodes_cd
+    [model.lumped4]               # and [model.lumped12]
+    reference_elements = 400      # FEM whose first frequency the chain matches
+    [model.neutral]
+    lump = ["heavyweight"]        # kinds lumped into the bit besides collars / bha
+    # every per-fidelity table also takes `friction`, overriding [model] friction there
+
+    [well]                        # sections, md/inclination/azimuth lists or a survey CSV
+    [string]                      # mud_density, [[string.segments]] (required), stabilizers
+    [bit]                         # preset = "table_5_1" (default) + BitParams fields, law = ...
+    [rig.top_drive]               # inertia, kp, ki (PI speed controller)
+    [rig.hook]                    # servo_stiffness, servo_damping, block_mass
+
+    [operation]
+    surface_speed = "10 rad/s"    # top-drive speed set-point
+    rop = "10 mm/s"               # or wob = "80 kN" (exactly one)
+
+    [simulation]
+    duration = "10 s"
+    dt = "1 ms"                   # default per fidelity (lumped 0.5 ms, neutral 0.1 ms, FEM 1 ms)
+    record_dt = "10 ms"
+    depth_of_cut = "delayed"      # or "approximate"
+    start = "rest"                # rest | off_bottom | steady (where the fidelity supports it)
+    integrator = "newmark"        # lumped only: newmark (default) | euler (dt checked)
+
+How each fidelity is driven by the set-points: lumped, the top drive moves at ``rop`` and
+``surface_speed`` (velocity inputs); neutral, the open-loop commands of the steady state at those
+velocities (:meth:`~downhole.string.neutral.NeutralModel.steady_inputs`); FEM and hybrid, the PI
+top drive at ``surface_speed`` and a velocity-servo hook at ``rop`` (or a force hook at ``wob``).
+A ``wob`` set-point is turned into the ROP of the steady bit state (approximate depth of cut) for
+the lumped and neutral models, a ``rop`` into the steady WOB as the FEM's initial state.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from types import SimpleNamespace
+from typing import Any, Literal, Optional
+
+from pydantic import Field, ValidationError, field_validator, model_validator
+
+from downhole.errors import DownholeInputError, ScenarioError
+from downhole.params.quantity import Q
+from downhole.scenario import (_raise_validation, _Strict, check_step_count, euler_stable_dt,
+                               parse_scenario)
+from downhole.scenario.directional import (SegmentSettings, StabilizerSettings, WellSettings,
+                                           _string, _well)
+
+__all__ = ["SystemScenario", "FIDELITY_NAMES", "RENAMED", "is_system_dialect",
+           "check_fidelity", "build_system", "validate_system_scenario", "run_system_scenario",
+           "steady_bit_state"]
+
+#: The fidelities a system scenario can run at (:data:`downhole.system.FIDELITIES`).
+FIDELITY_NAMES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
+
+#: Default step per fidelity, s.
+DEFAULT_DT = {"lumped4": 5e-4, "lumped12": 5e-4, "neutral": 1e-4, "fem": 1e-3, "hybrid": 1e-3}
+
+#: Keys of the older dialects and their names here (dotted; ``None``: the table has no
+#: counterpart). A system scenario that uses one gets one line naming the new key.
+RENAMED = {
+    "model.type": "model.fidelity",
+    "model.preset": "bit.preset (the bit) and [well] / [string] (the well and string)",
+    "model.elements": "model.fem.elements",
+    "model.nodes_ab": "model.hybrid.nodes_ab",
+    "model.nodes_cd": "model.hybrid.nodes_cd",
+    "model.md_b": "model.wave_section = [B, C]",
+    "model.md_c": "model.wave_section = [B, C]",
+    "model.n_lags": "model.hybrid.n_lags",
+    "model.string": "[string] (segments) and rig",
+    "model.bit": "[bit]",
+    "surface": "[operation] (surface_speed, rop)",
+    "surface.angular_velocity": "operation.surface_speed",
+    "surface.axial_velocity": "operation.rop",
+    "controller": "[rig.top_drive] (inertia, kp, ki) and operation.surface_speed",
+    "controller.speed": "operation.surface_speed",
+    "controller.kp": "rig.top_drive.kp",
+    "controller.ki": "rig.top_drive.ki",
+    "controller.inertia": "rig.top_drive.inertia",
+    "hook": "[rig.hook] (servo_stiffness, servo_damping, block_mass) and operation.rop / wob",
+    "hook.wob": "operation.wob",
+    "hook.velocity": "operation.rop",
+    "hook.servo_stiffness": "rig.hook.servo_stiffness",
+    "hook.servo_damping": "rig.hook.servo_damping",
+    "hook.block_mass": "rig.hook.block_mass",
+    "runtime": "[simulation]",
+    "name": "title",
+}
+
+
+def check_fidelity(name, source: str, field: str = "model.fidelity") -> str:
+    """``name`` if it is a fidelity, else :class:`ScenarioError` naming ``field``."""
+    if not isinstance(name, str) or name not in FIDELITY_NAMES:
+        raise ScenarioError(source, field, f"unknown fidelity {name!r}; expected one of "
+                            f"{', '.join(FIDELITY_NAMES)}")
+    return name
+
+
+def is_system_dialect(data: dict) -> bool:
+    """True for a file that describes the system (``[model] fidelity``)."""
+    model = data.get("model")
+    return isinstance(model, dict) and "fidelity" in model
+
+
+# ---------------------------------------------------------------------------------- schema
+class _Options(_Strict):
+    friction: Optional[float] = Field(None, ge=0, le=10)
+
+
+class LumpedOptions(_Options):
+    """``[model.lumped4]`` / ``[model.lumped12]``."""
+
+    reference_elements: int = Field(400, ge=20, le=2000)
+
+
+class NeutralOptions(_Options):
+    """``[model.neutral]``: segment kinds lumped into the bit besides collars and "bha"."""
+
+    lump: list[Literal["pipe", "heavyweight"]] = Field(default_factory=list, max_length=2)
+
+
+class FemOptions(_Options):
+    """``[model.fem]``."""
+
+    elements: int = Field(107, ge=1, le=5000)
+    mass: Literal["consistent", "lumped"] = "consistent"
+
+
+class HybridOptions(_Options):
+    """``[model.hybrid]``."""
+
+    preset: Optional[Literal["hybrid24", "hybrid68", "hybrid108"]] = None
+    nodes_ab: Optional[int] = Field(None, ge=2, le=2000)
+    nodes_cd: Optional[int] = Field(None, ge=2, le=2000)
+    n_lags: int = Field(0, ge=0, le=8)
+
+
+class SystemModelSettings(_Strict):
+    """``[model]``: the fidelity and the constants of the description."""
+
+    fidelity: str
+    friction: float = Field(0.0, ge=0, le=10)
+    rayleigh_alpha: float = Field(0.05, ge=0, le=1e3)
+    rayleigh_beta: float = Field(0.03, ge=0, le=1e3)
+    lump_length: Q["length"] = Field(10.0, gt=0)
+    wave_section: Optional[list[Q["length"]]] = Field(None, min_length=2, max_length=2)
+    lumped4: LumpedOptions = LumpedOptions()
+    lumped12: LumpedOptions = LumpedOptions()
+    neutral: NeutralOptions = NeutralOptions()
+    fem: FemOptions = FemOptions()
+    hybrid: HybridOptions = HybridOptions()
+
+    @field_validator("fidelity")
+    @classmethod
+    def _fidelity(cls, v):
+        if v not in FIDELITY_NAMES:
+            raise ValueError(f"unknown fidelity {v!r}; expected one of "
+                             f"{', '.join(FIDELITY_NAMES)}")
+        return v
+
+    @field_validator("wave_section")
+    @classmethod
+    def _section(cls, v):
+        if v is not None and not v[0] < v[1]:
+            raise ValueError(f"expected [B, C] with B < C (m), got {v}")
+        return v
+
+
+class SystemStringSettings(_Strict):
+    """``[string]``: segments from surface to bit (required), stabilizers, mud."""
+
+    segments: list[SegmentSettings] = Field(..., min_length=1, max_length=1000)
+    stabilizers: list[StabilizerSettings] = Field(default_factory=list, max_length=1000)
+    mud_density: Q["density"] = Field(0.0, ge=0)
+
+
+class TopDriveSettings(_Strict):
+    """``[rig.top_drive]``: inertia and PI speed controller."""
+
+    inertia: Q["inertia"] = Field(500.0, gt=0)
+    kp: Q["torsional_damping"] = Field(1e4, gt=0)
+    ki: Q["torsional_stiffness"] = Field(2e3, ge=0)
+
+
+class HookSettings(_Strict):
+    """``[rig.hook]``: hook / drawworks velocity servo."""
+
+    servo_stiffness: Q["stiffness"] = Field(1e7, gt=0)
+    servo_damping: Q["damping"] = Field(1e6, gt=0)
+    block_mass: Q["mass"] = Field(0.0, ge=0)
+
+
+class RigSettings(_Strict):
+    """``[rig]``."""
+
+    top_drive: TopDriveSettings = TopDriveSettings()
+    hook: HookSettings = HookSettings()
+
+
+class OperationSettings(_Strict):
+    """``[operation]``: the set-points (constants)."""
+
+    surface_speed: Q["angular_velocity"] = Field(10.0, gt=0)
+    rop: Optional[Q["velocity"]] = Field(None, gt=0, le=1.0)
+    wob: Optional[Q["force"]] = Field(None, gt=0)
+
+    @model_validator(mode="after")
+    def _one(self):
+        if (self.rop is None) == (self.wob is None):
+            raise ValueError("give exactly one of rop and wob (the axial set-point)")
+        return self
+
+
+class SystemSimulation(_Strict):
+    """``[simulation]``."""
+
+    duration: Q["time"] = Field(..., gt=0)
+    dt: Optional[Q["time"]] = Field(None, gt=0, le=0.01)
+    record_dt: Optional[Q["time"]] = Field(0.01, gt=0)
+    depth_of_cut: Literal["delayed", "approximate"] = "delayed"
+    start: Literal["rest", "off_bottom", "steady"] = "rest"
+    integrator: Literal["euler", "newmark"] = "newmark"
+
+
+class SystemScenario(_Strict):
+    """A whole system-description scenario."""
+
+    title: str = ""
+    description: str = ""
+    model: SystemModelSettings
+    well: WellSettings
+    string: SystemStringSettings
+    bit: dict[str, Any] = Field(default_factory=dict)
+    rig: RigSettings = RigSettings()
+    operation: OperationSettings
+    simulation: SystemSimulation
+
+
+def _check_renames(data: dict, source: str) -> None:
+    for dotted in sorted(RENAMED, key=lambda k: -k.count(".")):  # the most precise key first
+        new = RENAMED[dotted]
+        node = data
+        parts = dotted.split(".")
+        for p in parts[:-1]:
+            node = node.get(p) if isinstance(node, dict) else None
+        if isinstance(node, dict) and parts[-1] in node:
+            raise ScenarioError(source, dotted, f"renamed in a system scenario ([model] "
+                                f"fidelity): use {new} (see docs/scenarios.md)")
+    model = data.get("model")
+    if isinstance(model, dict) and isinstance(model.get("hybrid"), str):
+        raise ScenarioError(source, "model.hybrid", "renamed in a system scenario: use "
+                            "model.hybrid.preset (see docs/scenarios.md)")
+
+
+# ---------------------------------------------------------------------------------- build
+def _bit(sc: SystemScenario, source: str):
+    from downhole.params import BitParams, get_preset
+
+    over = dict(sc.bit)
+    name = over.pop("preset", "table_5_1")
+    try:
+        preset = get_preset(name)
+    except (KeyError, TypeError) as exc:
+        raise ScenarioError(source, "bit.preset", str(exc.args[0] if exc.args else exc)
+                            ) from None
+    try:
+        return BitParams(**{**preset.bit.model_dump(), **over})
+    except ValidationError as exc:
+        _raise_validation(source, exc, "bit.")
+    except (ValueError, TypeError, DownholeInputError) as exc:
+        raise ScenarioError(source, "bit", str(exc)) from None
+
+
+def _friction(sc: SystemScenario, fidelity: str) -> float:
+    own = getattr(sc.model, fidelity).friction
+    return sc.model.friction if own is None else own
+
+
+def build_system(sc: SystemScenario, source: str, fidelity: str):
+    """The :class:`~downhole.system.DrillingSystem` a parsed system scenario describes, with the
+    friction that applies at ``fidelity`` (raises :class:`ScenarioError` naming the field)."""
+    from downhole.params.rig import Hook, TopDrive
+    from downhole.system import DrillingSystem, Rig
+
+    bit = _bit(sc, source)
+    well = _well(SimpleNamespace(well=sc.well), source, None)
+    string = _string(SimpleNamespace(string=sc.string), source,
+                     SimpleNamespace(pipe=None, g=9.81), well)
+    td, hk = sc.rig.top_drive, sc.rig.hook
+    try:
+        rig = Rig(TopDrive(inertia=td.inertia, speed=sc.operation.surface_speed, kp=td.kp,
+                           ki=td.ki),
+                  Hook(servo_stiffness=hk.servo_stiffness, servo_damping=hk.servo_damping,
+                       block_mass=hk.block_mass))
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "rig", str(exc)) from None
+    if fidelity == "neutral" and sc.model.neutral.lump:
+        from downhole.string.drillstring import DrillString, StringSegment
+
+        segs = tuple(StringSegment(s.length, s.section, "bha")
+                     if s.kind in sc.model.neutral.lump else s for s in string.segments)
+        string = DrillString(segs, string.stabilizers, mud_density=string.mud_density,
+                             g=string.g)
+    ws = sc.model.wave_section
+    try:
+        return DrillingSystem(well=well, string=string, bit=bit, rig=rig,
+                              friction=_friction(sc, fidelity),
+                              rayleigh_alpha=sc.model.rayleigh_alpha,
+                              rayleigh_beta=sc.model.rayleigh_beta,
+                              lump_length=sc.model.lump_length,
+                              wave_section=tuple(ws) if ws is not None else None)
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "string", str(exc)) from None
+
+
+def _build_options(sc: SystemScenario, fidelity: str) -> dict:
+    if fidelity in ("lumped4", "lumped12"):
+        return {"reference_elements": getattr(sc.model, fidelity).reference_elements}
+    if fidelity == "fem":
+        return {"n_elements": sc.model.fem.elements, "mass": sc.model.fem.mass}
+    if fidelity == "hybrid":
+        h = sc.model.hybrid
+        preset = h.preset if h.preset is not None else (
+            None if (h.nodes_ab is not None and h.nodes_cd is not None) else "hybrid68")
+        return {"preset": preset, "n_ab": h.nodes_ab, "n_cd": h.nodes_cd, "n_lags": h.n_lags}
+    return {}
+
+
+def steady_bit_state(bit, surface_speed: float, rop: float | None = None,
+                     wob: float | None = None) -> tuple[float, float, float]:
+    """``(rop, wob, tob)`` of steady cutting at ``surface_speed`` with the approximate depth of
+    cut d = 2 pi v / omega (Eq. 2.11): from the ROP, or the ROP that gives ``wob``.
+
+    Raises
+    ------
+    DownholeInputError
+        When no ROP up to 1 m/s reaches ``wob``.
+    """
+    from scipy.optimize import brentq
+
+    from downhole.bit.law import bit_forces_py
+
+    def forces(v):
+        d = 2 * math.pi * v / max(surface_speed, bit.omega_floor)
+        return bit_forces_py(d, v, surface_speed, bit)
+
+    if rop is None:
+        hi = 1.0
+        if forces(hi)[0] < wob:
+            raise DownholeInputError(f"operation.wob = {wob:g} N is not reached at any ROP up "
+                                     f"to {hi:g} m/s with this bit at {surface_speed:g} rad/s")
+        rop = brentq(lambda v: forces(v)[0] - wob, 1e-12, hi, xtol=1e-14, rtol=1e-12)
+    w, t = forces(rop)
+    return float(rop), float(w), float(t)
+
+
+def validate_system_scenario(data: dict, source: str, fidelity: str | None = None):
+    """Validate a system scenario for a run at ``fidelity`` (default: the file's) without
+    running it: schema, renamed keys, the description, the model and the step settings.
+
+    Returns
+    -------
+    (SystemScenario, str, DrillingSystem, model)
+        The parsed file, the fidelity, the description and the built model.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and the dotted field (``model.fidelity`` for a feature the fidelity
+        cannot represent, ``--fidelity`` for a bad override).
+    """
+    _check_renames(data, source)
+    if fidelity is not None:
+        check_fidelity(fidelity, source, "--fidelity")
+    sc = parse_scenario(data, source, SystemScenario)
+    fid = fidelity or sc.model.fidelity
+    system = build_system(sc, source, fid)
+    try:
+        model = system.build(fid, **_build_options(sc, fid))
+    except DownholeInputError as exc:
+        field = "model.fidelity" if fidelity is None else "--fidelity"
+        raise ScenarioError(source, field, f"{fid}: {exc}") from None
+    sim = sc.simulation
+    dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]
+    if dt > sim.duration:
+        raise ScenarioError(source, "simulation.dt", f"dt ({dt:g} s) exceeds duration "
+                            f"({sim.duration:g} s)")
+    check_step_count(source, sim.duration, dt, sim.record_dt)
+    if sim.record_dt is not None and sim.record_dt < dt:
+        raise ScenarioError(source, "simulation.record_dt", f"record_dt ({sim.record_dt:g} s) "
+                            f"is below dt ({dt:g} s)")
+    if fid in ("lumped4", "lumped12") and sim.integrator == "euler":
+        bound, mode = euler_stable_dt(model)
+        if dt >= bound:
+            raise ScenarioError(source, "simulation.dt", f"dt = {dt:g} s is too large for "
+                                f"{fid}: explicit Euler is stable only for dt < {bound:.4g} s "
+                                f"(the {mode.get('field', '?')} mode at "
+                                f"{mode.get('frequency', 0.0):.4g} rad/s); use a smaller dt or "
+                                "integrator = 'newmark'")
+    if fid == "neutral" and dt > min(model.tau1, model.tau2):
+        raise ScenarioError(source, "simulation.dt", f"dt = {dt:g} s exceeds the neutral "
+                            f"model's wave delay {min(model.tau1, model.tau2):.4g} s")
+    if sim.start != "rest":
+        _start_supported(fid, sim.start, source)
+    try:
+        steady_bit_state(system.bit, sc.operation.surface_speed, sc.operation.rop,
+                         sc.operation.wob)
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "operation.wob", str(exc)) from None
+    return sc, fid, system, model
+
+
+def _simulate_function(fid: str):
+    if fid in ("lumped4", "lumped12"):
+        from downhole.sim import simulate
+
+        return simulate
+    if fid == "neutral":
+        from downhole.string.neutral import simulate_neutral
+
+        return simulate_neutral
+    from downhole.string.fem import simulate_directional
+
+    return simulate_directional
+
+
+def _start_supported(fid: str, start: str, source: str) -> None:
+    if "start" not in inspect.signature(_simulate_function(fid)).parameters:
+        raise ScenarioError(source, "simulation.start", f"start = {start!r} is not supported "
+                            f"at fidelity {fid!r} yet; use start = 'rest' or fidelity "
+                            "'lumped4' / 'lumped12'")
+
+
+def run_system_scenario(data: dict, source: str, text: str, fidelity: str | None = None):
+    """Validate and run a system scenario at ``fidelity`` (default: the file's ``[model]
+    fidelity``); returns the :class:`~downhole.sim.Result` (attrs ``fidelity``, ``scenario``)."""
+    from downhole.params.rig import Hook, TopDrive
+
+    sc, fid, system, model = validate_system_scenario(data, source, fidelity)
+    sim, op = sc.simulation, sc.operation
+    dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]
+    attrs = {"scenario": text, "scenario_source": source, "title": sc.title, "fidelity": fid}
+    rop, wob, tob = steady_bit_state(system.bit, op.surface_speed, op.rop, op.wob)
+    func = _simulate_function(fid)
+    kw = {"start": sim.start} if "start" in inspect.signature(func).parameters else {}
+    try:
+        if fid in ("lumped4", "lumped12"):
+            from downhole.sim import SurfaceInputs
+
+            return func(model, SurfaceInputs.velocity(rop, op.surface_speed),
+                        duration=sim.duration, dt=dt, depth_of_cut=sim.depth_of_cut,
+                        integrator=sim.integrator, record_dt=sim.record_dt, attrs=attrs, **kw)
+        if fid == "neutral":
+            u = model.steady_inputs(rop, op.surface_speed, wob, tob)
+            return func(model, duration=sim.duration, dt=dt, inputs=u,
+                        depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt, attrs=attrs,
+                        **kw)
+        td = sc.rig.top_drive
+        top = TopDrive(inertia=td.inertia, mode="pi", speed=op.surface_speed, kp=td.kp,
+                       ki=td.ki)
+        hk = sc.rig.hook
+        if op.rop is not None:
+            hook = Hook(mode="velocity", wob=wob, velocity=rop, block_mass=hk.block_mass,
+                        servo_stiffness=hk.servo_stiffness, servo_damping=hk.servo_damping)
+        else:
+            hook = Hook(mode="force", wob=op.wob, block_mass=hk.block_mass,
+                        servo_stiffness=hk.servo_stiffness, servo_damping=hk.servo_damping)
+        return func(model, sim.duration, dt, top_drive=top, hook=hook,
+                    depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt, scenario=text,
+                    attrs=attrs, **kw)
+    except ScenarioError:
+        raise
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "simulation", f"{fid}: {exc}") from None
