@@ -438,7 +438,8 @@ def test_a_flood_costs_a_bounded_share_of_the_period_and_is_counted(tmp_path):
           f"{1e6 * np.percentile(rx, 99):.1f} us (period {1e6 * dt:.0f} us); late commands "
           f"{rt.stats['late_commands']}, safe actions {rt.stats['safe_actions']}")
     assert sent == n
-    assert junk > 100 and c["refused"] > 0 and c["rx_capped"] > 10  # how many get read depends on the load
+    # how many junk datagrams get read in the run depends on the load
+    assert junk > 100 and c["refused"] > 0 and c["rx_capped"] > 10
     assert "receive_bound" in [e["kind"] for e in rt.events]
     assert flood_cost.mean() < 0.1 * dt and np.percentile(flood_cost, 99) < 0.1 * dt
     assert rt.stats["mean_rx_listen_s"] < 0.1 * dt
