@@ -364,8 +364,13 @@ def _neutral_steady(model: NeutralModel, u_rel: float, u_t: float):
                 (w - u_t + tob / p.alpha_torsional) / u_t]
 
     v0, w0, _, _ = model.steady_state(u_rel + model.hang_command, u_t)
-    guess = (v0, w0) if v0 > 0 and w0 > 0 else (max(u_rel, 1e-6), u_t)
-    (v, w), _info, ok, _ = fsolve(res, guess, full_output=True, xtol=1e-13)
+    # Newton from a few starts (the fixed-point iterate, the commands, half the axial command):
+    # the first that converges to a cutting state wins
+    guesses = [(v0, w0), (max(u_rel, 1e-6), u_t), (max(0.5 * u_rel, 1e-6), 0.9 * u_t)]
+    for guess in guesses:
+        (v, w), _info, ok, _ = fsolve(res, guess, full_output=True, xtol=1e-13)
+        if ok == 1 and v > 0 and w > 0 and max(abs(x) for x in res((v, w))) <= 1e-9:
+            break
     if ok != 1 or not (v > 0 and w > 0) or max(abs(x) for x in res((v, w))) > 1e-9:
         raise DownholeInputError(
             f"no steady drilling state of the neutral model at top_drive_axial_velocity = "
