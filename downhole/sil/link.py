@@ -759,25 +759,28 @@ class ControllerClient:
         self.counters["tx"] += 1
 
     def serve(self, controller, *, idle_timeout: float = 5.0, max_steps: int | None = None,
-              reference: dict | None = None, realtime: bool = False) -> int:
+              reference: dict | None = None, realtime: bool = False,
+              hold: dict | None = None) -> int:
         """Answer observations with ``controller.command(t, observation, reference)`` until the
         plant says BYE, nothing arrives for ``idle_timeout`` s, or ``max_steps`` answers.
 
         ``observation`` is a dict of the layout's names; ``reference`` is the ``reference``
         argument if given, else built from the observations ``reference_axial_velocity`` and
-        ``reference_angular_velocity`` when the plant sends them. The command dict must name
-        every layout command. ``realtime``: try SCHED_FIFO for this thread while serving.
-        Returns the number of commands sent.
+        ``reference_angular_velocity`` when the plant sends them. The command dict names the
+        layout's commands; a command the controller does not set (a rotary controller on a plant
+        that also takes an axial command) is sent at its ``hold`` value, and its absence without
+        one is an error. ``realtime``: try SCHED_FIFO for this thread while serving. Returns the
+        number of commands sent.
         """
         from downhole.sil.runtime import elevate_priority
 
         restore = elevate_priority()[0] if realtime else (lambda: None)
         try:
-            return self._serve(controller, idle_timeout, max_steps, reference)
+            return self._serve(controller, idle_timeout, max_steps, reference, dict(hold or {}))
         finally:
             restore()
 
-    def _serve(self, controller, idle_timeout, max_steps, reference) -> int:
+    def _serve(self, controller, idle_timeout, max_steps, reference, hold) -> int:
         if self.layout is None:
             self.connect()
         names = self.layout.observations
@@ -797,16 +800,16 @@ class ControllerClient:
                        "reference_angular_velocity": obs["reference_angular_velocity"]}
             probe = t < 0
             cmd = controller.command(max(t, 0.0), obs, ref)
-            if probe:  # readiness probe: the call above warmed the controller up
-                controller.reset()
-                out = [float(cmd[c]) for c in cnames]
-                self.send_command(seq, t, stamp, out)
-                continue
             try:
-                out = [float(cmd[c]) for c in cnames]
+                out = [float(cmd[c] if c in cmd else hold[c]) for c in cnames]
             except KeyError as exc:
                 raise DownholeInputError(f"controller command lacks {exc.args[0]!r}; the plant "
-                                         f"expects {cnames}") from None
+                                         f"expects {cnames} (give hold= for the commands the "
+                                         "controller does not set)") from None
+            if probe:  # readiness probe: the call above warmed the controller up
+                controller.reset()
+                self.send_command(seq, t, stamp, out)
+                continue
             self.send_command(seq, t, stamp, out)
             sent += 1
         return sent

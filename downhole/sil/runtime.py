@@ -484,6 +484,10 @@ class RealTimeRunner:
             cmd = self._safe_command(t)
         elif self.controller is not None:
             raw = self.controller.command(t, self._controller_obs(obs), self._controller_reference())
+            declared = getattr(self.controller, "commands", None)
+            if declared and isinstance(raw, dict):
+                # commands a controller does not declare keep their last value (the contract)
+                raw = {**{k: v for k, v in self._last_cmd.items() if k not in declared}, **raw}
             why = self.plant.check_command(raw)
             if why is None:
                 cmd = {k: float(raw[k]) for k in self.plant.command_names}

