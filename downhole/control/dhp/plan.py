@@ -43,6 +43,7 @@ from downhole.control.affine import ControlAffineModel
 from downhole.control.dhp.controller import DHPController
 from downhole.control.dhp.references import BitReference
 from downhole.errors import DownholeInputError, SimulationDiverged
+from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
 __all__ = ["PlanSettings", "PlannedTrajectory", "plan_trajectory", "planned_controller",
            "design_dhp_planned", "PLANNED_WEIGHTS"]
@@ -101,7 +102,7 @@ class PlanSettings:
     axial_tolerance: float = 5e-4
     angular_tolerance: float = 1.0
     max_evaluations: int = 80
-    top_drive_inertia: float = 500.0
+    top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA
 
     def __post_init__(self):
         for name in ("duration", "knot_spacing", "axial_tolerance", "angular_tolerance",
