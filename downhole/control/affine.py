@@ -15,8 +15,8 @@ with ``A_d`` the zero-order-hold (``expm``) discretization of the linear mechani
 input map of the two surface inputs and ``h`` the discrete effect over one step of every force
 that is not linear in the state (bit/rock law with the approximated depth of cut and its floor
 omega* of Eq. 4.16, wellbore contact friction, ...). States are *deviations from the static
-hanging equilibrium* (gravity pre-balanced, SPEC.md), so ``z = 0, u = 0`` is a rest point off
-bottom. The non-dimensionalization of Eqs. 4.17-4.19 uses the diagonal state scale
+hanging equilibrium* (gravity pre-balanced, docs/seed-errata.md), so ``z = 0, u = 0`` is a rest
+point off bottom. The non-dimensionalization of Eqs. 4.17-4.19 uses the diagonal state scale
 ``P = diag(state_scale)`` and (a downhole addition, see below) an input scale
 ``U = diag(input_scale)``:
 
@@ -33,9 +33,9 @@ steps of a 40 s horizon at dt = 1e-3). Use :meth:`ControlAffineModel.from_physic
 from physical ``A_d``, ``B_d`` and a physical ``h``; it does the scaling.
 
 The seed keeps the inputs in physical units (N and N m), which is why its Table 4.1 has
-R = 1e-11; with that, the DHP iteration's contraction factor is ~1e9 (SPEC.md). An explicit
-``input_scale`` (e.g. 1e5 N and 1e4 N m) makes R of order one. ``input_scale = 1`` reproduces
-the seed's convention.
+R = 1e-11; with that, the DHP iteration's contraction factor is ~1e9 (docs/seed-errata.md). An
+explicit ``input_scale`` (e.g. 1e5 N and 1e4 N m) makes R of order one. ``input_scale = 1``
+reproduces the seed's convention.
 
 The Jacobian ``A_k = d zbar_{k+1} / d zbar_k`` used in the co-state recursion (Eq. 4.31) is by
 default the seed's choice ``P^-1 A_d P`` = ``linear`` (``jacobian(kind="seed")``);

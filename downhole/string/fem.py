@@ -3,13 +3,13 @@
 :func:`fem_model` meshes a :class:`~downhole.string.drillstring.DrillString` along a
 :class:`~downhole.well.WellPath` into 2-node bar elements carrying two 1-D fields along measured
 depth (axial displacement, twist angle). There is no cos-angle "rotation" (seed Eqs. 4.3-4.5,
-SPEC.md): curvature enters only through gravity (rho A g cos(inclination), lumped exactly as
-w * delta-TVD per element) and soft-string wellbore contact. Damping is Rayleigh (alpha0 M +
-beta0 K) or modal. The model is an immutable :class:`DirectionalModel`; :func:`simulate_directional`
-runs it (compiled implicit Newmark, :mod:`downhole.sim.fem_kernels`) from the static equilibrium
-and :class:`DirectionalPlant` steps it one dt at a time. ``DirectionalModel.linear_model`` exports
-the discrete linear model (A_d, B_d); the non-dimensional control-affine form for the DHP design
-(Eqs. 4.13-4.19, 4.25) is built from it on the control side,
+docs/seed-errata.md): curvature enters only through gravity (rho A g cos(inclination), lumped
+exactly as w * delta-TVD per element) and soft-string wellbore contact. Damping is Rayleigh (alpha0
+M + beta0 K) or modal. The model is an immutable :class:`DirectionalModel`;
+:func:`simulate_directional` runs it (compiled implicit Newmark, :mod:`downhole.sim.fem_kernels`)
+from the static equilibrium and :class:`DirectionalPlant` steps it one dt at a time.
+``DirectionalModel.linear_model`` exports the discrete linear model (A_d, B_d); the non-dimensional
+control-affine form for the DHP design (Eqs. 4.13-4.19, 4.25) is built from it on the control side,
 :func:`downhole.control.affine.from_directional`.
 """
 
@@ -161,7 +161,7 @@ class DirectionalModel:
                               name=f"{self.name} design FEM")
 
     def continuous_linear_model(self, top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA):
-        """Continuous ``(A, B, names)`` of Eq. 4.14 with B = [0; +M^-1 B_u] (SPEC correction).
+        """Continuous ``(A, B, names)`` of Eq. 4.14 with B = [0; +M^-1 B_u] (docs/seed-errata.md).
 
         States (seed Eq. 4.13 layout): [x_1, alpha_1, ..., x_N, alpha_N, then their velocities],
         deviations from the static hanging equilibrium. Inputs: ``slack_off_force`` (N, downward
@@ -348,7 +348,7 @@ def _damping(Ma, Ka, Mt, Kt, damping, alpha, beta, modal_ratio):
 
 
 def table_5_1_setup(params: DirectionalWellParams | None = None):
-    """Well, string and bit of the seed's Table 5.1 (corrected, SPEC.md)."""
+    """Well, string and bit of the seed's Table 5.1 (corrected, docs/seed-errata.md)."""
     from downhole.string.drillstring import DrillString
 
     p = params or get_preset("table_5_1").string
@@ -509,7 +509,7 @@ def _static_axial(m: DirectionalModel, wob: float) -> np.ndarray:
 
 def _line_preload(m: DirectionalModel, wob: float):
     """Static forces of the wave segment on B and C (downward) and its static elongation."""
-    from downhole.string.wave import line_preload
+    from downhole.sim.wave import line_preload
 
     wv = m.wave
     n_c = float(m.gravity[m.node_c:].sum()) - wob
@@ -623,7 +623,7 @@ class _Packed:
                     lag=t["lag"].copy())
 
     def _initial_state(self):
-        from downhole.string.wave import wave_state
+        from downhole.sim.wave import wave_state
 
         model = self.model
         n = model.n_nodes
@@ -638,7 +638,7 @@ class _Packed:
         if model.wave is not None:
             wa = wave_state(model.wave["segments"][0], self.dt)
             wt = wave_state(model.wave["segments"][1], self.dt)
-            from downhole.string.wave import wave_push
+            from downhole.sim.wave import wave_push
 
             wave_push(*wa, 0.0, 0.0)
             wave_push(*wt, 0.0, 0.0)

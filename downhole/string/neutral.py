@@ -31,14 +31,14 @@ from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, NeutralStringParams, get_preset
 from downhole.sim.references import as_reference
 from downhole.sim.result import Result
-from downhole.string.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WaveSegment,
-                                  segments_from_pipe, wave_read_at, wave_read_plan,
-                                  wave_source_forces, wave_state, wave_step_at)
+from downhole.sim.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WaveSegment,
+                               segments_from_pipe, wave_read_at, wave_read_plan,
+                               wave_source_forces, wave_state, wave_step_at)
 
 __all__ = ["NeutralModel", "NDDEMatrices", "NeutralPlant", "neutral_model", "simulate_neutral",
            "NEUTRAL_CHANNELS", "NOMINAL_U_A", "NOMINAL_U_T"]
 
-#: SPEC.md: open-loop commands giving 10 mm/s and 20 rad/s with Table 3.1.
+#: docs/seed-errata.md: open-loop commands giving 10 mm/s and 20 rad/s with Table 3.1.
 NOMINAL_U_A = 1.147224
 NOMINAL_U_T = 22.5196
 
@@ -521,7 +521,7 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
     inputs : SurfaceInputs or tuple, optional
         Open-loop commands (U_A, U_T) in the seed's convention (U_A includes M_S g/alpha_A):
         ``SurfaceInputs.velocity(axial=U_A, angular=U_T)`` or a pair of signals (constant,
-        ``(t, values)`` or ``f(t)``). Default SPEC's nominal (1.147224 m/s, 22.5196 rad/s), which
+        ``(t, values)`` or ``f(t)``). Default the nominal (1.147224 m/s, 22.5196 rad/s), which
         gives 10 mm/s and 20 rad/s. Ignored with a controller.
     reference : Reference or pair of signals, optional
         Closed-loop reference (bit axial velocity m/s, bit angular velocity rad/s); default the

@@ -171,8 +171,8 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
     v_eps_design : float
         Friction regularization of the design model, m/s.
     input_limits : ((float, float), (float, float)) or None
-        Slack-off force (N) and surface torque (N m) bounds applied online (SPEC.md: -50..300 kN,
-        +/-60 kN m).
+        Slack-off force (N) and surface torque (N m) bounds applied online (docs/seed-errata.md:
+        -50..300 kN, +/-60 kN m).
 
     Returns
     -------
