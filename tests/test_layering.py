@@ -138,3 +138,28 @@ def test_weight_registry_unknown_name_missing_file_and_bad_bytes(tmp_path):
     f.write_bytes(b"[a]\nr = [1.0, 1.0]\n\xff\xfe")
     with pytest.raises(DownholeInputError, match="not a valid TOML"):
         weight_set("a", str(f))
+
+
+def test_every_top_drive_inertia_default_is_the_one_named_default():
+    import inspect
+
+    from downhole.bench.ch5_models import _ode_rhs
+    from downhole.control.affine import from_directional
+    from downhole.control.dhp.directional import DirectionalStatePlant, directional_affine_model
+    from downhole.control.dhp.plan import PlanSettings
+    from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA, TopDrive
+    from downhole.params.strings import DirectionalWellParams
+    from downhole.sil.hil import HILStringPlant
+    from downhole.string.fem import DirectionalModel
+
+    assert TopDrive().inertia == DEFAULT_TOP_DRIVE_INERTIA
+    assert PlanSettings().top_drive_inertia == DEFAULT_TOP_DRIVE_INERTIA
+    assert DirectionalWellParams.model_fields["top_drive_inertia"].default \
+        == DEFAULT_TOP_DRIVE_INERTIA
+    funcs = [DirectionalModel.continuous_linear_model, DirectionalModel.linear_model,
+             DirectionalModel.nodal_force_map, from_directional, directional_affine_model,
+             DirectionalStatePlant.__init__, HILStringPlant.__init__]
+    for f in funcs:
+        assert inspect.signature(f).parameters["top_drive_inertia"].default \
+            == DEFAULT_TOP_DRIVE_INERTIA, f.__qualname__
+    assert inspect.signature(_ode_rhs).parameters["j_td"].default == DEFAULT_TOP_DRIVE_INERTIA
