@@ -5,8 +5,8 @@ one wave segment (surface to bit) per field, the bit mass and inertia at the bot
 Eliminating the waves gives the neutral delay-differential equations of Eq. 3.9 with the delays
 tau = L sqrt(rho/E), L sqrt(rho/G) (Eq. 3.10 prints them inverted); :meth:`NeutralModel.ndde`
 returns its matrices (Eq. 3.13) for control design. :func:`simulate_neutral` runs the wave form
-(compiled open loop, or closed loop through a controller's compiled command function in the same
-compiled loop, or any controller in a Python loop) and returns a Result.
+(compiled open loop, or closed loop through a controller's compiled runner built from this
+module's per-step functions, or any controller in a Python loop) and returns a Result.
 
 Conventions. Velocities positive downward / forward. The top boundary is the seed's
 ``N(0) = alpha_A (v_top - U_A) + (M_S + M_B) g`` (Eq. 3.5) with the string weight carried at the
@@ -207,112 +207,148 @@ def neutral_model(string: NeutralStringParams | str = "table_3_1",
 
 
 # ----------------------------------------------------------------------------------------------
-# compiled kernel: one loop, parametrized by a compiled command function (open loop below; a
-# controller's compiled closed loop through ``neutral_runner``, see simulate_neutral)
+# compiled kernel: per-step functions shared by the open-loop runner below and by the compiled
+# closed-loop runners that controllers offer through ``neutral_runner`` (see simulate_neutral)
 # ----------------------------------------------------------------------------------------------
 #: Names, in order, of the plant arguments (``plant_args``) that :func:`simulate_neutral` hands to
-#: a controller's compiled closed-loop runner; they follow ``cmd, ctl`` in :func:`neutral_loop`.
+#: a controller's compiled closed-loop runner; they are the first positional arguments of
+#: :func:`_run_neutral` and are passed on to :func:`neutral_wave_start`,
+#: :func:`neutral_top_and_bit`, :func:`neutral_record` and :func:`neutral_advance`.
 NEUTRAL_KERNEL_ARGS = ("za", "zt", "m_b", "i_b", "alpha_a", "alpha_t", "f_top", "m_s_g", "grav",
                        "bitp", "approx", "ha", "pa", "wpa", "ht", "pt", "wpt", "surf", "istate",
                        "rp")
 
 
-@njit(cache=True)
-def neutral_loop(cmd, ctl, za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, approx,
-                 ha, pa, wpa, ht, pt, wpt, surf, istate, rp, fnoise, nsteps, dt, every, out,
-                 bstate, t0):
-    """The neutral model's one compiled loop: advance the wave model ``nsteps`` steps from the bit
-    state ``bstate`` = [x, v, theta, omega] at time ``t0`` (updated in place; the wave buffers and
-    rock surface carry the rest of the state). Records t0 + k dt for k = 0, every, ..., nsteps;
-    returns (status, step, channel). The outgoing waves of the last time are not pushed, so a
-    later call continues the run.
-
-    The surface commands of each step come from ``ua, ut = cmd(ctl, k, v, w, dt, rec)``: a
-    compiled (``@njit``) function, ``ctl`` its arrays (a tuple), ``v``, ``w`` the bit velocities at
-    t_k, ``rec`` the record row written at this step or -1. Open loop: :func:`_open_commands`;
-    a controller's compiled closed loop supplies its own (e.g. the EID,
-    :mod:`downhole.control.eid.neutral_runner`). numba specializes the loop per command function,
-    so the plant physics below exists once."""
-    x = bstate[0]
-    v = bstate[1]
-    th = bstate[2]
-    w = bstate[3]
-    # wave clocks, capacities and read plans in locals (downhole.sim.wave)
+@njit(cache=True, inline="always")
+def neutral_wave_start(ha, pa, wpa, ht, pt, wpt):
+    """Wave clocks, the loop-invariant read plan ``(cap_a, cap_t, off_a, fr_a, off_t, fr_t)``
+    and the incoming waves at the current time: ``(na, nt, plan, a_in, b_in, a_in_t, b_in_t)``.
+    (The per-step functions group arguments in tuples: a call with more than 30 arguments is
+    not inlined by numba.)"""
     na = pa[0]
     nt = pt[0]
     cap_a = int(wpa[WP_CAP])
     cap_t = int(wpt[WP_CAP])
     off_a, fr_a = wave_read_plan(wpa[WP_DELAY_STEPS])
     off_t, fr_t = wave_read_plan(wpt[WP_DELAY_STEPS])
-    # incoming waves at t0 and the top node at t0
     a_in, b_in = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa[WP_A0], wpa[WP_B0])
     a_in_t, b_in_t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt[WP_A0], wpt[WP_B0])
+    return na, nt, (cap_a, cap_t, off_a, fr_a, off_t, fr_t), a_in, b_in, a_in_t, b_in_t
+
+
+@njit(cache=True, inline="always")
+def neutral_top_and_bit(za, zt, alpha_a, alpha_t, f_top, bitp, approx, surf, istate, rp,
+                        x, v, th, w, a_in, b_in, a_in_t, b_in_t, ua, ut, fwob, ftob):
+    """The algebraic part of one step at t_k: the massless top nodes under the surface commands
+    (``ua``, ``ut``; line force 2 Z b_in - Z v_top) and the bit forces (plus the force noise
+    ``fwob``, ``ftob``). Returns ``(vtop, wtop, d, wob, tob)``."""
+    sa_top, _ = wave_source_forces(za, a_in, b_in)
+    st_top, _ = wave_source_forces(zt, a_in_t, b_in_t)
+    vtop = (sa_top + alpha_a * ua - f_top) / (za + alpha_a)
+    wtop = (st_top + alpha_t * ut) / (zt + alpha_t)
+    if approx:
+        d = approx_depth_of_cut(v, w, bitp)
+    else:
+        d = rock_depth(surf, istate, rp, x, th)
+    wob, tob = bit_forces(d, v, w, bitp)
+    wob += fwob
+    tob += ftob
+    return vtop, wtop, d, wob, tob
+
+
+@njit(cache=True, inline="always")
+def neutral_record(out, rec, t, x, v, th, w, d, wob, tob, vtop, wtop, ua, ut, alpha_a, alpha_t,
+                   f_top, m_s_g):
+    """Write the row ``rec`` of :data:`NEUTRAL_CHANNELS` (hook load N(0) + M_S g, surface torque
+    alpha_T (U_T - omega_top)); returns the first non-finite channel index, 0 if none."""
+    out[rec, 0] = t
+    out[rec, 1] = x
+    out[rec, 2] = v
+    out[rec, 3] = th
+    out[rec, 4] = w
+    out[rec, 5] = d
+    out[rec, 6] = wob
+    out[rec, 7] = tob
+    out[rec, 8] = alpha_a * (vtop - ua) + f_top + m_s_g
+    out[rec, 9] = alpha_t * (ut - wtop)
+    out[rec, 10] = vtop
+    out[rec, 11] = wtop
+    out[rec, 12] = ua
+    out[rec, 13] = ut
+    for c in range(1, 14):
+        if not math.isfinite(out[rec, c]):
+            return c
+    return 0
+
+
+@njit(cache=True, inline="always")
+def neutral_advance(za, zt, m_b, i_b, grav, bitp, approx, ha, wpa, ht, wpt, surf, istate, rp,
+                    plan, na, nt, x, v, th, w, a_in, b_in, a_in_t, b_in_t, top_bit, dt):
+    """Advance from t_k to t_{k+1}: push the outgoing waves of t_k, read the incoming ones of
+    t_{k+1}, step the bit node (trapezoidal on the line force at the bit: F_C of t_k, 2 Z a_in of
+    t_{k+1} with the end damper implicit; bit forces with implicit frozen slopes) and the rock
+    surface. ``plan`` is from :func:`neutral_wave_start`, ``top_bit`` = ``(vtop, wtop, d, wob,
+    tob)`` from :func:`neutral_top_and_bit` at t_k. Returns ``(na, nt, x, v, th, w, a_in, b_in,
+    a_in_t, b_in_t)`` at t_{k+1}."""
+    cap_a, cap_t, off_a, fr_a, off_t, fr_t = plan
+    vtop, wtop, d, wob, tob = top_bit
+    _, fa_line = wave_step_at(ha, na, cap_a, za, vtop, v, a_in, b_in)
+    _, ft_line = wave_step_at(ht, nt, cap_t, zt, wtop, w, a_in_t, b_in_t)
+    na += 1
+    nt += 1
+    a1, b1 = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa[WP_A0], wpa[WP_B0])
+    a1t, b1t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt[WP_A0], wpt[WP_B0])
+    _, sa1 = wave_source_forces(za, a1, b1)
+    _, st1 = wave_source_forces(zt, a1t, b1t)
+    ca, ct = bit_force_slopes(d, v, w, bitp, approx)
+    v1 = (m_b * v / dt + 0.5 * fa_line + 0.5 * sa1 + grav - wob + ca * v) / (
+        m_b / dt + 0.5 * za + ca)
+    w1 = (i_b * w / dt + 0.5 * ft_line + 0.5 * st1 - tob + ct * w) / (
+        i_b / dt + 0.5 * zt + ct)
+    xprev = x
+    thprev = th
+    x += 0.5 * dt * (v + v1)
+    th += 0.5 * dt * (w + w1)
+    if not approx:
+        rock_advance(surf, istate, rp, thprev, xprev, th, x)
+    return na, nt, x, v1, th, w1, a1, b1, a1t, b1t
+
+
+@njit(cache=True)
+def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, approx,
+                 ha, pa, wpa, ht, pt, wpt, surf, istate, rp,
+                 u_in, fnoise, nsteps, dt, every, out, bstate, t0):
+    """Open loop: advance the wave model ``nsteps`` steps under the commands ``u_in`` (2, nsteps
+    + 1) from the bit state ``bstate`` = [x, v, theta, omega] at time ``t0`` (updated in place;
+    the wave buffers and rock surface carry the rest of the state). Records t0 + k dt for k = 0,
+    every, ..., nsteps; returns (status, step, channel). The outgoing waves of the last time are
+    not pushed, so a later call continues the run."""
+    x = bstate[0]
+    v = bstate[1]
+    th = bstate[2]
+    w = bstate[3]
+    na, nt, plan, a_in, b_in, a_in_t, b_in_t = neutral_wave_start(ha, pa, wpa, ht, pt, wpt)
     rec = 0
     for k in range(nsteps + 1):
-        recording = k % every == 0 or k == nsteps
-        # commands at t_k
-        ua, ut = cmd(ctl, k, v, w, dt, rec if recording else -1)
-        # massless top nodes (algebraic): line force 2 Z b_in - Z v_top
-        sa_top, _ = wave_source_forces(za, a_in, b_in)
-        st_top, _ = wave_source_forces(zt, a_in_t, b_in_t)
-        vtop = (sa_top + alpha_a * ua - f_top) / (za + alpha_a)
-        wtop = (st_top + alpha_t * ut) / (zt + alpha_t)
-        # bit forces at t_k
-        if approx:
-            d = approx_depth_of_cut(v, w, bitp)
-        else:
-            d = rock_depth(surf, istate, rp, x, th)
-        wob, tob = bit_forces(d, v, w, bitp)
-        wob += fnoise[0, k]
-        tob += fnoise[1, k]
-        if recording:
-            out[rec, 0] = t0 + k * dt
-            out[rec, 1] = x
-            out[rec, 2] = v
-            out[rec, 3] = th
-            out[rec, 4] = w
-            out[rec, 5] = d
-            out[rec, 6] = wob
-            out[rec, 7] = tob
-            out[rec, 8] = alpha_a * (vtop - ua) + f_top + m_s_g
-            out[rec, 9] = alpha_t * (ut - wtop)
-            out[rec, 10] = vtop
-            out[rec, 11] = wtop
-            out[rec, 12] = ua
-            out[rec, 13] = ut
-            for c in range(1, 14):
-                if not math.isfinite(out[rec, c]):
-                    pa[0] = na
-                    pt[0] = nt
-                    return 1, k, c
+        ua = u_in[0, k]
+        ut = u_in[1, k]
+        top_bit = neutral_top_and_bit(
+            za, zt, alpha_a, alpha_t, f_top, bitp, approx, surf, istate, rp,
+            x, v, th, w, a_in, b_in, a_in_t, b_in_t, ua, ut, fnoise[0, k], fnoise[1, k])
+        vtop, wtop, d, wob, tob = top_bit
+        if k % every == 0 or k == nsteps:
+            c = neutral_record(out, rec, t0 + k * dt, x, v, th, w, d, wob, tob, vtop, wtop,
+                               ua, ut, alpha_a, alpha_t, f_top, m_s_g)
+            if c != 0:
+                pa[0] = na
+                pt[0] = nt
+                return 1, k, c
             rec += 1
         if k == nsteps:
             break
-        # outgoing waves of t_k, then incoming at t_{k+1}
-        _, fa_line = wave_step_at(ha, na, cap_a, za, vtop, v, a_in, b_in)
-        _, ft_line = wave_step_at(ht, nt, cap_t, zt, wtop, w, a_in_t, b_in_t)
-        na += 1
-        nt += 1
-        a1, b1 = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa[WP_A0], wpa[WP_B0])
-        a1t, b1t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt[WP_A0], wpt[WP_B0])
-        _, sa1 = wave_source_forces(za, a1, b1)
-        _, st1 = wave_source_forces(zt, a1t, b1t)
-        # bit node: trapezoidal on the line force at the bit (F_C of t_k; 2 Z a_in of t_{k+1}
-        # with the end damper implicit), bit forces with implicit frozen slopes
-        ca, ct = bit_force_slopes(d, v, w, bitp, approx)
-        v1 = (m_b * v / dt + 0.5 * fa_line + 0.5 * sa1 + grav - wob + ca * v) / (
-            m_b / dt + 0.5 * za + ca)
-        w1 = (i_b * w / dt + 0.5 * ft_line + 0.5 * st1 - tob + ct * w) / (
-            i_b / dt + 0.5 * zt + ct)
-        xprev = x
-        thprev = th
-        x += 0.5 * dt * (v + v1)
-        th += 0.5 * dt * (w + w1)
-        v = v1
-        w = w1
-        a_in, b_in, a_in_t, b_in_t = a1, b1, a1t, b1t
-        if not approx:
-            rock_advance(surf, istate, rp, thprev, xprev, th, x)
+        na, nt, x, v, th, w, a_in, b_in, a_in_t, b_in_t = neutral_advance(
+            za, zt, m_b, i_b, grav, bitp, approx, ha, wpa, ht, wpt, surf, istate, rp, plan,
+            na, nt, x, v, th, w, a_in, b_in, a_in_t, b_in_t, top_bit, dt)
     bstate[0] = x
     bstate[1] = v
     bstate[2] = th
@@ -320,23 +356,6 @@ def neutral_loop(cmd, ctl, za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, gra
     pa[0] = na
     pt[0] = nt
     return 0, nsteps, 0
-
-
-@njit(cache=True)
-def _open_commands(ctl, k, v, w, dt, rec):
-    """Open-loop command function of :func:`neutral_loop`: ``ctl = (u_in,)``, u_in (2, n)."""
-    u_in = ctl[0]
-    return u_in[0, k], u_in[1, k]
-
-
-def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, approx,
-                 ha, pa, wpa, ht, pt, wpt, surf, istate, rp,
-                 u_in, fnoise, nsteps, dt, every, out, bstate, t0):
-    """Open loop: :func:`neutral_loop` under the commands ``u_in`` (2, nsteps + 1). (Called from
-    Python: a compiled caller naming the command function as a global could not be cached.)"""
-    return neutral_loop(_open_commands, (u_in,), za, zt, m_b, i_b, alpha_a, alpha_t, f_top,
-                        m_s_g, grav, bitp, approx, ha, pa, wpa, ht, pt, wpt, surf, istate, rp,
-                        fnoise, nsteps, dt, every, out, bstate, t0)
 
 
 def _check_positive(name, value):
@@ -492,9 +511,10 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         reference and measurement noise, ``fnoise`` (2, nsteps + 1) the bit-force noise and
         ``out`` the record (rows every ``every`` steps and the last, columns
         :data:`NEUTRAL_CHANNELS`); it returns ``(status, step, channel, extra)`` (status 0 or 1
-        for a non-finite channel, ``extra`` a dict of further recorded channels). The runner calls
-        this module's one compiled loop, :func:`neutral_loop`, with its own compiled command
-        function, so the physics is the open-loop kernel's; :meth:`EIDController.neutral_runner
+        for a non-finite channel, ``extra`` a dict of further recorded channels). The runner is
+        built from this module's compiled per-step functions (:func:`neutral_top_and_bit`,
+        :func:`neutral_record`, :func:`neutral_advance`), so the physics is the open-loop
+        kernel's; :meth:`EIDController.neutral_runner
         <downhole.control.eid.controller.EIDController.neutral_runner>` is one. Returning
         ``None`` falls back to the Python loop. The attribute ``label`` (default the class name)
         names the controller in the result's attributes.
