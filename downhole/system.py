@@ -310,7 +310,7 @@ class DrillingSystem:
         return total
 
     def _lumped(self, order: int, reference_elements: int = 400):
-        from downhole.string.lumped import lumped_model
+        from downhole.sim.lumped_model import lumped_model
 
         self._needs_contact(f"lumped{order}")
         der = self.lumped_derivation(reference_elements)

@@ -1,4 +1,5 @@
-"""The bit/rock law against hand-computed values of seed Eqs. 2.2-2.8 (with SPEC corrections)."""
+"""The bit/rock law against hand-computed values of seed Eqs. 2.2-2.8 (with the corrections of
+docs/seed-errata.md)."""
 
 import math
 

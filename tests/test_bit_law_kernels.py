@@ -47,7 +47,7 @@ def _recorded_matches_law(res, bit, *, skip_first=False):
                                             ("euler", "approximate")])
 def test_lumped_chain_kernel_uses_the_law(name, integrator, doc):
     from downhole.sim import SurfaceInputs, simulate
-    from downhole.string.lumped import lumped_model
+    from downhole.sim.lumped_model import lumped_model
 
     bit = _with_law(BIT_21, name)
     res = simulate(lumped_model("table_2_1", bit=bit), SurfaceInputs.velocity(0.01, 10.0),

@@ -189,12 +189,13 @@ def test_user_basis_object_plugs_in_and_matches_lqr_on_linear_plant():
 
 
 def test_directional_design_model_matches_fem_export():
-    """The compiled structured design model equals the FEM engineer's control_affine export."""
+    """The compiled structured design model equals the export of control.affine.from_directional."""
+    from downhole.control.affine import from_directional
     from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
 
     fem24, _ = table_5_1_models()
     fast = directional_affine_model(fem24)
-    ref = fem24.control_affine(1e-3)
+    ref = from_directional(fem24, 1e-3)
     Z = np.random.default_rng(0).uniform(-1.0, 1.0, (40, 24))
     np.testing.assert_allclose(fast.f(Z), ref.f(Z), rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(fast.g, ref.g)

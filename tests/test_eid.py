@@ -35,7 +35,7 @@ def test_closed_loop_with_input_delay_is_stable_and_printed_design_is_not(model,
     assert rep.stable and max(rep.spectral_abscissa.values()) < 0
     assert rep.difference_operator_radius["axial"] < 1
     # the printed structure (observer driven by u(t), no predictor) with the seed's gains on the
-    # plant with its input delay has roots in the right half plane (SPEC.md Ch. 3)
+    # plant with its input delay has roots in the right half plane (docs/seed-errata.md, Ch. 3)
     from dataclasses import replace
 
     seed = replace(ctrl, gains=(ChannelGains(0.4735, 0.0, 199.3022, 1.0, 200.0),

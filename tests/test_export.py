@@ -10,7 +10,7 @@ lasio = pytest.importorskip("lasio")
 from downhole.cli import main  # noqa: E402
 from downhole.io import read_las, write_las  # noqa: E402
 from downhole.sim import Result, SurfaceInputs, simulate  # noqa: E402
-from downhole.string.lumped import lumped_model  # noqa: E402
+from downhole.sim.lumped_model import lumped_model  # noqa: E402
 
 
 @pytest.fixture(scope="module")

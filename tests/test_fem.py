@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from downhole.control.affine import from_directional
 from downhole.control.topdrive import Hook, TopDrive
 from downhole.errors import DownholeInputError
 from downhole.sim.fem_kernels import CHANNELS
@@ -121,7 +122,7 @@ def test_linear_model_matches_the_newmark_kernel():
 
 def test_control_affine_export_has_the_interface_shapes():
     m = fem_model(n_elements=5)
-    cam = m.control_affine(1e-3)
+    cam = from_directional(m, 1e-3)
     assert cam.n_states == 24 and cam.n_inputs == 2
     A_d, B_d = m.linear_model(1e-3)
     assert np.allclose(cam.A_d, A_d) and np.allclose(cam.B_d, B_d)

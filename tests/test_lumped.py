@@ -9,8 +9,8 @@ import pytest
 from downhole.bit import bit_forces_py
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.sim import LumpedPlant, SurfaceInputs, simulate
+from downhole.sim.lumped_model import lumped_model
 from downhole.sim.reference_numpy import simulate_lumped4_numpy
-from downhole.string.lumped import lumped_model
 
 M4 = lumped_model("table_2_1", order=4)
 P = M4.params
@@ -141,7 +141,7 @@ def test_bad_arguments(kwargs, match):
 
 def test_unbalanced_printed_model_sags_by_weight_over_stiffness():
     """Without the pre-balance (printed Eq. 2.1) the string's weight is unbalanced: hanging off
-    bottom it would settle M g / K_a = 21.9 m lower (SPEC.md)."""
+    bottom it would settle M g / K_a = 21.9 m lower (docs/seed-errata.md)."""
     from downhole.params import LumpedParams
 
     p = P.model_copy(update={"gravity_prebalance": False})

@@ -49,7 +49,7 @@ def test_open_loop_steady_state_formula(model, wave_run):
     tob = wave_run["tob"][late].mean()
     assert v == pytest.approx(NOMINAL_U_A - (wob + p.string_mass * p.g) / p.alpha_axial, abs=1e-6)
     assert w == pytest.approx(NOMINAL_U_T - tob / p.alpha_torsional, rel=1e-5)
-    # SPEC.md: the nominal commands give 10 mm/s and 20 rad/s
+    # docs/seed-errata.md: the nominal commands give 10 mm/s and 20 rad/s
     assert v == pytest.approx(0.010, rel=1e-3)
     assert w == pytest.approx(20.0, rel=1e-3)
     # hook load = total weight minus WOB, surface torque = TOB at steady state
@@ -59,7 +59,7 @@ def test_open_loop_steady_state_formula(model, wave_run):
 
 
 def test_gamma_upsilon_match_spec_with_table_3_1_printed_a_and_j():
-    # SPEC.md values were computed with Table 3.1's printed A = 8.5e-3 m^2 and J = 1.9e-5 m^4
+    # The reference values were computed with Table 3.1's printed A = 8.5e-3 m^2 and J = 1.9e-5 m^4
     # and the corrected delays; Gamma2 (1 + Gamma1) = Gamma3 exactly.
     m = neutral_model(NeutralStringParams(), None)
     p = m.params

@@ -34,7 +34,8 @@ def test_examples_run_through_simulate(name, tmp_path):
         assert np.sqrt(np.mean((w[late] - res["reference_angular_velocity"][late]) ** 2)) < 1.0
         assert res.attrs["controller"] == "eid"
     else:
-        # SPEC: the open-loop commands give 10 mm/s, 20 rad/s; the EID regulates to the same
+        # docs/seed-errata.md: the open-loop commands give 10 mm/s, 20 rad/s; the EID regulates to
+        # the same
         assert abs(v[t > 15].mean() - 0.01) < 2e-5 and abs(w[t > 15][-1] - 20.0) < 0.05
     s = json.loads((out / "summary.json").read_text())
     assert s["mean_rop"] > 0

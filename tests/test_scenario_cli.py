@@ -107,7 +107,7 @@ def test_diverging_run_reports_time_and_channel(tmp_path, capsys):
     # refused before the run (the stable bound is named), the Python API still reports where
     from downhole.errors import SimulationDiverged
     from downhole.sim import simulate
-    from downhole.string.lumped import lumped_model
+    from downhole.sim.lumped_model import lumped_model
 
     text = GOOD.replace('type = "lumped4"', 'type = "lumped12"').replace(
         'dt = "0.5 ms"', 'dt = "50 ms"').replace('duration = "4 s"', 'duration = "60 s"').replace(

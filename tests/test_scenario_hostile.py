@@ -329,7 +329,7 @@ def _linear_euler_growth(field, dt, steps):
 @pytest.mark.parametrize("order", [4, 12])
 def test_euler_bound_is_where_the_linear_chain_turns_unstable(order):
     from downhole.scenario import euler_stable_dt
-    from downhole.string.lumped import lumped_model
+    from downhole.sim.lumped_model import lumped_model
 
     model = lumped_model("table_2_1", order=order)
     bound, mode = euler_stable_dt(model)
@@ -352,7 +352,7 @@ def _lumped12_scenario(dt, duration):
 
 def test_euler_dt_just_below_the_bound_runs_and_well_above_is_refused():
     from downhole.scenario import euler_stable_dt
-    from downhole.string.lumped import lumped_model
+    from downhole.sim.lumped_model import lumped_model
 
     bound, _ = euler_stable_dt(lumped_model("table_2_1", order=12))
     dt = float(f"{0.95 * bound:.3g}")
@@ -455,7 +455,7 @@ def test_cli_refuses_hostile_scenarios_in_one_line(name, tmp_path):
 def test_sil_lumped_plant_step_is_checked_against_the_euler_bound(tmp_path):
     from downhole.scenario import euler_stable_dt
     from downhole.sil.scenario import parse_sil_scenario
-    from downhole.string.lumped import lumped_model
+    from downhole.sim.lumped_model import lumped_model
 
     bound, _ = euler_stable_dt(lumped_model("table_2_1", order=12))
     plant = {"model": "lumped", "order": 12, "interface": "surface"}

@@ -9,8 +9,8 @@ import pytest
 from downhole.errors import DownholeInputError
 from downhole.params import get_preset
 from downhole.sim import LumpedPlant, SurfaceInputs, simulate
+from downhole.sim.lumped_model import lumped_model
 from downhole.sim.plant import START_MODES, Plant
-from downhole.string.lumped import lumped_model
 
 V0, W0 = 0.01, 20.0  # 10 mm/s, 20 rad/s: outside the stick-slip region of Table 2.1
 

@@ -1,5 +1,6 @@
 """Sweeps: Dask cluster vs serial runs, validation before any case runs, failing-case isolation,
-the drilling stability map against the known stick-slip boundary (SPEC: ~4 rad/s at 10 mm/s)."""
+the drilling stability map against the known stick-slip boundary (docs/seed-errata.md: ~4 rad/s at
+10 mm/s)."""
 
 from __future__ import annotations
 
@@ -199,7 +200,7 @@ def test_1000_case_stability_map_of_the_4th_order_model(tmp_path):
     assert np.all(codes[w <= 3.0] > 0)    # stick-slip / bit bounce at low rotary speed
     assert np.all(codes[w >= 5.0] == 0)   # stable at high rotary speed
     boundary = w[np.argmax(codes == 0)]
-    assert 3.0 < boundary < 5.0           # SPEC: unstable below about 4 rad/s at 10 mm/s
+    assert 3.0 < boundary < 5.0           # seed-errata: unstable below about 4 rad/s at 10 mm/s
     # at the highest speed every feed is stable; the WOB grows with the feed
     assert np.all(regimes.isel({"surface.angular_velocity": -1}).values == 0)
     wob = ds["mean_wob"].isel({"surface.angular_velocity": -1}).values

@@ -1,4 +1,4 @@
-"""Wave segment (lossless delay line): analytical checks of the contract in downhole.string.wave."""
+"""Wave segment (lossless delay line): analytical checks of the contract in downhole.sim.wave."""
 
 import math
 
@@ -7,9 +7,9 @@ import pytest
 
 from downhole.errors import DownholeInputError
 from downhole.params import NeutralStringParams, get_preset
-from downhole.string.wave import (WaveSegment, segments_from_pipe, static_end_forces,
-                                  wave_end_forces, wave_incoming, wave_outgoing, wave_push,
-                                  wave_source_forces, wave_state, wave_step)
+from downhole.sim.wave import (WaveSegment, segments_from_pipe, static_end_forces,
+                               wave_end_forces, wave_incoming, wave_outgoing, wave_push,
+                               wave_source_forces, wave_state, wave_step)
 
 
 def _run_line(seg, dt, n, v_b_fn, c_end):
@@ -57,7 +57,7 @@ def test_step_reflection_matches_dalembert(c_ratio):
 
 
 def test_force_recursion_of_spec_eq_5_15_corrected():
-    # SPEC.md Ch. 5: P(t) = P(t - 2 tau) + Z v_B(t) + Z v_B(t - 2 tau) - 2 Z v_C(t - tau), where
+    # seed-errata Ch. 5: P(t) = P(t - 2 tau) + Z v_B(t) + Z v_B(t - 2 tau) - 2 Z v_C(t - tau), where
     # P = -F_B is the force the node applies to the line (the printed v_C(t - 2 tau) diverges).
     seg = WaveSegment(600.0, 3000.0, 1.5e4)  # tau = 0.2 s, dt below divides it exactly
     dt = 1e-3
@@ -134,10 +134,11 @@ def test_pipe_impedances_and_delays_table_3_1():
     assert jp == pytest.approx(1.9085e-5, rel=1e-4)
     assert ax.impedance == pytest.approx(area * math.sqrt(7850 * 2.11e11))
     assert to.impedance == pytest.approx(jp * math.sqrt(7850 * 7.93e10))
-    # SPEC.md: tau = L sqrt(rho/E) = 0.19288 s, L sqrt(rho/G) = 0.31463 s (Eq. 3.10 is inverted)
+    # docs/seed-errata.md: tau = L sqrt(rho/E) = 0.19288 s, L sqrt(rho/G) = 0.31463 s (Eq. 3.10 is
+    # inverted)
     assert ax.delay == pytest.approx(0.19288, abs=1e-5)
     assert to.delay == pytest.approx(0.31463, abs=1e-5)
-    # Table 5.1 impedances of SPEC.md Ch. 5 (3.44e5 N s/m, 481 N m s/rad)
+    # Table 5.1 impedances of seed-errata Ch. 5 (3.44e5 N s/m, 481 N m s/rad)
     w = get_preset("table_5_1").string
     ax5, to5 = segments_from_pipe(w.pipe, w.length_bc)
     assert ax5.impedance == pytest.approx(3.44e5, rel=5e-3)
@@ -232,7 +233,7 @@ def test_read_weight_stays_exact_after_many_steps():
 
 
 def test_line_preload_is_the_static_end_forces_of_the_line_weight():
-    from downhole.string.wave import line_preload
+    from downhole.sim.wave import line_preload
 
     seg = WaveSegment(800.0, 5100.0, 3.0e5)
     assert line_preload(2.0e4, 350.0 * 800.0) == static_end_forces(seg, 2.0e4, 350.0)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from downhole.bench import BenchOutcome, bench_case, timed
 from downhole.sim import SurfaceInputs, simulate
+from downhole.sim.lumped_model import lumped_model
 from downhole.sim.reference_numpy import simulate_lumped4_numpy
-from downhole.string.lumped import lumped_model
 
 
 @bench_case("lumped4 delayed-doc 60 s dt=5e-4", group="ch2", quick=True)

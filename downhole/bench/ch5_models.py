@@ -17,11 +17,12 @@ from scipy.linalg import solve_banded
 
 from downhole._timing import best_time
 from downhole.bench import BenchOutcome, bench_case, timed
+from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
 __all__ = ["lsoda_seconds", "best_time"]
 
 
-def _ode_rhs(model, top_speed=10.0, wob=120e3, kp=1e4, ki=2e3, j_td=500.0):
+def _ode_rhs(model, top_speed=10.0, wob=120e3, kp=1e4, ki=2e3, j_td=DEFAULT_TOP_DRIVE_INERTIA):
     from downhole.bit.law import approx_depth_of_cut, bit_forces
     from downhole.contact.softstring import nodal_friction_forces
 

@@ -5,7 +5,7 @@ analytic partial slopes with respect to the depth of cut d, the bit axial veloci
 angular velocity omega. Kernels do not call this module directly; they call the dispatch in
 :mod:`downhole.bit.law`, which selects the law named in ``BitParams.law``.
 
-Corrections from SPEC.md applied here (see docs/seed-errata.md): cutting torque vanishes for
+Corrections applied here (see docs/seed-errata.md): cutting torque vanishes for
 omega <= 0 (smooth ramp of width ``omega_reg``); wear-flat force saturates continuously at d*
 (default); the Stribeck law acts on |omega|.
 
@@ -64,7 +64,7 @@ def contact_speed_factor(v, p):
 @njit(cache=True, inline="always")
 def friction_coefficient(omega, p):
     """mu * gamma of the wear-flat friction and its omega-slope: Stribeck in |omega| (Eq. 2.8,
-    SPEC correction) or the constant ``mu_gamma``."""
+    correction, docs/seed-errata.md) or the constant ``mu_gamma``."""
     if p[STRIB] > 0.5:
         e = math.exp(-p[GAMB] / p[VF] * abs(omega))
         mu = p[MUC] + (p[MUS] - p[MUC]) * e

@@ -3,10 +3,11 @@
 The rock surface is stored on a uniform grid of *unwrapped bit angle* (``nb`` points per blade
 pitch 2 pi/n). A blade at angle theta cuts against the surface left at theta - 2 pi/n, which is
 exactly x_bit(t - t_n) with theta(t) - theta(t - t_n) = 2 pi/n (Eq. 2.10), solved by
-interpolation instead of a root search. With ``memory`` on (default, SPEC correction) the surface
-is the hole bottom: the maximum of the cut depths (x positive downward), so after a bounce the
-blade measures against rock, not against its own airborne path. If the bit turns backward and then
-forward again over angles it has already cut, the blade meets its own surface.
+interpolation instead of a root search. With ``memory`` on (default, correction,
+docs/seed-errata.md) the surface is the hole bottom: the maximum of the cut depths (x positive
+downward), so after a bounce the blade measures against rock, not against its own airborne path. If
+the bit turns backward and then forward again over angles it has already cut, the blade meets its
+own surface.
 
 State lives in two arrays so that compiled kernels can own it: ``surf`` (ring buffer, m) and
 ``istate = [j_next]`` (index of the next grid angle not yet reached). This is the one depth-of-cut

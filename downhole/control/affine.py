@@ -15,8 +15,8 @@ with ``A_d`` the zero-order-hold (``expm``) discretization of the linear mechani
 input map of the two surface inputs and ``h`` the discrete effect over one step of every force
 that is not linear in the state (bit/rock law with the approximated depth of cut and its floor
 omega* of Eq. 4.16, wellbore contact friction, ...). States are *deviations from the static
-hanging equilibrium* (gravity pre-balanced, SPEC.md), so ``z = 0, u = 0`` is a rest point off
-bottom. The non-dimensionalization of Eqs. 4.17-4.19 uses the diagonal state scale
+hanging equilibrium* (gravity pre-balanced, docs/seed-errata.md), so ``z = 0, u = 0`` is a rest
+point off bottom. The non-dimensionalization of Eqs. 4.17-4.19 uses the diagonal state scale
 ``P = diag(state_scale)`` and (a downhole addition, see below) an input scale
 ``U = diag(input_scale)``:
 
@@ -33,9 +33,9 @@ steps of a 40 s horizon at dt = 1e-3). Use :meth:`ControlAffineModel.from_physic
 from physical ``A_d``, ``B_d`` and a physical ``h``; it does the scaling.
 
 The seed keeps the inputs in physical units (N and N m), which is why its Table 4.1 has
-R = 1e-11; with that, the DHP iteration's contraction factor is ~1e9 (SPEC.md). An explicit
-``input_scale`` (e.g. 1e5 N and 1e4 N m) makes R of order one. ``input_scale = 1`` reproduces
-the seed's convention.
+R = 1e-11; with that, the DHP iteration's contraction factor is ~1e9 (docs/seed-errata.md). An
+explicit ``input_scale`` (e.g. 1e5 N and 1e4 N m) makes R of order one. ``input_scale = 1``
+reproduces the seed's convention.
 
 The Jacobian ``A_k = d zbar_{k+1} / d zbar_k`` used in the co-state recursion (Eq. 4.31) is by
 default the seed's choice ``P^-1 A_d P`` = ``linear`` (``jacobian(kind="seed")``);
@@ -88,8 +88,9 @@ from typing import Callable, Sequence
 import numpy as np
 
 from downhole.errors import DownholeInputError
+from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
-__all__ = ["ControlAffineModel", "STATE_KINDS", "INPUT_NAMES", "INPUT_UNITS",
+__all__ = ["ControlAffineModel", "from_directional", "STATE_KINDS", "INPUT_NAMES", "INPUT_UNITS",
            "scale_from_trajectory"]
 
 #: Allowed state kinds.
@@ -517,3 +518,94 @@ def scale_from_trajectory(z, floor=None) -> np.ndarray:
     if np.any(s <= 0):
         raise DownholeInputError("some states are identically zero; pass a positive floor")
     return s
+
+
+def from_directional(model, dt: float = 1e-3, *, state_scale=None, input_scale=(1e5, 1e4),
+                     top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA,
+                     friction: bool = True, v_eps_design: float = 0.05) -> ControlAffineModel:
+    """Non-dimensional control-affine model of Eqs. 4.17-4.19, 4.25 for the DHP design.
+
+    ``z_{k+1} = A_d z_k + B_d u_k + h(z_k)`` with h the ZOH effect over one step of the bit law
+    (approximated depth of cut with the floor omega* of Eq. 4.16) and, with ``friction``, of
+    the wellbore friction (normal force from the hanging tension; regularization
+    ``v_eps_design`` m/s so the design model stays smooth). States are deviations from the
+    static hanging equilibrium (bit on bottom with zero WOB).
+
+    Parameters
+    ----------
+    model : downhole.string.fem.DirectionalModel
+        The FEM (or hybrid: its ``design_model()`` is used).
+    dt : float
+        Step, s.
+    state_scale : array_like, optional
+        ``P`` of Eq. 4.17; default: 0.05 m, 30 rad, 0.02 m/s, 20 rad/s per kind.
+    input_scale : (float, float)
+        Input scale (N, N m).
+    top_drive_inertia : float
+        Top-drive inertia on the top node, kg m^2.
+    friction : bool
+        Include the wellbore friction in h.
+    v_eps_design : float
+        Friction regularization velocity of the design model, m/s.
+
+    Returns
+    -------
+    ControlAffineModel
+    """
+    from downhole.bit.law import approx_depth_of_cut, bit_forces
+    from downhole.contact.softstring import nodal_friction_forces
+    from downhole.string.fem import hanging_tension
+
+    if not callable(getattr(model, "design_model", None)):
+        raise DownholeInputError("from_directional needs a DirectionalModel (fem_model / "
+                                 f"hybrid_model), got {type(model).__name__}")
+    m = model.design_model()
+    n = m.n_nodes
+    A_d, B_d = model.linear_model(dt, top_drive_inertia)
+    A, _, names, _ = model.continuous_linear_model(top_drive_inertia)
+    ns = A.shape[0]
+    Gam = model.nodal_force_map(dt, top_drive_inertia)
+    bitp = m.bit.to_array()
+    ib = n - 1
+    # hanging tension per element (zero WOB) for the friction normal force
+    tension = hanging_tension(m)
+    elem = m.elem
+    radius = m.radius
+    mu = m.mu if friction else 0.0
+
+    def h(zb, _G=Gam):
+        N = zb.shape[0]
+        F = np.zeros((N, 2 * n))
+        va = zb[:, 2 * n + 2 * ib]
+        vt = zb[:, 2 * n + 2 * ib + 1]
+        for j in range(N):
+            d = approx_depth_of_cut(va[j], vt[j], bitp)
+            w, t = bit_forces(d, va[j], vt[j], bitp)
+            F[j, 2 * ib] -= w
+            F[j, 2 * ib + 1] -= t
+        if mu > 0:
+            xa = zb[:, 0:2 * n:2]
+            T = tension[None, :] - m.Ka[1, None, :n - 1] * (xa[:, 1:] - xa[:, :-1])
+            fa, ft = nodal_friction_forces(T, elem, radius, mu, zb[:, 2 * n:4 * n:2],
+                                           zb[:, 2 * n + 1:4 * n:2], v_eps_design)
+            F[:, 0:2 * n:2] += fa
+            F[:, 1:2 * n:2] += ft
+        return F @ _G.T
+
+    kinds, nodes = [], []
+    for blk in ("position", "velocity"):
+        for i in range(n):
+            kinds += [f"axial_{blk}", f"angular_{blk}"]
+            nodes += [i, i]
+    if state_scale is None:
+        base = {"axial_position": 0.05, "angular_position": 30.0, "axial_velocity": 0.02,
+                "angular_velocity": 20.0}
+        state_scale = np.array([base[k] for k in kinds])
+    rows = np.arange(ns)
+    return ControlAffineModel.from_physical(
+        A_d, B_d, state_scale=state_scale, input_scale=input_scale, dt=dt,
+        nonlinear_physical=h, state_names=names, state_kinds=kinds, state_nodes=nodes,
+        input_names=["slack_off_force", "surface_torque"], bit=m.bit,
+        hanging_hook_load=m.buoyed_weight, node_depths=m.node_md, nonlinear_rows=rows,
+        name=f"{model.name} ({m.n_states} states)",
+        metadata={"model": model.name, "kind": model.kind})

@@ -67,7 +67,7 @@ def _reference_run(duration: float):
     """Fine reference: the 4th-order approximated-depth model, top speeds ramped to 10 mm/s and
     10 rad/s over 5 s, explicit Euler at 5e-4 s (downhole.sim)."""
     from downhole.sim import SurfaceInputs, simulate
-    from downhole.string.lumped import lumped_model
+    from downhole.sim.lumped_model import lumped_model
 
     ramp = 5.0
     t = np.arange(int(round(duration / 5e-4)) + 1) * 5e-4

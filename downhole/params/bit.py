@@ -56,7 +56,7 @@ class BitParams(BaseModel):
     gamma : float
         Bit geometry parameter (gamma / delta of the seed), -.
     gamma_b, v_f : float
-        Stribeck decay parameters of Eq. 2.8, applied to |omega| (SPEC correction).
+        Stribeck decay parameters of Eq. 2.8, applied to |omega| (docs/seed-errata.md).
     mu_gamma : float
         Constant product mu*gamma used with ``friction_law="constant"`` (Tables 2.1/5.1: 0.7).
     a1, b1, a2, b2 : float

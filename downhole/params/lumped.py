@@ -14,8 +14,8 @@ G_ACC = 9.81
 class TwelfthOrderSplit(BaseModel):
     """How the 12th-order (3-mass) model splits the 4th-order mass, inertia and compliance.
 
-    Defaults are SPEC.md's split, which matches the 4th-order model within 2-4 % below half the
-    first natural frequency: mass shares 0.02/0.08/0.90 and compliance shares
+    Defaults are the split of docs/seed-errata.md, which matches the 4th-order model within 2-4 %
+    below half the first natural frequency: mass shares 0.02/0.08/0.90 and compliance shares
     (servo : spring 1 : spring 2) = 0.02 : 0.58 : 0.40 of 1/K_a (and 1/K_t).
     """
 
@@ -47,7 +47,7 @@ class LumpedParams(BaseModel):
         K_t (N m/rad) and C_t (N m s/rad), C_t on the absolute bit angular velocity.
     gravity_prebalance : bool
         True (default): the string starts hanging in static equilibrium with zero WOB, i.e.
-        u1 = V0 t - M g / K_a (SPEC correction). False: the printed Eq. 2.1 with M g unbalanced.
+        u1 = V0 t - M g / K_a (docs/seed-errata.md). False: the printed Eq. 2.1 with M g unbalanced.
     g : float
         Gravitational acceleration, m/s^2.
     """

@@ -22,7 +22,12 @@ from dataclasses import dataclass
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["TopDrive", "Hook"]
+__all__ = ["TopDrive", "Hook", "DEFAULT_TOP_DRIVE_INERTIA"]
+
+#: Top-drive rotor + gearbox inertia on the string's top node, kg m^2. The seed gives none; 500 is
+#: the value used throughout (directional FEM, hybrid, DHP design models, SIL plants). Every
+#: default of a top-drive inertia in the package refers to this one name.
+DEFAULT_TOP_DRIVE_INERTIA = 500.0
 
 _TD_MODES = ("pi", "soft_torque", "torque")
 _HOOK_MODES = ("force", "velocity")
@@ -45,7 +50,8 @@ class TopDrive:
     Parameters
     ----------
     inertia : float
-        Rotor + gearbox inertia on the string's top node, kg m^2 (seed gives none; 500).
+        Rotor + gearbox inertia on the string's top node, kg m^2 (default
+        :data:`DEFAULT_TOP_DRIVE_INERTIA`).
     mode : {"pi", "soft_torque", "torque"}
     speed : float
         Speed set-point Omega_ref, rad/s (``pi``/``soft_torque``) -- or the constant torque, N m,
@@ -62,7 +68,7 @@ class TopDrive:
         Time to ramp the set-point from 0 to ``speed``, s (0 = step).
     """
 
-    inertia: float = 500.0
+    inertia: float = DEFAULT_TOP_DRIVE_INERTIA
     mode: str = "pi"
     speed: float = 10.0
     kp: float = 1e4

@@ -7,6 +7,7 @@ import math
 from pydantic import BaseModel, ConfigDict, Field
 
 from downhole.params.quantity import Q
+from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
 __all__ = ["PipeSection", "NeutralStringParams", "DirectionalWellParams"]
 
@@ -100,7 +101,7 @@ class DirectionalWellParams(BaseModel):
     wellbore_stiffness: Q["stiffness"] = Field(1e8, ge=0)
     wellbore_friction: float = Field(0.5, ge=0)
     wellbore_radius: Q["length"] = Field(0.24, gt=0)
-    top_drive_inertia: Q["inertia"] = Field(500.0, gt=0)
+    top_drive_inertia: Q["inertia"] = Field(DEFAULT_TOP_DRIVE_INERTIA, gt=0)
     top_drive_kp: Q["torsional_damping"] = Field(1e4, ge=0)
     top_drive_ki: Q["torsional_stiffness"] = Field(2e3, ge=0)
     g: Q["acceleration"] = Field(9.81, ge=0)

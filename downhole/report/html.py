@@ -15,7 +15,7 @@ from pathlib import Path
 
 __all__ = ["build_index", "CHAPTERS"]
 
-#: Chapter titles of the dissertation (see the chapter map in SPEC.md).
+#: Chapter titles of the dissertation (the dissertation's chapters).
 CHAPTERS = {
     2: "Lumped axial-torsional models and dynamic programming",
     3: "Neutral-type distributed model and EID control",

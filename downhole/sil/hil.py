@@ -23,6 +23,7 @@ from numba import njit
 
 from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
 from downhole.errors import DownholeInputError
+from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
 __all__ = ["HILStringPlant", "SoftwareRig", "build_hil_plant", "COUPLING"]
 
@@ -51,7 +52,7 @@ class HILStringPlant:
                      "bit_angular_velocity")
 
     def __init__(self, dmodel, dt: float = 1e-3, coupling=COUPLING,
-                 top_drive_inertia: float = 500.0):
+                 top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA):
         if not dt > 0:
             raise DownholeInputError(f"dt must be > 0 s, got {dt!r}")
         self.dmodel = dmodel

@@ -772,7 +772,7 @@ class ControllerClient:
         one is an error. ``realtime``: try SCHED_FIFO for this thread while serving. Returns the
         number of commands sent.
         """
-        from downhole.sil.runtime import elevate_priority
+        from downhole.sil.scheduling import elevate_priority
 
         restore = elevate_priority()[0] if realtime else (lambda: None)
         try:

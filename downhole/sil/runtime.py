@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import gc
 import math
-import os
 import threading
 import time
 from collections import deque
@@ -63,6 +62,7 @@ from downhole.sil.link import PlantLink
 from downhole.sil.plants import COMMAND_RANGES, REFERENCE_RANGES, SilPlant, check_range
 from downhole.sil.protocol import Layout
 from downhole.sil.recorder import RingRecorder
+from downhole.sil.scheduling import elevate_priority, sleep_until
 from downhole.sim.result import Result
 
 __all__ = ["RealTimeRunner", "SafetyPolicy", "STATS_KEYS", "elevate_priority"]
@@ -106,36 +106,6 @@ class SafetyPolicy:
         if self.resume not in ("manual", "auto"):
             raise DownholeInputError(f"safety resume must be 'manual' or 'auto', got "
                                      f"{self.resume!r}")
-
-
-def elevate_priority(priority: int = 50):
-    """Try SCHED_FIFO for the calling thread (Linux, needs CAP_SYS_NICE / root).
-
-    Returns a callable that restores the previous policy, and the policy name obtained
-    (``"fifo"`` or ``"normal"``). Never raises: without the privilege the loop runs at normal
-    priority (and misses more deadlines on a loaded machine)."""
-    try:
-        old = os.sched_getscheduler(0)
-        old_param = os.sched_getparam(0)
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (AttributeError, OSError, PermissionError):
-        return (lambda: None), "normal"
-
-    def restore():
-        try:
-            os.sched_setscheduler(0, old, old_param)
-        except OSError:
-            pass
-
-    return restore, "fifo"
-
-
-def _sleep_until(t: float, spin: float) -> None:
-    remaining = t - time.monotonic()
-    if remaining > spin:
-        time.sleep(remaining - spin)
-    while time.monotonic() < t:
-        pass
 
 
 class RealTimeRunner:
@@ -611,7 +581,7 @@ class RealTimeRunner:
             while not self._stop.is_set() and (n_steps is None or self._k - k0 < n_steps):
                 k = self._k
                 if self.paced:
-                    _sleep_until(t0 + k * dt, self.spin)
+                    sleep_until(t0 + k * dt, self.spin)
                 start = time.monotonic()
                 t = k * dt
                 cmd = self._command(t, obs, start)

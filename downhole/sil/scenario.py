@@ -250,26 +250,24 @@ def dashboard_token(sc: SilScenario) -> str | None:
 
 def _dhp(sc: SilScenario, plant, progress: bool = False):
     from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
+    from downhole.control.dhp.weight_sets import weight_set
 
     d = sc.controller.dhp
     ref = {"step": BitReference.step(sc.reference.axial, sc.reference.angular),
            "sine": BitReference.sine(), "ramp": BitReference.ramp(t_final=d.horizon)}[d.reference]
     if d.weights == "planned":
         # the start-up planned on the design FEM, soft gains about it (docs/dhp.md)
-        from downhole.control.dhp.plan import PLANNED_WEIGHTS, design_dhp_planned
+        from downhole.control.dhp.plan import design_dhp_planned
         from downhole.string.hybrid import hybrid_model
 
         return design_dhp_planned(plant.plant.design, hybrid_model(sc.plant.design).design_model(),
-                                  ref, horizon=d.horizon, weights=PenaltyWeights(**PLANNED_WEIGHTS),
+                                  ref, horizon=d.horizon,
+                                  weights=PenaltyWeights(**weight_set("planned")),
                                   settings=DHPSettings(n_samples=d.samples),
                                   progress=progress)
-    if d.weights == "robust":
-        w = dict(bit_velocity=(10.0, 10.0), bit_position=(1.0, 10.0), r=(1.0, 1.0))
-    else:
-        w = dict(bit_velocity=(100.0, 100.0), bit_position=(0.1, 0.1), r=(1.0, 1.0))
     return design_dhp(plant.plant.design, ref, horizon=d.horizon,
-                      weights=PenaltyWeights(**w), settings=DHPSettings(n_samples=d.samples),
-                      progress=progress)
+                      weights=PenaltyWeights(**weight_set(d.weights)),
+                      settings=DHPSettings(n_samples=d.samples), progress=progress)
 
 
 def scenario_controller_file(sc: SilScenario, controller_file: str | None = None) -> str | None:

@@ -11,10 +11,6 @@ from pathlib import Path
 
 __all__ = ["ch6_dhp", "ControllerProcess", "free_port"]
 
-#: Softer penalty weights that keep the 24-state design stable on the 68-state hybrid
-#: (the Ch. 4 experiments' "robust" weights).
-ROBUST_WEIGHTS = dict(bit_velocity=(10.0, 10.0), bit_position=(1.0, 10.0), r=(1.0, 1.0))
-
 _CACHE: dict = {}
 
 
@@ -25,6 +21,7 @@ def ch6_dhp(reference: str = "step", horizon: float = 8.0, samples: int = 50, dt
     if key not in _CACHE:
         from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
         from downhole.control.dhp.directional import directional_affine_model
+        from downhole.control.dhp.weight_sets import weight_set
         from downhole.string.hybrid import hybrid_model
 
         design = _CACHE.get(("design", dt))
@@ -33,7 +30,7 @@ def ch6_dhp(reference: str = "step", horizon: float = 8.0, samples: int = 50, dt
             _CACHE[("design", dt)] = design
         ref = {"step": BitReference.step(), "sine": BitReference.sine(),
                "ramp": BitReference.ramp(t_final=horizon)}[reference]
-        ctrl = design_dhp(design, ref, horizon=horizon, weights=PenaltyWeights(**ROBUST_WEIGHTS),
+        ctrl = design_dhp(design, ref, horizon=horizon, weights=PenaltyWeights(**weight_set("robust")),
                           settings=DHPSettings(n_samples=samples))
         _CACHE[key] = (design, ctrl)
     return _CACHE[key]

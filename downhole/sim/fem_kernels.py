@@ -31,8 +31,8 @@ from downhole.bit.law import (approx_depth_of_cut, approx_depth_rate, bit_forces
                               bit_params_tuple, bit_wob, solve_bit_node)
 from downhole.bit.rock_surface import rock_advance_to, rock_depth_at
 from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
-from downhole.string.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WP_Z, wave_read_at,
-                                  wave_read_plan, wave_source_forces, wave_step_at)
+from downhole.sim.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WP_Z, wave_read_at,
+                               wave_read_plan, wave_source_forces, wave_step_at)
 
 __all__ = ["CHANNELS", "TOP_LAYOUT", "MISC_LAYOUT", "run_directional", "thomas_solve"]
 
@@ -159,7 +159,7 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         u_a, v_a, a_a, theta, omega, alpha. Updated in place.
     misc : see :data:`MISC_LAYOUT`. Updated in place.
     surf, istate, rp : rock-surface memory.
-    wa_*, wt_* : wave-segment states (axial, torsional; :mod:`downhole.string.wave` layout);
+    wa_*, wt_* : wave-segment states (axial, torsional; :mod:`downhole.sim.wave` layout);
         ignored unless hybrid.
     lag : (4, m) lag-cascade states (rows: axial b_in, axial a_in, torsional b_in, a_in).
     cmd : (n_steps, 2)
@@ -268,7 +268,7 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     cw_t = np.empty(n)
     nrm = np.zeros(n)
     Aw = np.empty((n, n)) if dense else np.empty((1, 1))
-    # ---- wave segments (downhole.string.wave): clocks, capacities and read plans in locals
+    # ---- wave segments (downhole.sim.wave): clocks, capacities and read plans in locals
     za = wa_wp[WP_Z]
     zt = wt_wp[WP_Z]
     pos_a = wa_pos[0]

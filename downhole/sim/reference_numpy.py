@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from downhole.bit.law import bit_forces
-from downhole.string.lumped import ChainModel
+from downhole.sim.lumped_model import ChainModel
 
 __all__ = ["simulate_lumped4_numpy"]
 

@@ -151,8 +151,8 @@ class Result:
     def to_las(self, path: str | os.PathLike, **kwargs) -> Path:
         """Write the 1-D channels as a time-indexed LAS 2.0 file, atomically (keywords:
         ``well``, ``channels``, ``company``, ``field``, ``summary``; see
-        :func:`downhole.io.las.write_las`)."""
-        from downhole.io.las import write_las
+        :func:`downhole.sim.las.write_las`, also :func:`downhole.io.write_las`)."""
+        from downhole.sim.las import write_las
 
         with atomic_path(path) as tmp:
             write_las(self, tmp, **kwargs)

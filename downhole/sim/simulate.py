@@ -15,9 +15,9 @@ from downhole.bit.rock_surface import RockSurfaceSpec, rock_init, rock_init_heli
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.sim.chain_kernel import CHANNELS, run_chain
 from downhole.sim.inputs import SurfaceInputs
+from downhole.sim.lumped_model import ChainModel
 from downhole.sim.plant import Plant, check_start, steady_depth_of_cut
 from downhole.sim.result import Result
-from downhole.string.lumped import ChainModel
 
 __all__ = ["simulate", "LumpedPlant", "DEPTH_OF_CUT_MODES", "INTEGRATORS"]
 
@@ -48,7 +48,7 @@ def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration
     Parameters
     ----------
     model : ChainModel
-        From :func:`downhole.string.lumped.lumped_model`.
+        From :func:`downhole.sim.lumped_model.lumped_model`.
     inputs : SurfaceInputs, optional
         Top-drive inputs; default ``SurfaceInputs.velocity(0.01, 10.0)`` (10 mm/s, 10 rad/s).
     duration : float
@@ -67,7 +67,7 @@ def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration
     rock_points_per_pitch : int
         Resolution of the rock-surface memory (grid points per blade pitch 2 pi/n).
     rock_memory : bool
-        True: depth of cut against the hole bottom (SPEC correction). False: printed Eq. 2.9.
+        True: depth of cut against the hole bottom (docs/seed-errata.md). False: printed Eq. 2.9.
     attrs : dict, optional
         Extra metadata stored in the Result (e.g. the scenario TOML text).
     start : {"rest", "off_bottom", "steady"}
@@ -91,7 +91,7 @@ def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration
 
     Examples
     --------
-    >>> from downhole.string.lumped import lumped_model
+    >>> from downhole.sim.lumped_model import lumped_model
     >>> res = simulate(lumped_model("table_2_1"), SurfaceInputs.velocity(0.01, 10.0),
     ...                duration=2.0, dt=5e-4)
     >>> res.time[-1]
@@ -193,7 +193,7 @@ class LumpedPlant(Plant):
 
     Examples
     --------
-    >>> from downhole.string.lumped import lumped_model
+    >>> from downhole.sim.lumped_model import lumped_model
     >>> plant = LumpedPlant(lumped_model("table_2_1"), dt=5e-4)
     >>> obs = plant.reset(start="steady", set_point={"top_drive_axial_velocity": 0.01,
     ...                                              "top_drive_angular_velocity": 20.0})

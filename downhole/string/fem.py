@@ -3,13 +3,14 @@
 :func:`fem_model` meshes a :class:`~downhole.string.drillstring.DrillString` along a
 :class:`~downhole.well.WellPath` into 2-node bar elements carrying two 1-D fields along measured
 depth (axial displacement, twist angle). There is no cos-angle "rotation" (seed Eqs. 4.3-4.5,
-SPEC.md): curvature enters only through gravity (rho A g cos(inclination), lumped exactly as
-w * delta-TVD per element) and soft-string wellbore contact. Damping is Rayleigh (alpha0 M +
-beta0 K) or modal. The model is an immutable :class:`DirectionalModel`; :func:`simulate_directional`
-runs it (compiled implicit Newmark, :mod:`downhole.sim.fem_kernels`) from the static equilibrium
-and :class:`DirectionalPlant` steps it one dt at a time. ``DirectionalModel.linear_model`` and
-``DirectionalModel.control_affine`` export the discrete linear model (A_d, B_d) and the
-non-dimensional control-affine form (Eqs. 4.13-4.19, 4.25) for the DHP design.
+docs/seed-errata.md): curvature enters only through gravity (rho A g cos(inclination), lumped
+exactly as w * delta-TVD per element) and soft-string wellbore contact. Damping is Rayleigh (alpha0
+M + beta0 K) or modal. The model is an immutable :class:`DirectionalModel`;
+:func:`simulate_directional` runs it (compiled implicit Newmark, :mod:`downhole.sim.fem_kernels`)
+from the static equilibrium and :class:`DirectionalPlant` steps it one dt at a time.
+``DirectionalModel.linear_model`` exports the discrete linear model (A_d, B_d); the non-dimensional
+control-affine form for the DHP design (Eqs. 4.13-4.19, 4.25) is built from it on the control side,
+:func:`downhole.control.affine.from_directional`.
 """
 
 from __future__ import annotations
@@ -23,10 +24,10 @@ from scipy.linalg import solve_banded
 
 from downhole.bit.rock_surface import RockSurfaceSpec, rock_init
 from downhole.contact.softstring import nodal_friction_forces, normal_weight
-from downhole.control.topdrive import Hook, TopDrive
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, DirectionalWellParams
 from downhole.params.presets import get_preset
+from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA, Hook, TopDrive
 from downhole.sim.fem_kernels import CHANNELS, TOP_LAYOUT, run_directional
 from downhole.sim.plant import Plant
 from downhole.sim.result import Result
@@ -160,8 +161,8 @@ class DirectionalModel:
                               md_b=self.node_md[iB], md_c=self.node_md[iC],
                               name=f"{self.name} design FEM")
 
-    def continuous_linear_model(self, top_drive_inertia: float = 500.0):
-        """Continuous ``(A, B, names)`` of Eq. 4.14 with B = [0; +M^-1 B_u] (SPEC correction).
+    def continuous_linear_model(self, top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA):
+        """Continuous ``(A, B, names)`` of Eq. 4.14 with B = [0; +M^-1 B_u] (docs/seed-errata.md).
 
         States (seed Eq. 4.13 layout): [x_1, alpha_1, ..., x_N, alpha_N, then their velocities],
         deviations from the static hanging equilibrium. Inputs: ``slack_off_force`` (N, downward
@@ -196,7 +197,7 @@ class DirectionalModel:
                  + [f"v_{i + 1}" if j == 0 else f"omega_{i + 1}" for i in range(n) for j in (0, 1)])
         return A, B, names, Minv
 
-    def linear_model(self, dt: float, top_drive_inertia: float = 500.0):
+    def linear_model(self, dt: float, top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA):
         """Discrete linear model ``(A_d, B_d)`` at step ``dt`` by exact zero-order hold (expm).
 
         Replaces the seed's truncated Taylor series (Eq. 4.15), which diverges with beta0 = 0.03
@@ -213,7 +214,8 @@ class DirectionalModel:
         A, B, _, _ = self.continuous_linear_model(top_drive_inertia)
         return zoh(A, B, dt)
 
-    def nodal_force_map(self, dt: float, top_drive_inertia: float = 500.0) -> np.ndarray:
+    def nodal_force_map(self, dt: float,
+                        top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA) -> np.ndarray:
         """ZOH map of arbitrary held nodal forces: ``Gamma = int_0^dt e^{A s} ds [0; M^-1]``.
 
         A force pair ``f`` (2N,: axial force and torque per node, in the state's interleaved
@@ -230,84 +232,6 @@ class DirectionalModel:
         n2 = Minv.shape[0]
         return zoh(A, np.vstack([np.zeros((n2, n2)), Minv]), dt)[1]
 
-    def control_affine(self, dt: float = 1e-3, *, state_scale=None, input_scale=(1e5, 1e4),
-                       top_drive_inertia: float = 500.0, friction: bool = True,
-                       v_eps_design: float = 0.05):
-        """Non-dimensional control-affine model of Eqs. 4.17-4.19, 4.25 for the DHP design.
-
-        ``z_{k+1} = A_d z_k + B_d u_k + h(z_k)`` with h the ZOH effect over one step of the bit law
-        (approximated depth of cut with the floor omega* of Eq. 4.16) and, with ``friction``, of
-        the wellbore friction (normal force from the hanging tension; regularization
-        ``v_eps_design`` m/s so the design model stays smooth). States are deviations from the
-        static hanging equilibrium (bit on bottom with zero WOB).
-
-        Parameters
-        ----------
-        dt : float
-            Step, s.
-        state_scale : array_like, optional
-            ``P`` of Eq. 4.17; default: 0.05 m, 30 rad, 0.02 m/s, 20 rad/s per kind.
-        input_scale : (float, float)
-            Input scale (N, N m).
-
-        Returns
-        -------
-        downhole.control.affine.ControlAffineModel
-        """
-        from downhole.bit.law import approx_depth_of_cut, bit_forces
-        from downhole.control.affine import ControlAffineModel
-
-        m = self.design_model()
-        n = m.n_nodes
-        A_d, B_d = self.linear_model(dt, top_drive_inertia)
-        A, _, names, _ = self.continuous_linear_model(top_drive_inertia)
-        ns = A.shape[0]
-        Gam = self.nodal_force_map(dt, top_drive_inertia)
-        bitp = m.bit.to_array()
-        ib = n - 1
-        # hanging tension per element (zero WOB) for the friction normal force
-        tension = _hanging_tension(m)
-        elem = m.elem
-        radius = m.radius
-        mu = m.mu if friction else 0.0
-
-        def h(zb, _G=Gam):
-            N = zb.shape[0]
-            F = np.zeros((N, 2 * n))
-            va = zb[:, 2 * n + 2 * ib]
-            vt = zb[:, 2 * n + 2 * ib + 1]
-            for j in range(N):
-                d = approx_depth_of_cut(va[j], vt[j], bitp)
-                w, t = bit_forces(d, va[j], vt[j], bitp)
-                F[j, 2 * ib] -= w
-                F[j, 2 * ib + 1] -= t
-            if mu > 0:
-                xa = zb[:, 0:2 * n:2]
-                T = tension[None, :] - m.Ka[1, None, :n - 1] * (xa[:, 1:] - xa[:, :-1])
-                fa, ft = nodal_friction_forces(T, elem, radius, mu, zb[:, 2 * n:4 * n:2],
-                                               zb[:, 2 * n + 1:4 * n:2], v_eps_design)
-                F[:, 0:2 * n:2] += fa
-                F[:, 1:2 * n:2] += ft
-            return F @ _G.T
-
-        kinds, nodes = [], []
-        for blk in ("position", "velocity"):
-            for i in range(n):
-                kinds += [f"axial_{blk}", f"angular_{blk}"]
-                nodes += [i, i]
-        if state_scale is None:
-            base = {"axial_position": 0.05, "angular_position": 30.0, "axial_velocity": 0.02,
-                    "angular_velocity": 20.0}
-            state_scale = np.array([base[k] for k in kinds])
-        rows = np.arange(ns)
-        return ControlAffineModel.from_physical(
-            A_d, B_d, state_scale=state_scale, input_scale=input_scale, dt=dt,
-            nonlinear_physical=h, state_names=names, state_kinds=kinds, state_nodes=nodes,
-            input_names=["slack_off_force", "surface_torque"], bit=m.bit,
-            hanging_hook_load=m.buoyed_weight, node_depths=m.node_md, nonlinear_rows=rows,
-            name=f"{self.name} ({m.n_states} states)",
-            metadata={"model": self.name, "kind": self.kind})
-
 
 # ------------------------------------------------------------------------------ helpers
 def _tri_dense(T):
@@ -318,8 +242,9 @@ def _tri_dense(T):
     return D
 
 
-def _hanging_tension(m: DirectionalModel) -> np.ndarray:
-    """Element tensions in the static hanging state with zero WOB, N."""
+def hanging_tension(m: DirectionalModel) -> np.ndarray:
+    """Element tensions of ``m`` in the static hanging state with zero WOB, N (the normal force
+    of the soft-string friction in the control-design models)."""
     u = _static_axial(m, wob=0.0)
     return -m.Ka[1, :-1] * (u[1:] - u[:-1])
 
@@ -424,7 +349,7 @@ def _damping(Ma, Ka, Mt, Kt, damping, alpha, beta, modal_ratio):
 
 
 def table_5_1_setup(params: DirectionalWellParams | None = None):
-    """Well, string and bit of the seed's Table 5.1 (corrected, SPEC.md)."""
+    """Well, string and bit of the seed's Table 5.1 (corrected, docs/seed-errata.md)."""
     from downhole.string.drillstring import DrillString
 
     p = params or get_preset("table_5_1").string
@@ -585,7 +510,7 @@ def _static_axial(m: DirectionalModel, wob: float) -> np.ndarray:
 
 def _line_preload(m: DirectionalModel, wob: float):
     """Static forces of the wave segment on B and C (downward) and its static elongation."""
-    from downhole.string.wave import line_preload
+    from downhole.sim.wave import line_preload
 
     wv = m.wave
     n_c = float(m.gravity[m.node_c:].sum()) - wob
@@ -926,7 +851,7 @@ class _Packed:
                     lag=t["lag"].copy())
 
     def _initial_state(self):
-        from downhole.string.wave import wave_state
+        from downhole.sim.wave import wave_state
 
         model = self.model
         n = model.n_nodes
@@ -941,7 +866,7 @@ class _Packed:
         if model.wave is not None:
             wa = wave_state(model.wave["segments"][0], self.dt)
             wt = wave_state(model.wave["segments"][1], self.dt)
-            from downhole.string.wave import wave_push
+            from downhole.sim.wave import wave_push
 
             wave_push(*wa, 0.0, 0.0)
             wave_push(*wt, 0.0, 0.0)
@@ -1002,7 +927,7 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
     duration, dt : float
         Simulated time and step, s.
     top_drive : TopDrive, optional
-        Default: PI at 10 rad/s, J_td = 500 kg m^2, Kp = 1e4, Ki = 2e3 (SPEC.md).
+        Default: PI at 10 rad/s, J_td = DEFAULT_TOP_DRIVE_INERTIA (500 kg m^2), Kp = 1e4, Ki = 2e3.
     hook : Hook, optional
         Default: constant hook load = buoyed weight - 120 kN.
     depth_of_cut : {"delayed", "approximate"}

@@ -1,15 +1,15 @@
 """Hybrid FEM + wave-segment directional model (seed Sec. 5.2): FEM for the top (AB) and curved
 (CD) parts, a lossless wave (delay) line for the straight, uniform, contact-free part BC.
 
-The line is :class:`downhole.string.wave.WaveSegment` (one implementation shared with Ch. 3):
+The line is :class:`downhole.sim.wave.WaveSegment` (one implementation shared with Ch. 3):
 force on B = Z (2 b_in - v_B), on C = Z (2 a_in - v_C), Z_axial = A sqrt(rho E),
-Z_torsional = J sqrt(rho G) (seed Eq. 5.18 swaps them; SPEC.md), plus the static preload of the
-hanging line (its weight). The kernels treat -Z v as an implicit damper on B and C. Damping of
-the line (SPEC.md): the Rayleigh alpha0 part is lumped as end dashpots alpha0 rho A L/2 (and
-alpha0 rho J L/2) at B and C; optionally the beta0 part as ``n_lags`` first-order lags on each incoming
-wave with time constant sqrt(beta0 tau / n_lags), which reproduce the low-frequency Kelvin-Voigt
-attenuation exp(-omega^2 beta0 tau / 2); the pure delay is shortened by the lags' group delay
-(n_lags * T) so that the arrival time stays tau.
+Z_torsional = J sqrt(rho G) (seed Eq. 5.18 swaps them; docs/seed-errata.md), plus the static preload
+of the hanging line (its weight). The kernels treat -Z v as an implicit damper on B and C. Damping
+of the line (docs/seed-errata.md): the Rayleigh alpha0 part is lumped as end dashpots alpha0 rho A
+L/2 (and alpha0 rho J L/2) at B and C; optionally the beta0 part as ``n_lags`` first-order lags on
+each incoming wave with time constant sqrt(beta0 tau / n_lags), which reproduce the low-frequency
+Kelvin-Voigt attenuation exp(-omega^2 beta0 tau / 2); the pure delay is shortened by the lags' group
+delay (n_lags * T) so that the arrival time stays tau.
 
 Presets: the seed's state counts (4 states per FEM node): ``hybrid24`` (2 + 4 nodes),
 ``hybrid68`` (4 + 13 nodes, the Ch. 6 plant: (2+1)(2-1)+1 = 4 on AB, (3+1)(4-1)+1 = 13 on CD)
@@ -24,10 +24,10 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.params import BitParams
+from downhole.sim.wave import WaveSegment
 from downhole.string.drillstring import DrillString
 from downhole.string.fem import (DirectionalModel, _assemble_chain, _apply_stabilizers,
                                  _check_int, _damping, _mesh, table_5_1_setup)
-from downhole.string.wave import WaveSegment
 from downhole.well import WellPath
 
 __all__ = ["hybrid_model", "HYBRID_PRESETS"]

@@ -5,7 +5,8 @@ one wave segment (surface to bit) per field, the bit mass and inertia at the bot
 Eliminating the waves gives the neutral delay-differential equations of Eq. 3.9 with the delays
 tau = L sqrt(rho/E), L sqrt(rho/G) (Eq. 3.10 prints them inverted); :meth:`NeutralModel.ndde`
 returns its matrices (Eq. 3.13) for control design. :func:`simulate_neutral` runs the wave form
-(compiled, open loop or with the EID controller in the same kernel) and returns a Result.
+(compiled open loop, or closed loop through a controller's compiled runner built from this
+module's per-step functions, or any controller in a Python loop) and returns a Result.
 
 Conventions. Velocities positive downward / forward. The top boundary is the seed's
 ``N(0) = alpha_A (v_top - U_A) + (M_S + M_B) g`` (Eq. 3.5) with the string weight carried at the
@@ -27,19 +28,19 @@ from numba import njit
 from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
 from downhole.bit.rock_surface import (RockSurfaceSpec, rock_advance, rock_depth, rock_init,
                                        rock_init_helix)
-from downhole.control.eid._kernel import eid_arrays, eid_step
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, NeutralStringParams, get_preset
 from downhole.sim.plant import Plant, check_start, steady_depth_of_cut
+from downhole.sim.references import as_reference
 from downhole.sim.result import Result
-from downhole.string.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WaveSegment,
-                                  segments_from_pipe, wave_read_at, wave_read_plan,
-                                  wave_source_forces, wave_state, wave_step_at)
+from downhole.sim.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WaveSegment,
+                               segments_from_pipe, wave_read_at, wave_read_plan,
+                               wave_source_forces, wave_state, wave_step_at)
 
 __all__ = ["NeutralModel", "NDDEMatrices", "NeutralPlant", "neutral_model", "simulate_neutral",
            "NEUTRAL_CHANNELS", "NOMINAL_U_A", "NOMINAL_U_T"]
 
-#: SPEC.md: open-loop commands giving 10 mm/s and 20 rad/s with Table 3.1.
+#: docs/seed-errata.md: open-loop commands giving 10 mm/s and 20 rad/s with Table 3.1.
 NOMINAL_U_A = 1.147224
 NOMINAL_U_T = 22.5196
 
@@ -208,117 +209,148 @@ def neutral_model(string: NeutralStringParams | str = "table_3_1",
 
 
 # ----------------------------------------------------------------------------------------------
-# compiled kernel
+# compiled kernel: per-step functions shared by the open-loop runner below and by the compiled
+# closed-loop runners that controllers offer through ``neutral_runner`` (see simulate_neutral)
 # ----------------------------------------------------------------------------------------------
-@njit(cache=True)
-def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, approx,
-                 ha, pa, wpa, ht, pt, wpt, surf, istate, rp,
-                 u_in, use_eid, cp, cs, ch, cpos, ref, noise, fnoise,
-                 nsteps, dt, every, out, sigout, bstate, t0):
-    """Advance the wave model ``nsteps`` steps from the bit state ``bstate`` = [x, v, theta,
-    omega] at time ``t0`` (updated in place; the wave buffers and rock surface carry the rest of
-    the state). Records t0 + k dt for k = 0, every, ..., nsteps; returns (status, step, channel).
-    The outgoing waves of the last time are not pushed, so a later call continues the run."""
-    x = bstate[0]
-    v = bstate[1]
-    th = bstate[2]
-    w = bstate[3]
-    # wave clocks, capacities and read plans in locals (downhole.string.wave)
+#: Names, in order, of the plant arguments (``plant_args``) that :func:`simulate_neutral` hands to
+#: a controller's compiled closed-loop runner; they are the first positional arguments of
+#: :func:`_run_neutral` and are passed on to :func:`neutral_wave_start`,
+#: :func:`neutral_top_and_bit`, :func:`neutral_record` and :func:`neutral_advance`.
+NEUTRAL_KERNEL_ARGS = ("za", "zt", "m_b", "i_b", "alpha_a", "alpha_t", "f_top", "m_s_g", "grav",
+                       "bitp", "approx", "ha", "pa", "wpa", "ht", "pt", "wpt", "surf", "istate",
+                       "rp")
+
+
+@njit(cache=True, inline="always")
+def neutral_wave_start(ha, pa, wpa, ht, pt, wpt):
+    """Wave clocks, the loop-invariant read plan ``(cap_a, cap_t, off_a, fr_a, off_t, fr_t)``
+    and the incoming waves at the current time: ``(na, nt, plan, a_in, b_in, a_in_t, b_in_t)``.
+    (The per-step functions group arguments in tuples: a call with more than 30 arguments is
+    not inlined by numba.)"""
     na = pa[0]
     nt = pt[0]
     cap_a = int(wpa[WP_CAP])
     cap_t = int(wpt[WP_CAP])
     off_a, fr_a = wave_read_plan(wpa[WP_DELAY_STEPS])
     off_t, fr_t = wave_read_plan(wpt[WP_DELAY_STEPS])
-    # incoming waves at t0 and the top node at t0
     a_in, b_in = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa[WP_A0], wpa[WP_B0])
     a_in_t, b_in_t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt[WP_A0], wpt[WP_B0])
-    uvec = np.zeros(2)
-    y = np.zeros(2)
-    r = np.zeros(2)
-    sig = np.zeros((2, 4))
+    return na, nt, (cap_a, cap_t, off_a, fr_a, off_t, fr_t), a_in, b_in, a_in_t, b_in_t
+
+
+@njit(cache=True, inline="always")
+def neutral_top_and_bit(za, zt, alpha_a, alpha_t, f_top, bitp, approx, surf, istate, rp,
+                        x, v, th, w, a_in, b_in, a_in_t, b_in_t, ua, ut, fwob, ftob):
+    """The algebraic part of one step at t_k: the massless top nodes under the surface commands
+    (``ua``, ``ut``; line force 2 Z b_in - Z v_top) and the bit forces (plus the force noise
+    ``fwob``, ``ftob``). Returns ``(vtop, wtop, d, wob, tob)``."""
+    sa_top, _ = wave_source_forces(za, a_in, b_in)
+    st_top, _ = wave_source_forces(zt, a_in_t, b_in_t)
+    vtop = (sa_top + alpha_a * ua - f_top) / (za + alpha_a)
+    wtop = (st_top + alpha_t * ut) / (zt + alpha_t)
+    if approx:
+        d = approx_depth_of_cut(v, w, bitp)
+    else:
+        d = rock_depth(surf, istate, rp, x, th)
+    wob, tob = bit_forces(d, v, w, bitp)
+    wob += fwob
+    tob += ftob
+    return vtop, wtop, d, wob, tob
+
+
+@njit(cache=True, inline="always")
+def neutral_record(out, rec, t, x, v, th, w, d, wob, tob, vtop, wtop, ua, ut, alpha_a, alpha_t,
+                   f_top, m_s_g):
+    """Write the row ``rec`` of :data:`NEUTRAL_CHANNELS` (hook load N(0) + M_S g, surface torque
+    alpha_T (U_T - omega_top)); returns the first non-finite channel index, 0 if none."""
+    out[rec, 0] = t
+    out[rec, 1] = x
+    out[rec, 2] = v
+    out[rec, 3] = th
+    out[rec, 4] = w
+    out[rec, 5] = d
+    out[rec, 6] = wob
+    out[rec, 7] = tob
+    out[rec, 8] = alpha_a * (vtop - ua) + f_top + m_s_g
+    out[rec, 9] = alpha_t * (ut - wtop)
+    out[rec, 10] = vtop
+    out[rec, 11] = wtop
+    out[rec, 12] = ua
+    out[rec, 13] = ut
+    for c in range(1, 14):
+        if not math.isfinite(out[rec, c]):
+            return c
+    return 0
+
+
+@njit(cache=True, inline="always")
+def neutral_advance(za, zt, m_b, i_b, grav, bitp, approx, ha, wpa, ht, wpt, surf, istate, rp,
+                    plan, na, nt, x, v, th, w, a_in, b_in, a_in_t, b_in_t, top_bit, dt):
+    """Advance from t_k to t_{k+1}: push the outgoing waves of t_k, read the incoming ones of
+    t_{k+1}, step the bit node (trapezoidal on the line force at the bit: F_C of t_k, 2 Z a_in of
+    t_{k+1} with the end damper implicit; bit forces with implicit frozen slopes) and the rock
+    surface. ``plan`` is from :func:`neutral_wave_start`, ``top_bit`` = ``(vtop, wtop, d, wob,
+    tob)`` from :func:`neutral_top_and_bit` at t_k. Returns ``(na, nt, x, v, th, w, a_in, b_in,
+    a_in_t, b_in_t)`` at t_{k+1}."""
+    cap_a, cap_t, off_a, fr_a, off_t, fr_t = plan
+    vtop, wtop, d, wob, tob = top_bit
+    _, fa_line = wave_step_at(ha, na, cap_a, za, vtop, v, a_in, b_in)
+    _, ft_line = wave_step_at(ht, nt, cap_t, zt, wtop, w, a_in_t, b_in_t)
+    na += 1
+    nt += 1
+    a1, b1 = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa[WP_A0], wpa[WP_B0])
+    a1t, b1t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt[WP_A0], wpt[WP_B0])
+    _, sa1 = wave_source_forces(za, a1, b1)
+    _, st1 = wave_source_forces(zt, a1t, b1t)
+    ca, ct = bit_force_slopes(d, v, w, bitp, approx)
+    v1 = (m_b * v / dt + 0.5 * fa_line + 0.5 * sa1 + grav - wob + ca * v) / (
+        m_b / dt + 0.5 * za + ca)
+    w1 = (i_b * w / dt + 0.5 * ft_line + 0.5 * st1 - tob + ct * w) / (
+        i_b / dt + 0.5 * zt + ct)
+    xprev = x
+    thprev = th
+    x += 0.5 * dt * (v + v1)
+    th += 0.5 * dt * (w + w1)
+    if not approx:
+        rock_advance(surf, istate, rp, thprev, xprev, th, x)
+    return na, nt, x, v1, th, w1, a1, b1, a1t, b1t
+
+
+@njit(cache=True)
+def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, approx,
+                 ha, pa, wpa, ht, pt, wpt, surf, istate, rp,
+                 u_in, fnoise, nsteps, dt, every, out, bstate, t0):
+    """Open loop: advance the wave model ``nsteps`` steps under the commands ``u_in`` (2, nsteps
+    + 1) from the bit state ``bstate`` = [x, v, theta, omega] at time ``t0`` (updated in place;
+    the wave buffers and rock surface carry the rest of the state). Records t0 + k dt for k = 0,
+    every, ..., nsteps; returns (status, step, channel). The outgoing waves of the last time are
+    not pushed, so a later call continues the run."""
+    x = bstate[0]
+    v = bstate[1]
+    th = bstate[2]
+    w = bstate[3]
+    na, nt, plan, a_in, b_in, a_in_t, b_in_t = neutral_wave_start(ha, pa, wpa, ht, pt, wpt)
     rec = 0
     for k in range(nsteps + 1):
-        # commands at t_k
-        if use_eid:
-            y[0] = v + noise[0, k]
-            y[1] = w + noise[1, k]
-            r[0] = ref[0, k]
-            r[1] = ref[1, k]
-            eid_step(cp, cs, ch, cpos, y, r, dt, uvec, sig)
-            ua = uvec[0]
-            ut = uvec[1]
-        else:
-            ua = u_in[0, k]
-            ut = u_in[1, k]
-        # massless top nodes (algebraic): line force 2 Z b_in - Z v_top
-        sa_top, _ = wave_source_forces(za, a_in, b_in)
-        st_top, _ = wave_source_forces(zt, a_in_t, b_in_t)
-        vtop = (sa_top + alpha_a * ua - f_top) / (za + alpha_a)
-        wtop = (st_top + alpha_t * ut) / (zt + alpha_t)
-        # bit forces at t_k
-        if approx:
-            d = approx_depth_of_cut(v, w, bitp)
-        else:
-            d = rock_depth(surf, istate, rp, x, th)
-        wob, tob = bit_forces(d, v, w, bitp)
-        wob += fnoise[0, k]
-        tob += fnoise[1, k]
+        ua = u_in[0, k]
+        ut = u_in[1, k]
+        top_bit = neutral_top_and_bit(
+            za, zt, alpha_a, alpha_t, f_top, bitp, approx, surf, istate, rp,
+            x, v, th, w, a_in, b_in, a_in_t, b_in_t, ua, ut, fnoise[0, k], fnoise[1, k])
+        vtop, wtop, d, wob, tob = top_bit
         if k % every == 0 or k == nsteps:
-            out[rec, 0] = t0 + k * dt
-            out[rec, 1] = x
-            out[rec, 2] = v
-            out[rec, 3] = th
-            out[rec, 4] = w
-            out[rec, 5] = d
-            out[rec, 6] = wob
-            out[rec, 7] = tob
-            out[rec, 8] = alpha_a * (vtop - ua) + f_top + m_s_g
-            out[rec, 9] = alpha_t * (ut - wtop)
-            out[rec, 10] = vtop
-            out[rec, 11] = wtop
-            out[rec, 12] = ua
-            out[rec, 13] = ut
-            if use_eid:
-                sigout[rec, 0] = y[0]
-                sigout[rec, 1] = y[1]
-                sigout[rec, 2] = sig[0, 1]
-                sigout[rec, 3] = sig[1, 1]
-                sigout[rec, 4] = sig[0, 2]
-                sigout[rec, 5] = sig[1, 2]
-            for c in range(1, 14):
-                if not math.isfinite(out[rec, c]):
-                    pa[0] = na
-                    pt[0] = nt
-                    return 1, k, c
+            c = neutral_record(out, rec, t0 + k * dt, x, v, th, w, d, wob, tob, vtop, wtop,
+                               ua, ut, alpha_a, alpha_t, f_top, m_s_g)
+            if c != 0:
+                pa[0] = na
+                pt[0] = nt
+                return 1, k, c
             rec += 1
         if k == nsteps:
             break
-        # outgoing waves of t_k, then incoming at t_{k+1}
-        _, fa_line = wave_step_at(ha, na, cap_a, za, vtop, v, a_in, b_in)
-        _, ft_line = wave_step_at(ht, nt, cap_t, zt, wtop, w, a_in_t, b_in_t)
-        na += 1
-        nt += 1
-        a1, b1 = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa[WP_A0], wpa[WP_B0])
-        a1t, b1t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt[WP_A0], wpt[WP_B0])
-        _, sa1 = wave_source_forces(za, a1, b1)
-        _, st1 = wave_source_forces(zt, a1t, b1t)
-        # bit node: trapezoidal on the line force at the bit (F_C of t_k; 2 Z a_in of t_{k+1}
-        # with the end damper implicit), bit forces with implicit frozen slopes
-        ca, ct = bit_force_slopes(d, v, w, bitp, approx)
-        v1 = (m_b * v / dt + 0.5 * fa_line + 0.5 * sa1 + grav - wob + ca * v) / (
-            m_b / dt + 0.5 * za + ca)
-        w1 = (i_b * w / dt + 0.5 * ft_line + 0.5 * st1 - tob + ct * w) / (
-            i_b / dt + 0.5 * zt + ct)
-        xprev = x
-        thprev = th
-        x += 0.5 * dt * (v + v1)
-        th += 0.5 * dt * (w + w1)
-        v = v1
-        w = w1
-        a_in, b_in, a_in_t, b_in_t = a1, b1, a1t, b1t
-        if not approx:
-            rock_advance(surf, istate, rp, thprev, xprev, th, x)
+        na, nt, x, v, th, w, a_in, b_in, a_in_t, b_in_t = neutral_advance(
+            za, zt, m_b, i_b, grav, bitp, approx, ha, wpa, ht, wpt, surf, istate, rp, plan,
+            na, nt, x, v, th, w, a_in, b_in, a_in_t, b_in_t, top_bit, dt)
     bstate[0] = x
     bstate[1] = v
     bstate[2] = th
@@ -479,10 +511,6 @@ class NeutralPlant(Plant):
                         p.bit_inertia, p.alpha_axial, p.alpha_torsional,
                         (p.string_mass + p.bit_mass) * p.g, p.string_mass * p.g,
                         p.bit_mass * p.g, model.bit.to_array(), depth_of_cut == "approximate")
-        self._cp = np.zeros((2, 17))
-        self._cs, self._ch = np.zeros((2, 4)), np.zeros((2, 6, 4))
-        self._cpos = np.zeros(1, dtype=np.int64)
-        self._sig = np.zeros((2, 6))
         self._out = np.empty((2, len(NEUTRAL_CHANNELS)))
         self.reset()
 
@@ -516,9 +544,8 @@ class NeutralPlant(Plant):
         if steps == 0:
             surf, ist = surf.copy(), ist.copy()
         status, kfail, cfail = _run_neutral(
-            *self._consts, ha, pa, wpa, ht, pt, wpt, surf, ist, rp, u_in, False, self._cp,
-            self._cs, self._ch, self._cpos, u_in, u_in * 0.0, fn, steps, self.dt,
-            max(steps, 1), self._out, self._sig, bstate, self._k * self.dt)
+            *self._consts, ha, pa, wpa, ht, pt, wpt, surf, ist, rp, u_in, fn, steps, self.dt,
+            max(steps, 1), self._out, bstate, self._k * self.dt)
         if status != 0:
             raise SimulationDiverged((self._k + kfail) * self.dt, NEUTRAL_CHANNELS[cfail])
         self._k += steps
@@ -556,20 +583,33 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
     duration, dt : float
         Simulated time and step, s (dt <= tau1; default 1e-4).
     controller : object, optional
-        Closed loop. An :class:`~downhole.control.eid.controller.EIDController` runs compiled
-        inside the plant kernel. Any other object with ``reset()`` and
-        ``command(t, observation, reference) -> {"command_axial": U_A, "command_angular": U_T}``
-        runs in a Python loop over a :class:`NeutralPlant` (observation: the named channels,
-        velocities with the measurement noise; reference: array [axial m/s, angular rad/s]).
+        Closed loop: any object with ``reset()`` and ``command(t, observation, reference) ->
+        {"command_axial": U_A, "command_angular": U_T}`` runs in a Python loop over a
+        :class:`NeutralPlant` (observation: the named channels, velocities with the measurement
+        noise; reference: array [axial m/s, angular rad/s]). Compiled fast path (the extension
+        point, duck-typed): if the controller has ``neutral_runner(dt)`` and it returns a
+        callable ``runner(plant_args, ref, mnoise, fnoise, nsteps, dt, every, out)``, the loop
+        runs there instead. ``plant_args`` are the kernel arguments named by
+        :data:`NEUTRAL_KERNEL_ARGS`, ``ref`` and ``mnoise`` (2, nsteps + 1) the sampled
+        reference and measurement noise, ``fnoise`` (2, nsteps + 1) the bit-force noise and
+        ``out`` the record (rows every ``every`` steps and the last, columns
+        :data:`NEUTRAL_CHANNELS`); it returns ``(status, step, channel, extra)`` (status 0 or 1
+        for a non-finite channel, ``extra`` a dict of further recorded channels). The runner is
+        built from this module's compiled per-step functions (:func:`neutral_top_and_bit`,
+        :func:`neutral_record`, :func:`neutral_advance`), so the physics is the open-loop
+        kernel's; :meth:`EIDController.neutral_runner
+        <downhole.control.eid.controller.EIDController.neutral_runner>` is one. Returning
+        ``None`` falls back to the Python loop. The attribute ``label`` (default the class name)
+        names the controller in the result's attributes.
     inputs : SurfaceInputs or tuple, optional
         Open-loop commands (U_A, U_T) in the seed's convention (U_A includes M_S g/alpha_A):
         ``SurfaceInputs.velocity(axial=U_A, angular=U_T)`` or a pair of signals (constant,
-        ``(t, values)`` or ``f(t)``). Default SPEC's nominal (1.147224 m/s, 22.5196 rad/s), which
+        ``(t, values)`` or ``f(t)``). Default the nominal (1.147224 m/s, 22.5196 rad/s), which
         gives 10 mm/s and 20 rad/s. Ignored with a controller.
     reference : Reference or pair of signals, optional
         Closed-loop reference (bit axial velocity m/s, bit angular velocity rad/s); default the
         controller's ``reference`` attribute if it has one, else 10 mm/s and 20 rad/s. See
-        :mod:`downhole.control.eid.references`.
+        :mod:`downhole.sim.references`.
     noise : dict, optional
         White noise: ``{"axial": sigma_v, "angular": sigma_w}`` measurement noise (standard
         deviation per controller sample, m/s and rad/s) and optionally ``"wob"``, ``"tob"``
@@ -583,8 +623,9 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         Python-loop controllers only: controller sample time (a multiple of dt; default dt).
         The command is held between samples.
     python_loop : bool
-        Run an EIDController through the Python loop too (same numbers as the compiled path;
-        for checking controllers stepped from Python, e.g. in the SIL loop).
+        Ignore a controller's compiled ``neutral_runner`` and step it through the Python loop
+        (the EID gives the same numbers either way; for checking controllers stepped from
+        Python, e.g. in the SIL loop).
     start : {"rest", "off_bottom", "steady"}
         Initial state (:data:`downhole.sim.plant.START_MODES`), open loop only: hanging at
         rest; moving at the commands of t = 0 with the bit ``clearance`` m off a flat bottom; or
@@ -654,19 +695,17 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
             "controller": "open-loop", "tau1": model.tau1, "tau2": model.tau2,
             "epsilon": model.bit.epsilon}
 
-    use_eid = controller is not None
+    closed = controller is not None
     check_start(start)
-    if use_eid and start != "rest":
+    if closed and start != "rest":
         raise DownholeInputError(f"start={start!r} needs an open-loop run: a closed loop "
                                  "starts from 'rest' (the controller's integrators and "
                                  "predictor have no equilibrium initialization)")
     meta["start"] = start
     u_in = np.zeros((2, nsteps + 1))
     ref = np.zeros((2, nsteps + 1))
-    if use_eid:
-        from downhole.control.eid.controller import EIDController
-        from downhole.control.eid.references import as_reference
-
+    runner = None
+    if closed:
         if not (hasattr(controller, "command") and hasattr(controller, "reset")):
             raise DownholeInputError("controller must have reset() and command(t, observation, "
                                      f"reference); got {type(controller).__name__}")
@@ -675,19 +714,16 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         reference = as_reference(reference)
         ref[:] = reference.sample(t)
         meta["reference"] = reference.name
-        if python_loop or not isinstance(controller, EIDController):
-            meta["controller"] = ("eid" if isinstance(controller, EIDController)
-                                  else type(controller).__name__)
+        meta["controller"] = getattr(controller, "label", type(controller).__name__)
+        hook = getattr(controller, "neutral_runner", None)
+        if not python_loop and hook is not None:
+            runner = hook(dt)
+        if runner is None:
             meta.update(attrs or {})
             return _simulate_python_loop(model, controller, dt, nsteps, every, ref, mnoise,
                                          fnoise, depth_of_cut, rock_points_per_pitch,
                                          control_dt, meta)
-        meta["controller"] = "eid"
-        cp = controller.compiled_params(dt)
-        cs, ch, cpos = eid_arrays(cp)
     else:
-        cp = np.zeros((2, 17))
-        cs, ch, cpos = np.zeros((2, 4)), np.zeros((2, 6, 4)), np.zeros(1, dtype=np.int64)
         if inputs is None:
             inputs = (NOMINAL_U_A, NOMINAL_U_T)
         if hasattr(inputs, "mode"):
@@ -711,25 +747,26 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         rock_points_per_pitch, clearance)
     nrec = nsteps // every + 1 + (1 if nsteps % every else 0)
     out = np.empty((nrec, len(NEUTRAL_CHANNELS)))
-    sigout = np.zeros((nrec, 6))
-    status, kfail, cfail = _run_neutral(
-        model.axial.impedance, model.torsional.impedance, p.bit_mass, p.bit_inertia,
-        p.alpha_axial, p.alpha_torsional, (p.string_mass + p.bit_mass) * g,
-        p.string_mass * g, p.bit_mass * g, model.bit.to_array(), depth_of_cut == "approximate",
-        ha, pa, wpa, ht, pt, wpt, surf, istate, rp, u_in, use_eid, cp, cs, ch, cpos, ref,
-        mnoise, fnoise, nsteps, dt, every, out, sigout, bstate, 0.0)
+    plant_args = (model.axial.impedance, model.torsional.impedance, p.bit_mass, p.bit_inertia,
+                  p.alpha_axial, p.alpha_torsional, (p.string_mass + p.bit_mass) * g,
+                  p.string_mass * g, p.bit_mass * g, model.bit.to_array(),
+                  depth_of_cut == "approximate", ha, pa, wpa, ht, pt, wpt, surf, istate, rp)
+    if runner is None:
+        status, kfail, cfail = _run_neutral(*plant_args, u_in, fnoise, nsteps, dt, every, out,
+                                            bstate, 0.0)
+        extra = {}
+    else:
+        status, kfail, cfail, extra = runner(plant_args, ref, mnoise, fnoise, nsteps, dt, every,
+                                             out)
     if status != 0:
         raise SimulationDiverged(kfail * dt, NEUTRAL_CHANNELS[cfail])
     channels = {name: out[:, i] for i, name in enumerate(NEUTRAL_CHANNELS) if name != "time"}
-    if use_eid:
+    if closed:
         tr = out[:, 0]
         idx = np.minimum(np.round(tr / dt).astype(int), nsteps)
         channels["reference_axial_velocity"] = ref[0, idx]
         channels["reference_angular_velocity"] = ref[1, idx]
-        for j, name in enumerate(("measured_axial_velocity", "measured_angular_velocity",
-                                  "eid_disturbance_axial", "eid_disturbance_angular",
-                                  "eid_prediction_axial", "eid_prediction_angular")):
-            channels[name] = sigout[:, j]
+        channels.update(extra)
     meta.update(attrs or {})
     return Result(out[:, 0], channels, units=_EXTRA_UNITS, attrs=meta)
 

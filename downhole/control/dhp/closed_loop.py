@@ -225,7 +225,7 @@ def lumped_true_plant(string="table_2_1", bit=None, *, dt: float = 1e-3,
     Returns ``(plant, adapter)`` for :func:`run_on_plant`; ``depth_of_cut="delayed"`` is the true
     plant (rock-surface memory), ``"approximate"`` the design-model bit law."""
     from downhole.sim import LumpedPlant
-    from downhole.string.lumped import lumped_model
+    from downhole.sim.lumped_model import lumped_model
 
     model = lumped_model(string, bit, order=4) if bit is not None else lumped_model(string,
                                                                                     order=4)

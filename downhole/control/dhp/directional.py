@@ -1,7 +1,8 @@
 """DHP on the directional FEM / hybrid models (seed Ch. 4 design, Ch. 6 validation).
 
 - :func:`directional_affine_model`: the non-dimensional control-affine design model of a
-  :class:`~downhole.string.fem.DirectionalModel` (same physics as its ``control_affine`` export:
+  :class:`~downhole.string.fem.DirectionalModel` (same physics as its export by
+  :func:`downhole.control.affine.from_directional`:
   ZOH linear part, bit law with the approximated depth of cut and its floor, soft-string
   friction with the hanging tension) in the structured form ``h = forces(z) @ force_map.T``
   with the forces compiled (numba) and vectorized over the batch of samples. The DHP trainer
@@ -25,6 +26,7 @@ from downhole.contact.softstring import contact_elements, element_normal_half, f
 from downhole.control.affine import ControlAffineModel
 from downhole.control.dhp.riccati import _draw_one, _fit_one
 from downhole.errors import DownholeInputError
+from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 from downhole.sim.plant import Plant
 
 __all__ = ["directional_affine_model", "DirectionalStatePlant", "table_5_1_models"]
@@ -141,12 +143,13 @@ def _directional_sample_fit(seed, set_ids, ref, radius, ns, Vr, c0, Y, P, bitp, 
 
 
 def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
-                             input_scale=(1e5, 1e4), top_drive_inertia: float = 500.0,
+                             input_scale=(1e5, 1e4),
+                             top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA,
                              friction: bool = True, v_eps_design: float = 0.05,
                              input_limits=((-5e4, 3e5), (-6e4, 6e4))) -> ControlAffineModel:
     """Compiled, structured control-affine design model of a directional FEM / hybrid model.
 
-    Same model as ``dmodel.control_affine(dt, ...)`` (a test checks that both give the same
+    Same model as ``from_directional(dmodel, dt, ...)`` (a test checks that both give the same
     f), with the nonlinear forces as ``forces`` (N, q) and their ZOH map as ``force_map``
     (n, q): only the force pairs that can be non-zero (the bit node and the nodes of the
     contact elements; ``metadata["force_nodes"]``), so that the DHP trainer fits no
@@ -169,14 +172,14 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
     v_eps_design : float
         Friction regularization of the design model, m/s.
     input_limits : ((float, float), (float, float)) or None
-        Slack-off force (N) and surface torque (N m) bounds applied online (SPEC.md: -50..300 kN,
-        +/-60 kN m).
+        Slack-off force (N) and surface torque (N m) bounds applied online (docs/seed-errata.md:
+        -50..300 kN, +/-60 kN m).
 
     Returns
     -------
     ControlAffineModel
     """
-    from downhole.string.fem import _hanging_tension
+    from downhole.string.fem import hanging_tension
 
     m = dmodel.design_model()
     n = m.n_nodes
@@ -195,7 +198,7 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
         state_scale = np.array([base[k] for k in kinds])
     P = np.ascontiguousarray(np.broadcast_to(np.asarray(state_scale, float), (ns,)))
     bitp = m.bit.to_array()
-    tension = np.ascontiguousarray(_hanging_tension(m), dtype=float)
+    tension = np.ascontiguousarray(hanging_tension(m), dtype=float)
     koff = np.ascontiguousarray(m.Ka[1, :n - 1], dtype=float)
     elem = np.ascontiguousarray(m.elem, dtype=float)
     radius = np.ascontiguousarray(m.radius, dtype=float)
@@ -267,13 +270,14 @@ class DirectionalStatePlant(Plant):
     """
 
     def __init__(self, dmodel, design: ControlAffineModel, dt: float = 1e-3, *,
-                 depth_of_cut: str = "delayed", top_drive_inertia: float = 500.0):
+                 depth_of_cut: str = "delayed",
+                 top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA):
         from downhole.control.topdrive import Hook, TopDrive
         from downhole.string.fem import DirectionalPlant
 
         if design.node_depths is None:
             raise DownholeInputError("the design model has no node_depths; it must come from "
-                                     "directional_affine_model or DirectionalModel.control_affine")
+                                     "directional_affine_model or control.affine.from_directional")
         self.plant = DirectionalPlant(dmodel, dt, top_drive=TopDrive(mode="torque",
                                                                      inertia=top_drive_inertia),
                                       hook=Hook(mode="force", wob=0.0),

@@ -6,7 +6,7 @@
 - :func:`reference_states`: the reference transform of Eqs. 4.21-4.23 (all positions follow
   x_d = int v_d, alpha_d = int omega_d; all velocities follow v_d, omega_d; non-dimensional).
   The "rotation" R_i of Eq. 4.22 is the identity: downhole models both fields along the measured
-  depth (SPEC.md: the cos-rotation of Eqs. 4.3-4.5 is not a valid transformation).
+  depth (docs/seed-errata.md: the cos-rotation of Eqs. 4.3-4.5 is not a valid transformation).
 - :func:`feed_forward`: the steady-state inputs u_ff that keep the model on the reference.
 - :class:`PenaltyWeights` / :func:`penalty_matrices`: the diagonal layout of Eq. 4.45 and
   Table 4.1 (weights on the top, selected nodes and the bit), and :func:`table_4_1_weights`

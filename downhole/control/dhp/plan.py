@@ -43,20 +43,10 @@ from downhole.control.affine import ControlAffineModel
 from downhole.control.dhp.controller import DHPController
 from downhole.control.dhp.references import BitReference
 from downhole.errors import DownholeInputError, SimulationDiverged
+from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
 __all__ = ["PlanSettings", "PlannedTrajectory", "plan_trajectory", "planned_controller",
-           "design_dhp_planned", "PLANNED_WEIGHTS"]
-
-#: DHP weights (PenaltyWeights fields) for the gains about a planned step start-up on the Table
-#: 5.1 well: soft (the plan does the start-up), integral action, damping injection on the string
-#: velocities. Found by a (1+1) evolution strategy scoring the worst settling time of the
-#: planned step on the 24-state FEM and the 68-state hybrid (approximate and delayed depth of
-#: cut) and the tracking at epsilon 50% and 300% (examples/research/
-#: dhp_planned_weight_search.py); used by the dhp.hybrid68 experiment and the SIL
-#: ``weights = "planned"``.
-PLANNED_WEIGHTS = dict(bit_velocity=(0.0114, 2.03), bit_position=(0.157, 0.0917),
-                       string_velocity=(0.446, 0.0194), r=(1.0, 2.07), integral=(87.1, 287.0))
-
+           "design_dhp_planned"]
 
 @dataclass(frozen=True)
 class PlanSettings:
@@ -101,7 +91,7 @@ class PlanSettings:
     axial_tolerance: float = 5e-4
     angular_tolerance: float = 1.0
     max_evaluations: int = 80
-    top_drive_inertia: float = 500.0
+    top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA
 
     def __post_init__(self):
         for name in ("duration", "knot_spacing", "axial_tolerance", "angular_tolerance",

@@ -121,7 +121,8 @@ class DHPSettings:
         Algorithm 1 stops at a step when max |lambda^{i+1} - lambda^i| over the samples is below
         ``threshold`` times max |lambda^{i+1}| (Eq. 4.43, relative).
     sample_radius : float or array of float
-        Samples z = r_k + U(-a, a) in non-dimensional units (local to the reference, SPEC.md).
+        Samples z = r_k + U(-a, a) in non-dimensional units (local to the reference,
+        docs/seed-errata.md).
     method : str
         One of :data:`METHODS`.
     jacobian : {"seed", "exact"}

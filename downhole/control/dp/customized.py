@@ -3,7 +3,7 @@
 Candidate states are grid pairs (x2, x4); the inverted discrete model (Eq. 2.15) gives the
 inputs that connect a node at step k with a node at step k+1, so no interpolation and no
 forward integration is needed. Two variants give the same optimum (x1 and x3 enter the model
-only as x - u, SPEC.md):
+only as x - u, docs/seed-errata.md):
 
 * ``regions=False`` (default): the DP over (x2, x4) nodes, O(N (L2 L4)^2).
 * ``regions=True``: the seed's algorithm, with x1/x3 binned into ``x1_regions`` / ``x3_regions``

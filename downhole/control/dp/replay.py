@@ -1,9 +1,9 @@
 """Replay of DP solutions: on the DP's discrete model, on the continuous 4th-order model (also
 with perturbed epsilon), and on the 4th/12th-order simulation models of :mod:`downhole.sim`.
 
-On-grid solutions are replayed by path inversion (SPEC.md): the top displacements are rebuilt
-at every simulation step from the linear (x2, x4) path (Eq. 2.15 in continuous form), which makes
-the 4th-order model follow the path closely; interpolating the DP's u(k) instead leaves 5-12 %
+On-grid solutions are replayed by path inversion (docs/seed-errata.md): the top displacements are
+rebuilt at every simulation step from the linear (x2, x4) path (Eq. 2.15 in continuous form), which
+makes the 4th-order model follow the path closely; interpolating the DP's u(k) instead leaves 5-12 %
 errors.
 """
 
@@ -89,7 +89,7 @@ def replay_lumped(sol: DPSolution, order: int = 4, *, epsilon_scale: float = 1.0
     downhole.sim.result.Result
     """
     from downhole.sim import SurfaceInputs, simulate
-    from downhole.string.lumped import lumped_model
+    from downhole.sim.lumped_model import lumped_model
 
     if order not in (4, 12):
         raise DownholeInputError(f"order must be 4 or 12, got {order!r}")

@@ -98,8 +98,8 @@ class DPSolution:
         """Top displacements sampled every ``dt`` for replay on a simulation model.
 
         On-grid paths are replayed by path inversion: the linear (x2, x4) path is inverted in
-        continuous form at every sample (SPEC: do not interpolate u(k)). Off-grid solutions
-        (standard DP) hold u(k) over each step.
+        continuous form at every sample (do not interpolate u(k), docs/seed-errata.md). Off-grid
+        solutions (standard DP) hold u(k) over each step.
 
         Returns
         -------

@@ -1,6 +1,7 @@
 """The EID controller object (seed Fig. 3.3, corrected): design with :func:`design_eid`, run with
-:func:`downhole.string.neutral.simulate_neutral` (compiled, in the plant kernel) or step it from
-Python with :meth:`EIDController.command`; save/load as ``.npz`` + JSON (no pickle).
+:func:`downhole.string.neutral.simulate_neutral` (compiled, through
+:meth:`EIDController.neutral_runner` and :mod:`downhole.control.eid.neutral_runner`) or step it
+from Python with :meth:`EIDController.command`; save/load as ``.npz`` + JSON (no pickle).
 
 Structure (per channel, see :mod:`downhole.control.eid._kernel`): observer driven by the delayed
 command u_f(t - tau) (the plant's own input delay), disturbance estimator
@@ -61,6 +62,9 @@ class EIDController:
     needs = ("bit_axial_velocity", "bit_angular_velocity")
     commands = ("top_drive_axial_velocity", "top_drive_angular_velocity")
 
+    #: Name of the controller in a result's attributes.
+    label = "eid"
+
     # --- compiled parameters ------------------------------------------------------------------
     def compiled_params(self, dt: float) -> np.ndarray:
         """Parameter array (2, NP) of the compiled step at step ``dt``."""
@@ -74,6 +78,14 @@ class EIDController:
                      c["h"] / dt, c["tau"] / dt, c["offset"], float(self.predictor),
                      float(self.delayed_input_observer), self.u_limits[i][0], self.u_limits[i][1]]
         return cp
+
+    def neutral_runner(self, dt: float):
+        """The compiled closed loop on the neutral-type string at step ``dt``: the fast-path hook
+        of :func:`~downhole.string.neutral.simulate_neutral` (see
+        :mod:`downhole.control.eid.neutral_runner`)."""
+        from downhole.control.eid.neutral_runner import make_neutral_runner
+
+        return make_neutral_runner(self.compiled_params(dt))
 
     # --- Python stepping (SIL / generic plants) -----------------------------------------------
     def reset(self) -> None:

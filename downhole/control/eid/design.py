@@ -1,5 +1,5 @@
-"""LMI synthesis of the EID controller gains (seed Theorem 1 with SPEC.md's corrections) with
-cvxpy + Clarabel.
+"""LMI synthesis of the EID controller gains (seed Theorem 1 with the corrections of
+docs/seed-errata.md) with cvxpy + Clarabel.
 
 The design model (Eq. 3.13) is diagonal, so each channel (axial, torsional) is designed on its own
 scalar neutral system ``x' = a0 x + a1 x(t-h) + g1 x'(t-h) + b (u(t - tau) + d_e)``. The closed

@@ -1,0 +1,136 @@
+"""LAS 2.0 export of simulation results (time-indexed logs), via lasio.
+
+Drilling data tools (log viewers, Techlog, Petrel, lasio/welly scripts) read LAS. A
+:class:`~downhole.sim.Result` becomes a time-indexed LAS 2.0 file: the index curve ``TIME`` (s),
+one curve per 1-D channel with its unit in the curve header (``WOB .N``, ``TOB .N*m``), the run's
+scalar metadata (dt, model, integrator, ...) in the ``~Parameter`` section and the summary
+metrics as parameters too.
+
+:meth:`Result.to_las <downhole.sim.result.Result.to_las>` calls :func:`write_las`. The writer
+lives beside the Result (as its CSV and netCDF writers do) so that the Result does not import the
+I/O package; :mod:`downhole.io.las` re-exports it and holds the reader,
+:func:`~downhole.io.las.read_las`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from downhole.errors import DownholeInputError
+
+__all__ = ["write_las", "NULL"]
+
+#: Null value written for NaN samples (the LAS convention).
+NULL = -999.25
+
+#: Parameters copied from Result.attrs into ~Parameter when present: attr -> (mnemonic, unit).
+_PARAM_ATTRS = {"dt": ("DT", "s"), "model": ("MODEL", ""), "integrator": ("INTEG", ""),
+                "depth_of_cut": ("DOC", ""), "input_mode": ("INPUT", ""),
+                "bit_radius": ("BITRAD", "m"), "n_blades": ("NBLADES", ""),
+                "downhole_version": ("DHVER", ""), "title": ("TITLE", "")}
+
+
+def _mnemonic(name: str) -> str:
+    m = "".join(c if (c.isalnum() or c == "_") else "_" for c in name.upper())
+    return m or "CURVE"
+
+
+def write_las(result, path: str | os.PathLike, well: str = "downhole simulation",
+              channels: list[str] | None = None, company: str = "", field: str = "",
+              summary: bool = True) -> Path:
+    """Write ``result`` as a time-indexed LAS 2.0 file.
+
+    Parameters
+    ----------
+    result : Result
+    path : path-like
+        Output file (written to a temporary name and renamed).
+    well : str
+        ``WELL`` entry of the ~Well section.
+    channels : list of str, optional
+        Channels to write (default: every 1-D channel).
+    company, field : str
+        ``COMP`` and ``FLD`` entries.
+    summary : bool
+        Also write the summary metrics (second half of the run) as ~Parameter entries.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    import lasio
+
+    names = [n for n in result.channels if result.dataset[n].ndim == 1]
+    if channels is not None:
+        unknown = [c for c in channels if c not in result.channels]
+        if unknown:
+            raise DownholeInputError(f"channels {unknown} are not in the result; it has "
+                                     f"{', '.join(result.channels)}")
+        multi = [c for c in channels if result.dataset[c].ndim != 1]
+        if multi:
+            raise DownholeInputError(f"channels {multi} are not 1-D time series; LAS holds one "
+                                     "value per time sample")
+        names = list(channels)
+    t = np.asarray(result.time, float)
+    if t.size == 0:
+        raise DownholeInputError("the result has no samples; nothing to write")
+    las = lasio.LASFile()
+    las.well["WELL"].value = well
+    las.well["COMP"].value = company
+    las.well["FLD"].value = field
+    las.well["NULL"].value = NULL
+    import datetime
+
+    for key, descr in (("STRT", "START TIME"), ("STOP", "STOP TIME"), ("STEP", "STEP")):
+        las.well[key].unit = "s"
+        las.well[key].descr = descr
+    las.well["DATE"].value = datetime.date.today().isoformat()
+    las.append_curve("TIME", t, unit="s", descr="simulated time")
+    seen = {"TIME"}
+    for n in names:
+        mnem = _mnemonic(n)
+        if mnem in seen:
+            raise DownholeInputError(f"channel names {n!r} and another map to the same LAS "
+                                     f"mnemonic {mnem!r}")
+        seen.add(mnem)
+        da = result.dataset[n]
+        unit = str(da.attrs.get("units", "")).replace(" ", "")
+        desc = str(da.attrs.get("description", "")) or n
+        values = np.where(np.isfinite(da.values), da.values, NULL)
+        las.append_curve(mnem, values, unit=unit, descr=f"{n}: {desc}")
+    attrs = result.attrs
+    for key, (mnem, unit) in _PARAM_ATTRS.items():
+        if key in attrs:
+            value = attrs[key]
+            if isinstance(value, (np.generic,)):
+                value = value.item()
+            las.params.append(lasio.HeaderItem(mnem, unit=unit, value=value, descr=key))
+    if summary:
+        try:
+            s = result.summary()
+        except Exception:  # noqa: BLE001 - a summary needs the standard channels
+            s = {}
+        from downhole.signals import metric_unit
+
+        for k, v in s.items():
+            if isinstance(v, float) and math.isfinite(v):
+                unit = metric_unit(k)
+                las.params.append(lasio.HeaderItem(_mnemonic(k), unit=unit.replace("-", ""),
+                                                   value=float(f"{v:.8g}"),
+                                                   descr=f"summary: {k} (second half)"))
+    las.other = ("Written by downhole from a simulation Result. Time-indexed (not depth): the "
+                 "index curve TIME is the simulated time in seconds.")
+    path = Path(path)
+    tmp = path.with_name(path.name + ".part")
+    try:
+        with open(tmp, "w") as fh:
+            las.write(fh, version=2.0, wrap=False, fmt="%.10g")
+        tmp.replace(path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path

@@ -1,0 +1,165 @@
+"""Layering: the mechanics core runs without control code, the compiled-controller extension
+point of the neutral model, and the registry of named DHP weight sets."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from downhole.control.dhp.weight_sets import REGISTRY, weight_set, weight_set_names
+from downhole.errors import DownholeInputError
+from downhole.string.neutral import (NEUTRAL_KERNEL_ARGS, NOMINAL_U_A, NOMINAL_U_T,
+                                     _run_neutral, neutral_model, simulate_neutral)
+
+UPPER = ("control", "sil", "cli", "experiments", "report", "bench", "sweep", "gym")
+
+
+def test_core_imports_and_runs_without_upper_layers():
+    # import-linter checks the static imports; this checks what a run actually loads
+    code = (
+        "import sys\n"
+        "from downhole.string.neutral import simulate_neutral\n"
+        "from downhole.string.fem import fem_model, simulate_directional\n"
+        "import downhole.string.hybrid, downhole.sim, downhole.well, downhole.contact\n"
+        "simulate_neutral('table_3_1', duration=0.05, dt=1e-4)\n"
+        "m = fem_model(n_elements=5)\n"
+        "m.linear_model(1e-3)\n"
+        f"bad = sorted(m for m in sys.modules if m.startswith('downhole.') and "
+        f"m.split('.')[1] in {UPPER!r})\n"
+        "print(bad)\n"
+        "assert not bad, bad\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip().splitlines()[-1] == "[]"
+
+
+class _ConstantFastPath:
+    """A third-party controller that supplies a compiled runner through the hook: it holds the
+    nominal commands, so the closed loop must equal the open loop with those inputs."""
+
+    label = "constant-fast-path"
+
+    def __init__(self):
+        self.calls = 0
+
+    def reset(self):
+        pass
+
+    def command(self, t, observation, reference):
+        self.calls += 1
+        return {"command_axial": NOMINAL_U_A, "command_angular": NOMINAL_U_T}
+
+    def neutral_runner(self, dt):
+        def runner(plant_args, ref, mnoise, fnoise, nsteps, dt_, every, out):
+            assert len(plant_args) == len(NEUTRAL_KERNEL_ARGS)
+            u = np.empty((2, nsteps + 1))
+            u[0], u[1] = NOMINAL_U_A, NOMINAL_U_T
+            status, k, c = _run_neutral(*plant_args, u, fnoise, nsteps, dt_, every, out,
+                                        np.zeros(4), 0.0)
+            return status, k, c, {"measured_axial_velocity": out[:, 2] + 0.0}
+
+        return runner
+
+
+class _NoFastPath(_ConstantFastPath):
+    def neutral_runner(self, dt):
+        return None
+
+
+def test_controller_fast_path_hook_is_used_and_falls_back():
+    model = neutral_model("table_3_1")
+    kw = dict(duration=0.5, dt=2e-4, depth_of_cut="approximate")
+    ol = simulate_neutral(model, **kw)
+    fast = _ConstantFastPath()
+    res = simulate_neutral(model, controller=fast, reference=(0.01, 20.0), **kw)
+    assert fast.calls == 0  # the compiled runner ran the loop
+    assert res.attrs["controller"] == "constant-fast-path"
+    for ch in ("bit_axial_velocity", "bit_angular_velocity", "hook_load", "surface_torque"):
+        assert np.array_equal(res[ch], ol[ch]), ch
+    assert np.array_equal(res["measured_axial_velocity"], ol["bit_axial_velocity"])
+    assert np.all(res["reference_angular_velocity"] == 20.0)
+    # no runner (None) or python_loop=True: the same controller through the Python loop
+    slow = _NoFastPath()
+    res2 = simulate_neutral(model, controller=slow, reference=(0.01, 20.0), **kw)
+    assert slow.calls == 2501  # one command per step, t_0 .. t_2500
+    assert np.allclose(res2["bit_angular_velocity"], ol["bit_angular_velocity"], atol=1e-9)
+    forced = _ConstantFastPath()
+    simulate_neutral(model, controller=forced, reference=(0.01, 20.0), python_loop=True, **kw)
+    assert forced.calls > 0
+
+
+def test_controller_without_contract_is_rejected():
+    with pytest.raises(DownholeInputError, match="reset"):
+        simulate_neutral("table_3_1", duration=0.01, dt=1e-4, controller=object())
+
+
+def test_weight_registry_holds_the_experiment_sets():
+    assert set(weight_set_names()) >= {"design", "robust", "hybrid", "planned"}
+    assert weight_set("robust") == dict(bit_velocity=(10.0, 10.0), bit_position=(1.0, 10.0),
+                                        r=(1.0, 1.0))
+    planned = weight_set("planned")
+    assert planned["integral"] == (87.1, 287.0) and planned["r"] == (1.0, 2.07)
+    # the experiments' names are views of the registry, not second copies
+    from downhole.control.dhp import PenaltyWeights
+    from downhole.experiments import ch4_dhp
+
+    assert ch4_dhp.PLANNED_WEIGHTS == planned
+    assert ch4_dhp.HYBRID_WEIGHTS == weight_set("hybrid")
+    PenaltyWeights(**planned)  # every set is a valid PenaltyWeights
+    assert REGISTRY.is_file()
+
+
+@pytest.mark.parametrize("text, match", [
+    ("[a]\nbit_velocity = [1.0]\n", r"a\.bit_velocity: expected two finite"),
+    ("[a]\nbit_velocity = [1.0, -2.0]\n", r"a\.bit_velocity: expected two finite"),
+    ("[a]\nbit_velocity = [1.0, inf]\n", r"a\.bit_velocity: expected two finite"),
+    ("[a]\nbit_velocity = [true, 1.0]\n", r"a\.bit_velocity: expected two finite"),
+    ("[a]\nbit_velocty = [1.0, 1.0]\n", r"a\.bit_velocty: unknown field"),
+    ("[a\n", "not a valid TOML"),
+])
+def test_weight_registry_rejects_bad_files(tmp_path, text, match):
+    f = tmp_path / "w.toml"
+    f.write_text(text)
+    with pytest.raises(DownholeInputError, match=match) as exc:
+        weight_set("a", f)
+    assert str(f) in str(exc.value)
+
+
+def test_weight_registry_unknown_name_missing_file_and_bad_bytes(tmp_path):
+    with pytest.raises(DownholeInputError, match=r"no weight set 'nope'; known: \["):
+        weight_set("nope")
+    with pytest.raises(DownholeInputError, match="cannot read"):
+        weight_set("a", tmp_path / "missing.toml")
+    f = tmp_path / "bin.toml"
+    f.write_bytes(b"[a]\nr = [1.0, 1.0]\n\xff\xfe")
+    with pytest.raises(DownholeInputError, match="not a valid TOML"):
+        weight_set("a", str(f))
+
+
+def test_every_top_drive_inertia_default_is_the_one_named_default():
+    import inspect
+
+    from downhole.bench.ch5_models import _ode_rhs
+    from downhole.control.affine import from_directional
+    from downhole.control.dhp.directional import DirectionalStatePlant, directional_affine_model
+    from downhole.control.dhp.plan import PlanSettings
+    from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA, TopDrive
+    from downhole.params.strings import DirectionalWellParams
+    from downhole.sil.hil import HILStringPlant
+    from downhole.string.fem import DirectionalModel
+
+    assert TopDrive().inertia == DEFAULT_TOP_DRIVE_INERTIA
+    assert PlanSettings().top_drive_inertia == DEFAULT_TOP_DRIVE_INERTIA
+    assert DirectionalWellParams.model_fields["top_drive_inertia"].default \
+        == DEFAULT_TOP_DRIVE_INERTIA
+    funcs = [DirectionalModel.continuous_linear_model, DirectionalModel.linear_model,
+             DirectionalModel.nodal_force_map, from_directional, directional_affine_model,
+             DirectionalStatePlant.__init__, HILStringPlant.__init__]
+    for f in funcs:
+        assert inspect.signature(f).parameters["top_drive_inertia"].default \
+            == DEFAULT_TOP_DRIVE_INERTIA, f.__qualname__
+    assert inspect.signature(_ode_rhs).parameters["j_td"].default == DEFAULT_TOP_DRIVE_INERTIA
