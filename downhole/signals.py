@@ -26,7 +26,7 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["Signal", "Metric", "SIGNALS", "METRICS", "register_signal", "signal", "unit_of",
-           "metric_unit", "STANDARD_CHANNELS", "check_command_value"]
+           "metric_unit", "STANDARD_CHANNELS", "check_command_value", "range_reason"]
 
 
 @dataclass(frozen=True)
@@ -127,22 +127,30 @@ def metric_unit(name: str, default: str = "") -> str:
     return m.unit if m is not None else default
 
 
-def check_command_value(name: str, value: float) -> str | None:
-    """Why ``value`` may not be applied as command ``name`` (None when it may).
-
-    Non-finite values are never admissible; declared signals must lie in their range.
-    """
+def range_reason(name: str, value, low: float, high: float, unit: str = "") -> str | None:
+    """Why ``value`` is not a finite number in ``[low, high]`` (None when it is): the one check
+    behind every command and set-point range in plants, the SIL runtime and the UDP link."""
     try:
         v = float(value)
     except (TypeError, ValueError):
         return f"{name}: expected a number, got {value!r}"
     if not math.isfinite(v):
         return f"{name}: {v} is not a finite number"
-    sig = SIGNALS.get(name)
-    if sig is not None and not sig.low <= v <= sig.high:
-        return (f"{name}: {v:g} {sig.unit} is outside the admissible range "
-                f"[{sig.low:g}, {sig.high:g}] {sig.unit}")
+    if not low <= v <= high:
+        u = f" {unit}" if unit else ""
+        return f"{name}: {v:g}{u} is outside the admissible range [{low:g}, {high:g}]{u}"
     return None
+
+
+def check_command_value(name: str, value: float) -> str | None:
+    """Why ``value`` may not be applied as command ``name`` (None when it may).
+
+    Non-finite values are never admissible; declared signals must lie in their range.
+    """
+    sig = SIGNALS.get(name)
+    if sig is None:
+        return range_reason(name, value, -math.inf, math.inf)
+    return range_reason(name, value, sig.low, sig.high, sig.unit)
 
 
 def _declare_standard() -> None:

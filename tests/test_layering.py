@@ -51,7 +51,10 @@ class _ConstantFastPath:
 
     def command(self, t, observation, reference):
         self.calls += 1
-        return {"command_axial": NOMINAL_U_A, "command_angular": NOMINAL_U_T}
+        # the Plant contract's commands: the axial one relative to the hanging equilibrium
+        hang = neutral_model("table_3_1").hang_command
+        return {"top_drive_axial_velocity": NOMINAL_U_A - hang,
+                "top_drive_angular_velocity": NOMINAL_U_T}
 
     def neutral_runner(self, dt):
         def runner(plant_args, ref, mnoise, fnoise, nsteps, dt_, every, out):

@@ -224,20 +224,14 @@ class PlantLink:
     def __init__(self, layout: Layout, host: str = "127.0.0.1", port: int = 0, *,
                  key=None, key_file=None, command_ranges: dict | None = None,
                  rx_max_datagrams: int = 32, rx_budget: float | None = None):
-        from downhole.sil.plants import COMMAND_RANGES
+        from downhole.sil.plants import resolve_ranges
 
         self.layout = layout
         self._layout_raw = pack_layout(layout)
         k = load_key(key, key_file)
         self._signer = Signer(k) if k is not None else None
         _require_key_beyond_loopback(host, self._signer, "binding the plant's UDP link to")
-        ranges = dict(COMMAND_RANGES)
-        ranges.update(command_ranges or {})
-        missing = [c for c in layout.commands if c not in ranges]
-        if missing:
-            raise DownholeInputError(f"link commands {missing} have no admissible range "
-                                     f"(give command_ranges=)")
-        self.command_ranges = {c: tuple(map(float, ranges[c])) for c in layout.commands}
+        self.command_ranges = resolve_ranges(layout.commands, command_ranges, "link commands")
         self._lo = [self.command_ranges[c][0] for c in layout.commands]
         self._hi = [self.command_ranges[c][1] for c in layout.commands]
         if int(rx_max_datagrams) < 1:

@@ -39,15 +39,14 @@ Interfaces (``interface`` of :func:`build_plant`):
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
 from downhole.errors import DownholeInputError
-from downhole.signals import SIGNALS
+from downhole.signals import SIGNALS, range_reason
 
 __all__ = ["SilPlant", "build_plant", "SIGNAL_UNITS", "COMMAND_RANGES", "REFERENCE_RANGES",
-           "check_range"]
+           "check_range", "resolve_ranges"]
 
 #: Units of the signals the adapters expose (others: ""), from :mod:`downhole.signals`.
 SIGNAL_UNITS = {name: SIGNALS[name].unit for name in (
@@ -78,16 +77,20 @@ REFERENCE_RANGES = {
 
 def check_range(name: str, value, ranges: dict) -> str | None:
     """None when ``value`` is a finite number within ``ranges[name]``, else the reason."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        return f"{name} = {value!r} is not a number"
-    if not math.isfinite(v):
-        return f"{name} = {v!r} is not finite"
     lo, hi = ranges[name]
-    if not lo <= v <= hi:
-        return f"{name} = {v:g} is outside its admissible range [{lo:g}, {hi:g}]"
-    return None
+    return range_reason(name, value, lo, hi, SIGNALS[name].unit if name in SIGNALS else "")
+
+
+def resolve_ranges(names, overrides: dict | None, what: str) -> dict:
+    """``{name: (low, high)}`` for ``names`` from :data:`COMMAND_RANGES` and ``overrides``;
+    a name without a range is an error naming ``what``."""
+    ranges = dict(COMMAND_RANGES)
+    ranges.update(overrides or {})
+    missing = [k for k in names if k not in ranges]
+    if missing:
+        raise DownholeInputError(f"{what} {missing} have no declared admissible range "
+                                 f"(COMMAND_RANGES or command_ranges=)")
+    return {k: (float(ranges[k][0]), float(ranges[k][1])) for k in names}
 
 
 #: Plant signals renamed in the layout: the directional plants call their top-drive speed
@@ -128,15 +131,8 @@ class SilPlant:
             if set(d) != set(self.command_names):
                 raise DownholeInputError(f"{what} keys {sorted(d)} differ from the commands "
                                          f"{self.command_names}")
-        ranges = dict(COMMAND_RANGES)
-        ranges.update(command_ranges or {})
-        missing = [k for k in self.command_names if k not in ranges]
-        if missing:
-            raise DownholeInputError(f"commands {missing} have no declared admissible range "
-                                     f"(COMMAND_RANGES or command_ranges=)")
         #: admissible ``(low, high)`` of every command (see :data:`COMMAND_RANGES`)
-        self.command_ranges = {k: (float(ranges[k][0]), float(ranges[k][1]))
-                               for k in self.command_names}
+        self.command_ranges = resolve_ranges(self.command_names, command_ranges, "commands")
         self._default = {k: float(default_command[k]) for k in self.command_names}
         self._safe = {k: float(safe_command[k]) for k in self.command_names}
         for d, what in ((self._default, "default (open-loop)"), (self._safe, "safe")):
