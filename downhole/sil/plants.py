@@ -166,8 +166,9 @@ class SilPlant:
         return tuple(names)
 
     def _flatten(self, obs: dict) -> dict:
+        # the hot path of every SIL step: plain floats skip the NumPy dimension check
         out = {_RENAME.get(k, k): float(v) for k, v in obs.items()
-               if k != "state" and np.ndim(v) == 0}
+               if k != "state" and (type(v) is float or np.ndim(v) == 0)}
         if "state" in obs:
             out.update(zip(self.state_names, np.asarray(obs["state"], float).tolist()))
         out.setdefault("time", 0.0)
