@@ -520,6 +520,22 @@ def scale_from_trajectory(z, floor=None) -> np.ndarray:
     return s
 
 
+def directional_state_layout(n: int, state_scale=None):
+    """State kinds and node indices of a directional model's ``[positions; velocities]`` state
+    (axial and angular interleaved per node), and the default non-dimensional state scale
+    (0.05 m, 30 rad, 0.02 m/s, 20 rad/s) unless ``state_scale`` is given."""
+    kinds, nodes = [], []
+    for blk in ("position", "velocity"):
+        for i in range(n):
+            kinds += [f"axial_{blk}", f"angular_{blk}"]
+            nodes += [i, i]
+    if state_scale is None:
+        base = {"axial_position": 0.05, "angular_position": 30.0, "axial_velocity": 0.02,
+                "angular_velocity": 20.0}
+        state_scale = np.array([base[k] for k in kinds])
+    return kinds, nodes, state_scale
+
+
 def from_directional(model, dt: float = 1e-3, *, state_scale=None, input_scale=(1e5, 1e4),
                      top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA,
                      friction: bool = True, v_eps_design: float = 0.05) -> ControlAffineModel:
@@ -592,15 +608,7 @@ def from_directional(model, dt: float = 1e-3, *, state_scale=None, input_scale=(
             F[:, 1:2 * n:2] += ft
         return F @ _G.T
 
-    kinds, nodes = [], []
-    for blk in ("position", "velocity"):
-        for i in range(n):
-            kinds += [f"axial_{blk}", f"angular_{blk}"]
-            nodes += [i, i]
-    if state_scale is None:
-        base = {"axial_position": 0.05, "angular_position": 30.0, "axial_velocity": 0.02,
-                "angular_velocity": 20.0}
-        state_scale = np.array([base[k] for k in kinds])
+    kinds, nodes, state_scale = directional_state_layout(n, state_scale)
     rows = np.arange(ns)
     return ControlAffineModel.from_physical(
         A_d, B_d, state_scale=state_scale, input_scale=input_scale, dt=dt,

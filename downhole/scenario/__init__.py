@@ -157,28 +157,39 @@ def _raise_validation(source: str, exc: ValidationError, prefix: str = ""):
     raise ScenarioError(source, field, msg) from None
 
 
-def build_lumped_model(sc: LumpedScenario, source: str):
-    """The lumped chain model of a parsed lumped scenario (raises :class:`ScenarioError`)."""
-    from downhole.params import BitParams, LumpedParams, get_preset
-    from downhole.string.lumped import lumped_model
+def preset_params(sc_model, source: str, kind: str, string_cls, example: str = ""):
+    """The ``[model]`` table's preset with its ``string`` and ``bit`` overrides applied:
+    ``(string parameters, BitParams)``; errors name ``model.preset``, ``model.string.*`` or
+    ``model.bit.*``. ``kind`` is the preset kind the model needs (``example`` names one)."""
+    from downhole.params import BitParams, get_preset
 
     try:
-        preset = get_preset(sc.model.preset)
+        preset = get_preset(sc_model.preset)
     except KeyError as exc:
         raise ScenarioError(source, "model.preset", exc.args[0]) from None
-    if preset.kind != "lumped":
-        raise ScenarioError(source, "model.preset",
-                            f"preset {sc.model.preset!r} is a {preset.kind} model, expected a lumped one")
+    if preset.kind != kind:
+        hint = f" ({example})" if example else ""
+        raise ScenarioError(source, "model.preset", f"preset {sc_model.preset!r} is a "
+                            f"{preset.kind} model, expected a {kind} one{hint}")
     try:
-        string = LumpedParams(**{**preset.string.model_dump(), **sc.model.string})
+        string = string_cls(**{**preset.string.model_dump(), **sc_model.string})
     except ValidationError as exc:
         _raise_validation(source, exc, "model.string.")
     except ValueError as exc:
         raise ScenarioError(source, "model.string", str(exc)) from None
     try:
-        bit = BitParams(**{**preset.bit.model_dump(), **sc.model.bit})
+        bit = BitParams(**{**preset.bit.model_dump(), **sc_model.bit})
     except ValidationError as exc:
         _raise_validation(source, exc, "model.bit.")
+    return string, bit
+
+
+def build_lumped_model(sc: LumpedScenario, source: str):
+    """The lumped chain model of a parsed lumped scenario (raises :class:`ScenarioError`)."""
+    from downhole.params import LumpedParams
+    from downhole.string.lumped import lumped_model
+
+    string, bit = preset_params(sc.model, source, "lumped", LumpedParams)
     order = 4 if sc.model.type == "lumped4" else 12
     return lumped_model(string, bit, order=order)
 

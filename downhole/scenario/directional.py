@@ -83,11 +83,11 @@ from pathlib import Path
 from typing import Any, Literal, Optional
 
 import numpy as np
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params.quantity import Q
-from downhole.scenario import (Profile, _raise_validation, _Strict, check_step_count,
+from downhole.scenario import (Profile, preset_params, _Strict, check_step_count,
                                parse_scenario, profile_to_signal, read_scenario_text)
 from downhole.units import UnitError
 
@@ -364,24 +364,9 @@ def _base_dir(source: str) -> Path:
 
 
 def _params(sc: DirectionalScenario, source: str):
-    from downhole.params import BitParams, DirectionalWellParams, get_preset
+    from downhole.params import DirectionalWellParams
 
-    try:
-        preset = get_preset(sc.model.preset)
-    except KeyError as exc:
-        raise ScenarioError(source, "model.preset", exc.args[0]) from None
-    if preset.kind != "directional":
-        raise ScenarioError(source, "model.preset", f"preset {sc.model.preset!r} is a "
-                            f"{preset.kind} model, expected a directional one (table_5_1)")
-    try:
-        params = DirectionalWellParams(**{**preset.string.model_dump(), **sc.model.string})
-    except ValidationError as exc:
-        _raise_validation(source, exc, "model.string.")
-    try:
-        bit = BitParams(**{**preset.bit.model_dump(), **sc.model.bit})
-    except ValidationError as exc:
-        _raise_validation(source, exc, "model.bit.")
-    return params, bit
+    return preset_params(sc.model, source, "directional", DirectionalWellParams, "table_5_1")
 
 
 #: Admissible survey stations: measured depth (m), inclination and azimuth (deg).

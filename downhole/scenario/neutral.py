@@ -50,11 +50,11 @@ import warnings
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
-from pydantic import BeforeValidator, Field, ValidationError, field_validator, model_validator
+from pydantic import BeforeValidator, Field, field_validator, model_validator
 
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params.quantity import Q
-from downhole.scenario import Profile, _raise_validation, _Strict, check_step_count, \
+from downhole.scenario import Profile, preset_params, _Strict, check_step_count, \
     parse_scenario, profile_to_signal
 from downhole.units import UnitError
 
@@ -210,24 +210,10 @@ def load_neutral_scenario(data: dict, source: str) -> NeutralScenario:
 
 def build_neutral(sc: NeutralScenario, source: str):
     """The :class:`~downhole.string.neutral.NeutralModel` of a scenario (preset + overrides)."""
-    from downhole.params import BitParams, NeutralStringParams, get_preset
+    from downhole.params import NeutralStringParams
     from downhole.string.neutral import neutral_model
 
-    try:
-        preset = get_preset(sc.model.preset)
-    except KeyError as exc:
-        raise ScenarioError(source, "model.preset", exc.args[0]) from None
-    if preset.kind != "neutral":
-        raise ScenarioError(source, "model.preset", f"preset {sc.model.preset!r} is a "
-                            f"{preset.kind} model, expected a neutral one (table_3_1)")
-    try:
-        string = NeutralStringParams(**{**preset.string.model_dump(), **sc.model.string})
-    except ValidationError as exc:
-        _raise_validation(source, exc, "model.string.")
-    try:
-        bit = BitParams(**{**preset.bit.model_dump(), **sc.model.bit})
-    except ValidationError as exc:
-        _raise_validation(source, exc, "model.bit.")
+    string, bit = preset_params(sc.model, source, "neutral", NeutralStringParams, "table_3_1")
     try:
         return neutral_model(string, bit)
     except DownholeInputError as exc:

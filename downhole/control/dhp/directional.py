@@ -23,7 +23,7 @@ from numba import njit
 
 from downhole.bit.law import approx_depth_of_cut, bit_forces
 from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
-from downhole.control.affine import ControlAffineModel
+from downhole.control.affine import ControlAffineModel, directional_state_layout
 from downhole.control.dhp.riccati import _draw_one, _fit_one
 from downhole.errors import DownholeInputError
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
@@ -187,15 +187,7 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
     A, _, names, _ = dmodel.continuous_linear_model(top_drive_inertia)
     ns = A.shape[0]
     Gam = dmodel.nodal_force_map(dt, top_drive_inertia)
-    kinds, nodes = [], []
-    for blk in ("position", "velocity"):
-        for i in range(n):
-            kinds += [f"axial_{blk}", f"angular_{blk}"]
-            nodes += [i, i]
-    if state_scale is None:
-        base = {"axial_position": 0.05, "angular_position": 30.0, "axial_velocity": 0.02,
-                "angular_velocity": 20.0}
-        state_scale = np.array([base[k] for k in kinds])
+    kinds, nodes, state_scale = directional_state_layout(n, state_scale)
     P = np.ascontiguousarray(np.broadcast_to(np.asarray(state_scale, float), (ns,)))
     bitp = m.bit.to_array()
     tension = np.ascontiguousarray(hanging_tension(m), dtype=float)
