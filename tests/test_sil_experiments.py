@@ -15,8 +15,7 @@ def test_ch6_experiment_quick(eid, tmp_path):
         # claim measures the machine too. On a 2-core CI machine whose other test worker is
         # compiling kernels it can miss once; a second, independent run must then pass, and
         # its physics (normalized RMS to the offline loop, stuck fraction) is judged in full.
-        print(f"
-fig6.8 first run: {claim['measured'].get('runtime')}")
+        print(f"\nfig6.8 first run: {claim['measured'].get('runtime')}")
         claim = run_experiment(eid, tmp_path / "again", quick=True)
         tmp_path = tmp_path / "again"
     print(f"\n{eid}: {claim['measured']}")
