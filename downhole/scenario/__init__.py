@@ -74,21 +74,22 @@ class SimulationSettings(_Strict):
 
 
 class SurfaceSettings(_Strict):
-    """``[surface]``: how the top drive drives the string."""
+    """``[operation]`` of a lumped preset: how the top drive drives the string (velocity mode:
+    block velocity ``rop`` and top-drive speed ``surface_speed``; force mode: ``hook_load`` and
+    ``surface_torque``)."""
 
     mode: Literal["velocity", "force"] = "velocity"
-    axial_velocity: Profile = "10 mm/s"
-    angular_velocity: Profile = "10 rad/s"
+    rop: Profile = "10 mm/s"
+    surface_speed: Profile = "10 rad/s"
     hook_load: Profile | None = None
     surface_torque: Profile | None = None
 
-    @field_validator("axial_velocity", "angular_velocity", "hook_load", "surface_torque",
-                     mode="after")
+    @field_validator("rop", "surface_speed", "hook_load", "surface_torque", mode="after")
     @classmethod
     def _profile(cls, v, info):
         if v is None:
             return v
-        dim = {"axial_velocity": "velocity", "angular_velocity": "angular_velocity",
+        dim = {"rop": "velocity", "surface_speed": "angular_velocity",
                "hook_load": "force", "surface_torque": "torque"}[info.field_name]
         try:
             return profile_to_signal(v, dim, info.field_name)
@@ -117,12 +118,11 @@ class ReferenceSettings(_Strict):
 
 
 class LumpedModelSettings(_Strict):
-    """``[model]`` for ``type = "lumped4" | "lumped12"``."""
+    """``[model]`` for ``fidelity = "lumped4" | "lumped12"`` of a lumped preset."""
 
-    type: Literal["lumped4", "lumped12"]
+    fidelity: Literal["lumped4", "lumped12"]
     preset: str = "table_2_1"
     string: dict[str, Any] = Field(default_factory=dict)
-    bit: dict[str, Any] = Field(default_factory=dict)
 
 
 class LumpedScenario(_Strict):
@@ -131,7 +131,8 @@ class LumpedScenario(_Strict):
     title: str = ""
     description: str = ""
     model: LumpedModelSettings
-    surface: SurfaceSettings = SurfaceSettings()
+    bit: dict[str, Any] = Field(default_factory=dict)
+    operation: SurfaceSettings = SurfaceSettings()
     reference: ReferenceSettings | None = None
     simulation: SimulationSettings
 
@@ -157,10 +158,12 @@ def _raise_validation(source: str, exc: ValidationError, prefix: str = ""):
     raise ScenarioError(source, field, msg) from None
 
 
-def preset_params(sc_model, source: str, kind: str, string_cls, example: str = ""):
-    """The ``[model]`` table's preset with its ``string`` and ``bit`` overrides applied:
-    ``(string parameters, BitParams)``; errors name ``model.preset``, ``model.string.*`` or
-    ``model.bit.*``. ``kind`` is the preset kind the model needs (``example`` names one)."""
+def preset_params(sc_model, source: str, kind: str, string_cls, example: str = "",
+                  bit: dict | None = None):
+    """The ``[model]`` table's preset with its ``string`` overrides and the ``[bit]`` table
+    (``bit``) applied: ``(string parameters, BitParams)``; errors name ``model.preset``,
+    ``model.string.*`` or ``bit.*``. ``kind`` is the preset kind the model needs (``example``
+    names one)."""
     from downhole.params import BitParams, get_preset
 
     try:
@@ -178,9 +181,13 @@ def preset_params(sc_model, source: str, kind: str, string_cls, example: str = "
     except ValueError as exc:
         raise ScenarioError(source, "model.string", str(exc)) from None
     try:
-        bit = BitParams(**{**preset.bit.model_dump(), **sc_model.bit})
+        over = dict(bit or {})
+        if "preset" in over:
+            raise ScenarioError(source, "bit.preset", f"model.preset = {sc_model.preset!r} "
+                                "brings its bit; give only bit parameters here (epsilon, ...)")
+        bit = BitParams(**{**preset.bit.model_dump(), **over})
     except ValidationError as exc:
-        _raise_validation(source, exc, "model.bit.")
+        _raise_validation(source, exc, "bit.")
     return string, bit
 
 
@@ -189,8 +196,8 @@ def build_lumped_model(sc: LumpedScenario, source: str):
     from downhole.params import LumpedParams
     from downhole.string.lumped import lumped_model
 
-    string, bit = preset_params(sc.model, source, "lumped", LumpedParams)
-    order = 4 if sc.model.type == "lumped4" else 12
+    string, bit = preset_params(sc.model, source, "lumped", LumpedParams, bit=sc.bit)
+    order = 4 if sc.model.fidelity == "lumped4" else 12
     return lumped_model(string, bit, order=order)
 
 
@@ -269,7 +276,7 @@ def validate_lumped(data: dict, source: str):
         raise ScenarioError(source, "simulation.record_dt", f"record_dt ({sim.record_dt:g} s) "
                             f"is below dt ({sim.dt:g} s)")
     if sim.integrator == "euler":
-        bound, mode = euler_stable_dt(model, force_mode=sc.surface.mode == "force")
+        bound, mode = euler_stable_dt(model, force_mode=sc.operation.mode == "force")
         if sim.dt >= bound:
             if bound == 0.0:
                 why = (f"the {mode['field']} mode at {mode['frequency']:.4g} rad/s is undamped, "
@@ -288,9 +295,9 @@ def _run_lumped(data: dict, source: str, text: str):
     from downhole.sim.inputs import sample_signal
 
     sc, model = validate_lumped(data, source)
-    s = sc.surface
+    s = sc.operation
     if s.mode == "velocity":
-        inputs = SurfaceInputs.velocity(s.axial_velocity, s.angular_velocity)
+        inputs = SurfaceInputs.velocity(s.rop, s.surface_speed)
     else:
         inputs = SurfaceInputs.force(s.hook_load, s.surface_torque)
     sim = sc.simulation
@@ -310,12 +317,13 @@ def _run_lumped(data: dict, source: str, text: str):
     return res
 
 
-#: Runners by ``[model] type``: ``runner(data: dict, source: str, text: str) -> Result``.
+#: Runners by ``[model] fidelity`` of a preset (:func:`model_type`): ``runner(data: dict,
+#: source: str, text: str) -> Result``.
 MODEL_TYPES: dict[str, Callable] = {"lumped4": _run_lumped, "lumped12": _run_lumped}
 
 
 def register_model_type(name: str, runner: Callable) -> None:
-    """Register a scenario runner for ``[model] type = name``."""
+    """Register a scenario runner for ``[model] fidelity = name`` (a plug-in model)."""
     MODEL_TYPES[name] = runner
 
 
@@ -371,27 +379,46 @@ def load_scenario(path: str | Path) -> tuple[dict, str, str]:
 
 
 def model_type(data: dict, source: str) -> str:
-    """The scenario's ``[model] type``, checked against the registered types; ``"system"`` for a
-    file that describes the system and chooses ``[model] fidelity``
-    (:mod:`downhole.scenario.system`)."""
+    """The runner of a scenario, from its ``[model] fidelity`` and what it describes:
+
+    - ``"system"``: a described system (``[well]`` and ``[string]``, no ``[model] preset``, no
+      ``[controller]``), run at any fidelity (:mod:`downhole.scenario.system`);
+    - ``"lumped4"`` / ``"lumped12"``: a lumped preset (Table 2.1, ...);
+    - ``"neutral"``: a neutral preset (Table 3.1), open loop or with the EID controller;
+    - ``"fem"`` / ``"hybrid"``: a directional preset (Table 5.1, optionally with a described
+      well and string) with its top-drive controller (:mod:`downhole.scenario.directional`);
+    - ``"dhp"``: ``[controller] type = "dhp"`` without a saved ``file`` (train, then run);
+    - a registered plug-in name (:func:`register_model_type`) given as ``[model] fidelity``.
+    """
+    from downhole.scenario.schema import check_dialect
+
+    check_dialect(data, source)
     model = data.get("model", {})
     if not isinstance(model, dict):
         raise ScenarioError(source, "model", "expected a table [model]")
     _load_plugins()
-    if "fidelity" in model:
-        if "type" in model:
-            raise ScenarioError(source, "model.type", "give either [model] fidelity (a system "
-                                "description: [well], [string], [bit], [rig], [operation]) or "
-                                "the older [model] type, not both")
-        return "system"
-    if "type" not in model:
-        raise ScenarioError(source, "model.type", "required field is missing "
-                            f"(one of {sorted(MODEL_TYPES)})")
-    mtype = model["type"]
-    if not isinstance(mtype, str) or mtype not in MODEL_TYPES:
-        raise ScenarioError(source, "model.type",
-                            f"unknown model type {mtype!r}; expected one of {sorted(MODEL_TYPES)}")
-    return mtype
+    ctrl = data.get("controller")
+    if isinstance(ctrl, dict) and ctrl.get("type") == "dhp" and "file" not in ctrl:
+        return "dhp"
+    names = [k for k in MODEL_TYPES if k not in ("dhp", "system")]
+    if "fidelity" not in model:
+        raise ScenarioError(source, "model.fidelity", "required field is missing "
+                            f"(one of {', '.join(names)})")
+    fid = model["fidelity"]
+    if not isinstance(fid, str) or fid not in names:
+        raise ScenarioError(source, "model.fidelity", f"unknown fidelity {fid!r}; expected "
+                            f"one of {', '.join(names)}")
+    described = "well" in data or "string" in data
+    if fid in ("lumped4", "lumped12", "neutral"):
+        return "system" if described else fid
+    if fid in ("fem", "hybrid"):
+        rig = data.get("rig")
+        hook_mode = isinstance(rig, dict) and isinstance(rig.get("hook"), dict) \
+            and "mode" in rig["hook"]
+        if described and "preset" not in model and "controller" not in data and not hook_mode:
+            return "system"
+        return fid
+    return fid
 
 
 def is_lumped_type(mtype: str) -> bool:
@@ -402,9 +429,10 @@ def is_lumped_type(mtype: str) -> bool:
 
 def _check_override(mtype: str, fidelity: str | None, source: str) -> None:
     if fidelity is not None and mtype != "system":
-        raise ScenarioError(source, "model.type", f"--fidelity {fidelity} needs a file that "
-                            "describes the system ([model] fidelity, [well], [string], [bit], "
-                            f"[rig], [operation]); this one is [model] type = {mtype!r}")
+        raise ScenarioError(source, "model.fidelity", f"--fidelity {fidelity} needs a file "
+                            "that describes the system ([well] and [string], without [model] "
+                            "preset or [controller]); this one runs a preset or a controller "
+                            f"at fidelity {mtype!r}")
 
 
 def validate_data(data: dict, source: str, fidelity: str | None = None) -> str:

@@ -1,20 +1,18 @@
-"""Scenario files for the directional FEM and hybrid models (``[model] type = "fem" | "hybrid"``):
-schema, validation and the runner behind ``downhole simulate``.
+"""Scenario files for the directional FEM and hybrid models of a preset (``[model] fidelity =
+"fem" | "hybrid"``, ``preset = "table_5_1"``, optionally with a described ``[well]`` and
+``[string]``): schema, validation and the runner behind ``downhole simulate``.
 
 Everything is validated before anything runs; an error names the file and the dotted field
 (``ScenarioError``, exit code 2 from the CLI) and nothing is written. Numbers may carry units.
-Schema (only ``[model]`` and ``[simulation]`` are required)::
+Schema (only ``[model]`` and ``[simulation]`` are required; the table names are those of every
+scenario, :mod:`downhole.scenario.schema`)::
 
     title = "..."
     [model]
-    type = "fem"                    # or "hybrid"
+    fidelity = "fem"                # or "hybrid"
     preset = "table_5_1"            # a 'directional' preset: well, pipe, bit, damping, friction
-    elements = 107                  # fem: number of elements (4 (elements + 1) states)
-    hybrid = "hybrid68"             # hybrid: "hybrid24" | "hybrid68" | "hybrid108" (seed sizes)
-    nodes_ab = 4                    # hybrid: FEM nodes on AB / on CD (override the preset)
-    nodes_cd = 13
-    md_b = "2000 m"                 # B and C: ends of the hybrid's wave segment (BC must be
-    md_c = "3000 m"                 #   straight, vertical, one pipe); FEM: where force_b/c are
+    wave_section = ["2000 m", "3000 m"]  # B and C: ends of the hybrid's wave segment (BC must
+                                    #   be straight, vertical, one pipe); FEM: where force_b/c are
     damping = "rayleigh"            # or "modal"
     rayleigh_alpha = 0.05           # 1/s  (default: the preset)
     rayleigh_beta = 0.03            # s
@@ -22,8 +20,15 @@ Schema (only ``[model]`` and ``[simulation]`` are required)::
     friction = 0.5                  # wellbore friction coefficient (0: no contact)
     friction_velocity = "1 mm/s"    # regularization velocity v_eps
     mass = "consistent"             # or "lumped"
+    [model.fem]
+    elements = 107                  # fem: number of elements (4 (elements + 1) states)
+    [model.hybrid]
+    preset = "hybrid68"             # "hybrid24" | "hybrid68" | "hybrid108" (seed sizes), or
+    nodes_ab = 4                    # FEM nodes on AB / on CD (override the preset)
+    nodes_cd = 13
+    n_lags = 0
     [model.string]                  # DirectionalWellParams overrides (length_ab, pipe, ...)
-    [model.bit]                     # BitParams overrides (epsilon = "45 MPa", ...)
+    [bit]                           # BitParams overrides (epsilon = "45 MPa", ...)
 
     [well]                          # optional (default: the preset's Table 5.1 well); one of:
     survey = "well_survey.csv"      # MD, INC, AZI columns; path relative to this file
@@ -45,25 +50,28 @@ Schema (only ``[model]`` and ``[simulation]`` are required)::
     distance_from_bit = "15 m"
     outer_diameter = "8.5 in"
 
-    [controller]                    # top drive (default: PI at 10 rad/s, Table 5.1 gains)
+    [controller]                    # top drive (default: PI, Table 5.1 gains)
     type = "pi"                     # "pi" | "soft_torque" | "dhp"
-    speed = "10 rad/s"              # set-point: a constant or [[t, value], ...]
-    kp = 1e4                        # N m s/rad
-    ki = 2e3                        # N m/rad
-    inertia = "500 kg*m**2"
     soft_gain = 2e-4                # soft_torque: rad/s per N m of high-passed string torque
     soft_tau = "2 s"
     # type = "dhp": file = "out/dhp/dhp_controller" (a `downhole design dhp` controller,
     # relative to this file); it commands slack-off force and surface torque
 
-    [hook]                          # default: constant hook load = buoyed weight - 120 kN
-    type = "force"                  # "force" (hook load) or "velocity" (block velocity servo)
-    wob = "120 kN"                  # static WOB of the initial state (force: sets hook load)
-    hook_load = [[0, "380 kN"], [20, "360 kN"]]   # force: optional profile overriding it
-    velocity = "5 mm/s"             # velocity: block velocity, constant or [[t, value], ...]
+    [rig.top_drive]                 # default: the preset's
+    inertia = "500 kg*m**2"
+    kp = 1e4                        # N m s/rad
+    ki = 2e3                        # N m/rad
+    [rig.hook]                      # default: constant hook load = buoyed weight - WOB
+    mode = "force"                  # "force" (hook load) or "velocity" (block velocity servo)
     servo_stiffness = "1e7 N/m"
     servo_damping = "1e6 N*s/m"
     block_mass = "0 kg"
+
+    [operation]
+    surface_speed = "10 rad/s"      # top-drive set-point: a constant or [[t, value], ...]
+    wob = "120 kN"                  # static WOB of the initial state (force: sets hook load)
+    hook_load = [[0, "380 kN"], [20, "360 kN"]]   # force hook: optional profile overriding it
+    rop = "5 mm/s"                  # velocity hook: block velocity, constant or [[t, value], ...]
 
     [reference]                     # optional desired bit velocities (reference_* channels)
     axial_velocity = "10 mm/s"
@@ -103,17 +111,30 @@ def _profile(value, dim, name):
 
 
 # ---------------------------------------------------------------------------------- schema
-class DirectionalModelSettings(_Strict):
-    """``[model]``: FEM or hybrid, preset and discretization."""
+class FemSettings(_Strict):
+    """``[model.fem]``: the FEM's discretization."""
 
-    type: Literal["fem", "hybrid"]
-    preset: str = "table_5_1"
     elements: Optional[int] = Field(None, ge=1, le=5000)
-    hybrid: Optional[Literal["hybrid24", "hybrid68", "hybrid108"]] = None
+
+
+class HybridSettings(_Strict):
+    """``[model.hybrid]``: the hybrid's discretization (a preset or node counts)."""
+
+    preset: Optional[Literal["hybrid24", "hybrid68", "hybrid108"]] = None
     nodes_ab: Optional[int] = Field(None, ge=2, le=2000)
     nodes_cd: Optional[int] = Field(None, ge=2, le=2000)
-    md_b: Optional[Q["length"]] = Field(None, gt=0)
-    md_c: Optional[Q["length"]] = Field(None, gt=0)
+    n_lags: int = Field(0, ge=0, le=8)
+
+
+class DirectionalModelSettings(_Strict):
+    """``[model]``: FEM or hybrid of a preset (and optionally a described well and string), and
+    the discretization."""
+
+    fidelity: Literal["fem", "hybrid"]
+    preset: str = "table_5_1"
+    fem: Optional[FemSettings] = None
+    hybrid: Optional[HybridSettings] = None
+    wave_section: Optional[list[Q["length"]]] = Field(None, min_length=2, max_length=2)
     damping: Literal["rayleigh", "modal"] = "rayleigh"
     rayleigh_alpha: Optional[float] = Field(None, ge=0)
     rayleigh_beta: Optional[float] = Field(None, ge=0)
@@ -121,21 +142,49 @@ class DirectionalModelSettings(_Strict):
     friction: Optional[float] = Field(None, ge=0)
     friction_velocity: Q["velocity"] = Field(1e-3, gt=0)
     mass: Literal["consistent", "lumped"] = "consistent"
-    n_lags: int = Field(0, ge=0, le=8)
     string: dict[str, Any] = Field(default_factory=dict)
-    bit: dict[str, Any] = Field(default_factory=dict)
 
     @model_validator(mode="after")
     def _kind_options(self):
-        if self.type == "fem":
-            bad = [k for k in ("hybrid", "nodes_ab", "nodes_cd") if getattr(self, k) is not None]
-            if bad or self.n_lags:
-                raise ValueError(f"{', '.join(bad or ['n_lags'])}: hybrid options, but type = "
-                                 "'fem' (use elements)")
-        elif self.elements is not None:
-            raise ValueError("elements: a FEM option, but type = 'hybrid' (use hybrid = "
-                             "'hybrid68' or nodes_ab / nodes_cd)")
+        if self.fidelity == "fem" and self.hybrid is not None:
+            raise ValueError("[model.hybrid]: hybrid options, but fidelity = 'fem' (use "
+                             "[model.fem] elements)")
+        if self.fidelity == "hybrid" and self.fem is not None:
+            raise ValueError("[model.fem]: a FEM option, but fidelity = 'hybrid' (use "
+                             "[model.hybrid] preset = 'hybrid68' or nodes_ab / nodes_cd)")
+        ws = self.wave_section
+        if ws is not None and not ws[0] < ws[1]:
+            raise ValueError(f"wave_section: expected [B, C] with 0 < B < C (m), got {ws}")
         return self
+
+    # the discretization, flat (None where not given)
+    @property
+    def elements(self):
+        return self.fem.elements if self.fem is not None else None
+
+    @property
+    def hybrid_preset(self):
+        return self.hybrid.preset if self.hybrid is not None else None
+
+    @property
+    def nodes_ab(self):
+        return self.hybrid.nodes_ab if self.hybrid is not None else None
+
+    @property
+    def nodes_cd(self):
+        return self.hybrid.nodes_cd if self.hybrid is not None else None
+
+    @property
+    def n_lags(self):
+        return self.hybrid.n_lags if self.hybrid is not None else 0
+
+    @property
+    def md_b(self):
+        return self.wave_section[0] if self.wave_section is not None else None
+
+    @property
+    def md_c(self):
+        return self.wave_section[1] if self.wave_section is not None else None
 
 
 class SectionSettings(_Strict):
@@ -244,18 +293,9 @@ class ControllerSettings(_Strict):
     """``[controller]``: the top drive's speed control (or a saved DHP controller)."""
 
     type: Literal["pi", "soft_torque", "dhp"] = "pi"
-    speed: Profile = Field("10 rad/s", validate_default=True)
-    kp: Optional[Q["torsional_damping"]] = Field(None, ge=0)
-    ki: Optional[Q["torsional_stiffness"]] = Field(None, ge=0)
-    inertia: Optional[Q["inertia"]] = Field(None, gt=0)
     soft_gain: float = Field(2e-4, ge=0)
     soft_tau: Q["time"] = Field(2.0, gt=0)
     file: Optional[str] = None
-
-    @field_validator("speed", mode="after")
-    @classmethod
-    def _sig(cls, v):
-        return _profile(v, "angular_velocity", "speed")
 
     @model_validator(mode="after")
     def _file(self):
@@ -266,32 +306,53 @@ class ControllerSettings(_Strict):
         return self
 
 
-class HookSettings(_Strict):
-    """``[hook]``: force-driven (hook load) or velocity-driven (block servo)."""
+class TopDriveSettings(_Strict):
+    """``[rig.top_drive]``: inertia and PI gains (default: the preset's)."""
 
-    type: Literal["force", "velocity"] = "force"
-    wob: Q["force"] = Field(120e3, ge=0)
-    hook_load: Optional[Profile] = None
-    velocity: Profile = Field(0.0, validate_default=True)
+    inertia: Optional[Q["inertia"]] = Field(None, gt=0)
+    kp: Optional[Q["torsional_damping"]] = Field(None, ge=0)
+    ki: Optional[Q["torsional_stiffness"]] = Field(None, ge=0)
+
+
+class HookSettings(_Strict):
+    """``[rig.hook]``: force-driven (hook load) or velocity-driven (block servo)."""
+
+    mode: Literal["force", "velocity"] = "force"
     servo_stiffness: Q["stiffness"] = Field(1e7, gt=0)
     servo_damping: Q["damping"] = Field(1e6, ge=0)
     block_mass: Q["mass"] = Field(0.0, ge=0)
+
+
+class RigSettings(_Strict):
+    """``[rig]``."""
+
+    top_drive: TopDriveSettings = TopDriveSettings()
+    hook: HookSettings = HookSettings()
+
+
+class OperationSettings(_Strict):
+    """``[operation]``: top-drive speed set-point, WOB of the initial state, hook load (force
+    hook) or block velocity ``rop`` (velocity hook); each a constant or [[t, value], ...]."""
+
+    surface_speed: Profile = Field("10 rad/s", validate_default=True)
+    wob: Q["force"] = Field(120e3, ge=0)
+    hook_load: Optional[Profile] = None
+    rop: Profile = Field(0.0, validate_default=True)
+
+    @field_validator("surface_speed", mode="after")
+    @classmethod
+    def _speed(cls, v):
+        return _profile(v, "angular_velocity", "surface_speed")
 
     @field_validator("hook_load", mode="after")
     @classmethod
     def _load(cls, v):
         return None if v is None else _profile(v, "force", "hook_load")
 
-    @field_validator("velocity", mode="after")
+    @field_validator("rop", mode="after")
     @classmethod
     def _vel(cls, v):
-        return _profile(v, "velocity", "velocity")
-
-    @model_validator(mode="after")
-    def _mode(self):
-        if self.type == "velocity" and self.hook_load is not None:
-            raise ValueError("hook_load is for type = 'force'; a velocity hook takes velocity")
-        return self
+        return _profile(v, "velocity", "rop")
 
 
 class ReferenceSettings(_Strict):
@@ -335,10 +396,19 @@ class DirectionalScenario(_Strict):
     model: DirectionalModelSettings
     well: Optional[WellSettings] = None
     string: Optional[StringSettings] = None
+    bit: dict[str, Any] = Field(default_factory=dict)
+    rig: RigSettings = RigSettings()
     controller: ControllerSettings = ControllerSettings()
-    hook: HookSettings = HookSettings()
+    operation: OperationSettings = OperationSettings()
     reference: Optional[ReferenceSettings] = None
     simulation: SimulationSettings
+
+    @model_validator(mode="after")
+    def _hook_mode(self):
+        if self.rig.hook.mode == "velocity" and self.operation.hook_load is not None:
+            raise ValueError("operation.hook_load is for rig.hook.mode = 'force'; a velocity "
+                             "hook takes operation.rop")
+        return self
 
 
 # ---------------------------------------------------------------------------------- build
@@ -366,7 +436,8 @@ def _base_dir(source: str) -> Path:
 def _params(sc: DirectionalScenario, source: str):
     from downhole.params import DirectionalWellParams
 
-    return preset_params(sc.model, source, "directional", DirectionalWellParams, "table_5_1")
+    return preset_params(sc.model, source, "directional", DirectionalWellParams, "table_5_1",
+                         bit=sc.bit)
 
 
 #: Admissible survey stations: measured depth (m), inclination and azimuth (deg).
@@ -489,15 +560,15 @@ def build_directional(sc: DirectionalScenario, source: str = "<dict>"):
         common["rayleigh_beta"] = params.rayleigh_beta
     if m.friction is None:
         common["friction"] = params.wellbore_friction
-    if m.type == "fem":
+    if m.fidelity == "fem":
         if m.md_b is None:
             common["md_b"] = min(params.length_ab, well.total_depth)
         if m.md_c is None:
             common["md_c"] = min(params.length_ab + params.length_bc, well.total_depth)
-        field = "model.elements"
+        field = "model.fem.elements"
         with _wrap(source, field):
             return fem_model(well, string, bit, n_elements=m.elements or 107, **common)
-    preset = m.hybrid if m.hybrid is not None else (
+    preset = m.hybrid_preset if m.hybrid_preset is not None else (
         None if (m.nodes_ab is not None and m.nodes_cd is not None) else "hybrid68")
     if common["md_b"] is None:
         common["md_b"] = params.length_ab
@@ -510,13 +581,13 @@ def build_directional(sc: DirectionalScenario, source: str = "<dict>"):
         msg = str(exc)
         if msg.startswith("n_ab") or (" nodes are too few for" in msg
                                       and f"..{common['md_b']:g} m" in msg):
-            field = "model.nodes_ab" if m.nodes_ab is not None else "model.hybrid"
+            field = "model.hybrid.nodes_ab" if m.nodes_ab is not None else "model.hybrid"
         elif msg.startswith("n_cd") or " nodes are too few for" in msg:
-            field = "model.nodes_cd" if m.nodes_cd is not None else "model.hybrid"
+            field = "model.hybrid.nodes_cd" if m.nodes_cd is not None else "model.hybrid"
         elif "section BC" in msg or "md_b" in msg:
-            field = "model.md_b"
+            field = "model.wave_section"
         elif "lags" in msg:
-            field = "model.n_lags"
+            field = "model.hybrid.n_lags"
         else:
             field = "model"
         raise ScenarioError(source, field, msg) from None
@@ -525,21 +596,21 @@ def build_directional(sc: DirectionalScenario, source: str = "<dict>"):
 def _top_drive(sc: DirectionalScenario, params):
     from downhole.control.topdrive import TopDrive
 
-    c = sc.controller
-    speed = c.speed if not isinstance(c.speed, tuple) else float(c.speed[1][-1])
-    return TopDrive(inertia=c.inertia if c.inertia is not None else params.top_drive_inertia,
+    c, r, sp = sc.controller, sc.rig.top_drive, sc.operation.surface_speed
+    speed = sp if not isinstance(sp, tuple) else float(sp[1][-1])
+    return TopDrive(inertia=r.inertia if r.inertia is not None else params.top_drive_inertia,
                     mode="soft_torque" if c.type == "soft_torque" else "pi", speed=speed,
-                    kp=c.kp if c.kp is not None else params.top_drive_kp,
-                    ki=c.ki if c.ki is not None else params.top_drive_ki,
+                    kp=r.kp if r.kp is not None else params.top_drive_kp,
+                    ki=r.ki if r.ki is not None else params.top_drive_ki,
                     soft_gain=c.soft_gain, soft_tau=c.soft_tau)
 
 
 def _hook(sc: DirectionalScenario):
     from downhole.control.topdrive import Hook
 
-    h = sc.hook
-    vel = h.velocity if not isinstance(h.velocity, tuple) else float(h.velocity[1][0])
-    return Hook(mode=h.type, wob=h.wob, velocity=vel, block_mass=h.block_mass,
+    h, op = sc.rig.hook, sc.operation
+    vel = op.rop if not isinstance(op.rop, tuple) else float(op.rop[1][0])
+    return Hook(mode=h.mode, wob=op.wob, velocity=vel, block_mass=h.block_mass,
                 servo_stiffness=h.servo_stiffness, servo_damping=h.servo_damping)
 
 
@@ -628,12 +699,13 @@ def run_directional_scenario(data: dict, source: str, text: str):
         td = _top_drive(sc, params)
         hook = _hook(sc)
         kw = {}
-        if isinstance(sc.controller.speed, tuple):
-            kw["speed"] = sc.controller.speed
-        if hook.mode == "force" and sc.hook.hook_load is not None:
-            kw["hook_load"] = sc.hook.hook_load
-        if hook.mode == "velocity" and isinstance(sc.hook.velocity, tuple):
-            kw["hook_velocity"] = sc.hook.velocity
+        op = sc.operation
+        if isinstance(op.surface_speed, tuple):
+            kw["speed"] = op.surface_speed
+        if hook.mode == "force" and op.hook_load is not None:
+            kw["hook_load"] = op.hook_load
+        if hook.mode == "velocity" and isinstance(op.rop, tuple):
+            kw["hook_velocity"] = op.rop
         try:
             res = simulate_directional(model, sim.duration, sim.dt, top_drive=td, hook=hook,
                                        depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,
@@ -643,7 +715,7 @@ def run_directional_scenario(data: dict, source: str, text: str):
         except DownholeInputError as exc:
             msg = str(exc)
             field = ("simulation.dt" if "delay" in msg or "dt" in msg.split(":")[0] else
-                     "hook.wob" if "WOB" in msg else "simulation")
+                     "operation.wob" if "WOB" in msg else "simulation")
             raise ScenarioError(source, field, msg) from None
     if sc.reference is not None and (sc.reference.axial_velocity is not None
                                      or sc.reference.angular_velocity is not None):

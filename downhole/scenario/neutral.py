@@ -1,4 +1,4 @@
-"""Scenario files for the neutral-type model (``[model] type = "neutral"``): schema, validation
+"""Scenario files for the neutral-type model (``[model] fidelity = "neutral"`` with a preset): schema, validation
 and the runner behind ``downhole simulate`` (open loop or with an EID controller); the same file
 drives ``downhole design eid``.
 
@@ -6,14 +6,14 @@ Schema (every table but ``[model]`` and ``[simulation]`` optional; numbers may c
 
     title = "..."
     [model]
-    type = "neutral"
+    fidelity = "neutral"
     preset = "table_3_1"                # a 'neutral' preset
     [model.string]                      # NeutralStringParams overrides, e.g. length = "1200 m"
-    [model.bit]                         # BitParams overrides, e.g. epsilon = "90 MPa"
+    [bit]                               # BitParams overrides, e.g. epsilon = "90 MPa"
 
-    [surface]                           # open loop (ignored with a controller)
-    axial_velocity = 1.147224           # U_A, m/s (seed convention: includes M_S g/alpha_A)
-    angular_velocity = "22.5196 rad/s"  # U_T; each a constant or [[t, value], ...]
+    [operation]                         # open loop (not with a controller)
+    axial_command = 1.147224            # U_A, m/s (seed convention: includes M_S g/alpha_A)
+    surface_speed = "22.5196 rad/s"     # U_T; each a constant or [[t, value], ...]
 
     [controller]
     type = "eid"
@@ -38,8 +38,8 @@ Schema (every table but ``[model]`` and ``[simulation]`` optional; numbers may c
     record_dt = "10 ms"
     seed = 0
     [simulation.noise]                  # white noise (standard deviation per sample)
-    axial = "1 mm/s"
-    angular = "1 rad/s"
+    axial_velocity = "1 mm/s"
+    angular_velocity = "1 rad/s"
     wob = 0.0                           # N (bit-force noise)
     tob = 0.0                           # N m
 """
@@ -72,22 +72,23 @@ def _profile(value, dim, name):
 class NeutralModelSettings(_Strict):
     """``[model]``: preset plus parameter overrides."""
 
-    type: Literal["neutral"]
+    fidelity: Literal["neutral"]
     preset: str = "table_3_1"
     string: dict[str, Any] = Field(default_factory=dict)
-    bit: dict[str, Any] = Field(default_factory=dict)
 
 
 class NeutralSurface(_Strict):
-    """``[surface]``: open-loop commanded velocities U_A (m/s, seed convention) and U_T (rad/s)."""
+    """``[operation]``: open-loop commands, the top's axial velocity U_A (``axial_command``,
+    m/s, the seed's convention: it includes M_S g / alpha_A) and the top-drive speed U_T
+    (``surface_speed``, rad/s)."""
 
-    axial_velocity: Profile = 1.147224
-    angular_velocity: Profile = 22.5196
+    axial_command: Profile = 1.147224
+    surface_speed: Profile = 22.5196
 
-    @field_validator("axial_velocity", "angular_velocity", mode="after")
+    @field_validator("axial_command", "surface_speed", mode="after")
     @classmethod
     def _sig(cls, v, info):
-        dim = "velocity" if info.field_name == "axial_velocity" else "angular_velocity"
+        dim = "velocity" if info.field_name == "axial_command" else "angular_velocity"
         return _profile(v, dim, info.field_name)
 
 
@@ -174,8 +175,8 @@ class NeutralReference(_Strict):
 class NoiseSettings(_Strict):
     """``[simulation.noise]``: white noise standard deviations."""
 
-    axial: Q["velocity"] = Field(0.0, ge=0)
-    angular: Q["angular_velocity"] = Field(0.0, ge=0)
+    axial_velocity: Q["velocity"] = Field(0.0, ge=0)
+    angular_velocity: Q["angular_velocity"] = Field(0.0, ge=0)
     wob: Q["force"] = Field(0.0, ge=0)
     tob: Q["torque"] = Field(0.0, ge=0)
 
@@ -197,7 +198,8 @@ class NeutralScenario(_Strict):
     title: str = ""
     description: str = ""
     model: NeutralModelSettings
-    surface: Optional[NeutralSurface] = None
+    bit: dict[str, Any] = Field(default_factory=dict)
+    operation: Optional[NeutralSurface] = None
     controller: Optional[EIDSettings] = None
     reference: Optional[NeutralReference] = None
     simulation: Optional[NeutralSimulation] = None
@@ -213,7 +215,8 @@ def build_neutral(sc: NeutralScenario, source: str):
     from downhole.params import NeutralStringParams
     from downhole.string.neutral import neutral_model
 
-    string, bit = preset_params(sc.model, source, "neutral", NeutralStringParams, "table_3_1")
+    string, bit = preset_params(sc.model, source, "neutral", NeutralStringParams, "table_3_1",
+                                bit=sc.bit)
     try:
         return neutral_model(string, bit)
     except DownholeInputError as exc:
@@ -295,9 +298,10 @@ def validate_neutral_scenario(data: dict, source: str):
                             f"below dt ({sim.dt} s)")
     if sc.controller is None and sc.reference is not None:
         raise ScenarioError(source, "reference", "a reference needs a [controller]; open loop "
-                            "is driven by [surface]")
-    if sc.controller is not None and sc.surface is not None:
-        raise ScenarioError(source, "surface", "the [controller] sets U_A/U_T; remove [surface] "
+                            "is driven by [operation]")
+    if sc.controller is not None and sc.operation is not None:
+        raise ScenarioError(source, "operation", "the [controller] sets U_A/U_T; remove "
+                            "[operation] "
                             "(open-loop commands) or [controller]")
     check_step_count(source, sim.duration, sim.dt, sim.record_dt)
     return sc, model
@@ -312,12 +316,14 @@ def run_neutral_scenario(data: dict, source: str, text: str):
     sim = sc.simulation
     reference = build_reference(sc) if sc.controller is not None else None
     ctrl = build_controller(sc, source, model, reference)
-    surface = sc.surface or NeutralSurface()
+    surface = sc.operation or NeutralSurface()
     noise = sim.noise.model_dump()
+    noise["axial"] = noise.pop("axial_velocity")
+    noise["angular"] = noise.pop("angular_velocity")
     attrs = {"scenario": text, "scenario_source": source, "title": sc.title}
     try:
         return simulate_neutral(model, duration=sim.duration, dt=sim.dt, controller=ctrl,
-                                inputs=(surface.axial_velocity, surface.angular_velocity),
+                                inputs=(surface.axial_command, surface.surface_speed),
                                 reference=reference, noise=noise,
                                 depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,
                                 seed=sim.seed, attrs=attrs)

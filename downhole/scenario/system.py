@@ -76,35 +76,12 @@ FIDELITY_NAMES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
 #: Default step per fidelity, s.
 DEFAULT_DT = {"lumped4": 5e-4, "lumped12": 5e-4, "neutral": 1e-4, "fem": 1e-3, "hybrid": 1e-3}
 
-#: Keys of the older dialects and their names here (dotted; ``None``: the table has no
-#: counterpart). A system scenario that uses one gets one line naming the new key.
+#: Keys of a preset file that a described system replaces (the older dialects' keys are
+#: refused for every file by :func:`downhole.scenario.schema.check_dialect`).
 RENAMED = {
-    "model.type": "model.fidelity",
-    "model.preset": "bit.preset (the bit) and [well] / [string] (the well and string)",
-    "model.elements": "model.fem.elements",
-    "model.nodes_ab": "model.hybrid.nodes_ab",
-    "model.nodes_cd": "model.hybrid.nodes_cd",
-    "model.md_b": "model.wave_section = [B, C]",
-    "model.md_c": "model.wave_section = [B, C]",
-    "model.n_lags": "model.hybrid.n_lags",
-    "model.string": "[string] (segments) and rig",
-    "model.bit": "[bit]",
-    "surface": "[operation] (surface_speed, rop)",
-    "surface.angular_velocity": "operation.surface_speed",
-    "surface.axial_velocity": "operation.rop",
-    "controller": "[rig.top_drive] (inertia, kp, ki) and operation.surface_speed",
-    "controller.speed": "operation.surface_speed",
-    "controller.kp": "rig.top_drive.kp",
-    "controller.ki": "rig.top_drive.ki",
-    "controller.inertia": "rig.top_drive.inertia",
-    "hook": "[rig.hook] (servo_stiffness, servo_damping, block_mass) and operation.rop / wob",
-    "hook.wob": "operation.wob",
-    "hook.velocity": "operation.rop",
-    "hook.servo_stiffness": "rig.hook.servo_stiffness",
-    "hook.servo_damping": "rig.hook.servo_damping",
-    "hook.block_mass": "rig.hook.block_mass",
-    "runtime": "[simulation]",
-    "name": "title",
+    "model.preset": "bit.preset (the bit) and [well] / [string] (the well and string); a preset "
+                    "file has no [well] / [string]",
+    "model.string": "[string] (segments) and [rig]",
 }
 
 
@@ -264,12 +241,8 @@ def _check_renames(data: dict, source: str) -> None:
         for p in parts[:-1]:
             node = node.get(p) if isinstance(node, dict) else None
         if isinstance(node, dict) and parts[-1] in node:
-            raise ScenarioError(source, dotted, f"renamed in a system scenario ([model] "
-                                f"fidelity): use {new} (see docs/scenarios.md)")
-    model = data.get("model")
-    if isinstance(model, dict) and isinstance(model.get("hybrid"), str):
-        raise ScenarioError(source, "model.hybrid", "renamed in a system scenario: use "
-                            "model.hybrid.preset (see docs/scenarios.md)")
+            raise ScenarioError(source, dotted, f"not in a described system ([well], "
+                                f"[string]): use {new} (see docs/scenarios.md)")
 
 
 # ---------------------------------------------------------------------------------- build
