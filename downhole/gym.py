@@ -2,6 +2,7 @@
 
 >>> import gymnasium as gym, downhole.gym                         # doctest: +SKIP
 >>> env = gym.make("downhole/Drilling-v0", model="lumped")        # doctest: +SKIP
+>>> env = downhole.gym.DrillingEnv.from_scenario("examples/sil_pi_hybrid68.toml")  # doctest: +SKIP
 
 Each ``step`` holds the action for ``control_dt`` s (``control_dt / dt`` plant steps).
 
@@ -63,6 +64,9 @@ class DrillingEnv(gym.Env):
         Action ranges (N, m/s, rad/s).
     stuck_weight, bounce_weight : float
         Reward penalty weights.
+    plant : SilPlant, optional
+        A plant already built (``model`` is then ignored); :meth:`from_scenario` builds it
+        from a scenario file.
     """
 
     metadata = {"render_modes": []}
@@ -71,7 +75,7 @@ class DrillingEnv(gym.Env):
                  episode_seconds: float = 20.0, reference=None,
                  reference_range=((0.005, 0.02), (10.0, 30.0)), wob_max: float = 250e3,
                  v_max: float = 0.03, omega_max: float = 40.0, stuck_weight: float = 1.0,
-                 bounce_weight: float = 1.0):
+                 bounce_weight: float = 1.0, plant=None):
         from downhole.sil.plants import build_plant
 
         n = int(round(control_dt / dt))
@@ -80,7 +84,10 @@ class DrillingEnv(gym.Env):
                                      f"dt = {dt} s")
         if episode_seconds <= 0:
             raise DownholeInputError(f"episode_seconds must be > 0, got {episode_seconds}")
-        self.plant = build_plant(model, interface="surface", dt=dt)
+        if plant is not None and abs(plant.dt - dt) > 1e-12:
+            raise DownholeInputError(f"the plant steps at dt = {plant.dt:g} s, not {dt:g} s")
+        self.plant = plant if plant is not None else build_plant(model, interface="surface",
+                                                                 dt=dt)
         self.substeps = n
         self.control_dt = n * dt
         self.max_steps = int(round(episode_seconds / self.control_dt))
@@ -94,6 +101,33 @@ class DrillingEnv(gym.Env):
         self._ref = (0.01, 20.0)
         self._k = 0
         self._obs = None
+
+    @classmethod
+    def from_scenario(cls, path, **overrides) -> "DrillingEnv":
+        """The environment of a scenario file, read with the schema every command uses
+        (:func:`downhole.sil.scenario.load_sil_scenario`): the plant of ``[model]``, ``[bit]``,
+        ``[operation]`` and ``[simulation]`` (``dt``, ``depth_of_cut``; ``duration`` is the
+        episode length), the fixed reference of ``[reference]``. ``overrides`` are the
+        constructor's other keywords (``control_dt``, ``wob_max``, ...).
+
+        Raises
+        ------
+        ScenarioError
+            A bad file (one line naming the file and the dotted field).
+        DownholeInputError
+            A plant with the ``state`` interface (the environment drives the surface).
+        """
+        from downhole.sil.scenario import build_from_scenario, load_sil_scenario
+
+        sc = load_sil_scenario(path)
+        if sc.model.interface != "surface":
+            raise DownholeInputError(f"{path}: model.interface = {sc.model.interface!r}; the "
+                                     "environment drives the surface (interface = 'surface')")
+        plant, _ = build_from_scenario(sc, with_controller=False)
+        kw = dict(dt=sc.simulation.dt, episode_seconds=sc.simulation.duration,
+                  reference=(sc.reference.axial_velocity, sc.reference.angular_velocity))
+        kw.update(overrides)
+        return cls(plant=plant, **kw)
 
     def command(self, action) -> dict:
         """The plant command for an action (the documented linear maps)."""

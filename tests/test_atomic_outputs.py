@@ -88,16 +88,16 @@ torque = [0.0, 30.0e3]
 """
 
 SIL = """
-name = "atomic-output test, lumped plant"
-[plant]
-model = "lumped"
-[runtime]
+title = "atomic-output test, lumped plant"
+[model]
+fidelity = "lumped4"
+[simulation]
 dt = "1 ms"
 duration = "{duration}"
 record_dt = "10 ms"
 {extra}
 [controller]
-kind = "pi"
+type = "pi"
 """
 
 PLUGIN = textwrap.dedent('''
@@ -595,7 +595,7 @@ def test_sil_sigterm_writes_the_rows_recorded_so_far(tmp_path, procs):
     chunks = tmp_path / "chunks"
     scen = tmp_path / "sil.toml"
     scen.write_text(SIL.format(duration="600 s", extra=f'record_dt = "2 ms"\n'
-                               f'ring_seconds = "600 s"\nchunk_dir = "{chunks}"')
+                               f'[realtime]\nring_seconds = "600 s"\nchunk_dir = "{chunks}"')
                     .replace('record_dt = "10 ms"\n', ""))
     p = start(procs, ["sil", scen, "--unpaced", "--out", out], tmp_path)
     # the previous result goes when the run starts, after the marker is written
@@ -657,7 +657,7 @@ def test_sil_kill9_mid_write_leaves_no_stale_result(tmp_path, procs):
     out.write_text("previous result")
     chunks = tmp_path / "chunks"
     scen = tmp_path / "sil.toml"
-    scen.write_text(SIL.format(duration="0.5 s", extra=f'chunk_dir = "{chunks}"'))
+    scen.write_text(SIL.format(duration="0.5 s", extra=f'[realtime]\nchunk_dir = "{chunks}"'))
     p = start(procs, ["sil", scen, "--unpaced", "--out", out], tmp_path, pause("run.nc"))
     p.wait_for_pause("run.nc")
     p.signal(signal.SIGKILL)
@@ -673,7 +673,7 @@ def test_sil_kill9_mid_run_leaves_no_stale_result_and_no_stale_chunks(tmp_path, 
     chunks.mkdir()
     (chunks / "chunk_000001.npz").write_text("a chunk of the previous run")
     scen = tmp_path / "sil.toml"
-    scen.write_text(SIL.format(duration="600 s", extra=f'chunk_dir = "{chunks}"'))
+    scen.write_text(SIL.format(duration="600 s", extra=f'[realtime]\nchunk_dir = "{chunks}"'))
     p = start(procs, ["sil", scen, "--out", out], tmp_path)
     p.wait_for("the run to start", lambda: (tmp_path / "run.nc.INCOMPLETE").exists()
                and not out.exists())

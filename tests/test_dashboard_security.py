@@ -281,7 +281,7 @@ def test_token_is_not_printed(tmp_path, capfd):
     token_file = tmp_path / "dashboard.token"
     token_file.write_text(TOKEN + "\n")
     sc = tmp_path / "s.toml"
-    sc.write_text(f'[plant]\nmodel = "lumped"\n[runtime]\nduration = "0.3 s"\n'
+    sc.write_text(f'[model]\nfidelity = "lumped4"\n[simulation]\nduration = "0.3 s"\n'
                   f'[dashboard]\nport = {free_port()}\ntoken_file = "dashboard.token"\n')
     assert main(["sil", str(sc), "--dashboard", "--no-progress"]) == 0
     out, err = capfd.readouterr()
@@ -296,7 +296,7 @@ def test_token_is_not_printed(tmp_path, capfd):
 
 def test_token_file_errors_name_the_file(tmp_path, capsys):
     sc = tmp_path / "s.toml"
-    sc.write_text('[plant]\nmodel = "lumped"\n[dashboard]\ntoken_file = "missing.token"\n')
+    sc.write_text('[model]\nfidelity = "lumped4"\n[dashboard]\ntoken_file = "missing.token"\n')
     assert main(["sil", str(sc), "--dashboard", "--duration", "0.1"]) == 2
     assert "missing.token" in capsys.readouterr().err
     (tmp_path / "blank.token").write_text("\n \n")
@@ -310,7 +310,7 @@ def test_token_file_errors_name_the_file(tmp_path, capsys):
     for db, word in (('host = "0.0.0.0"', "not loopback"),
                      ('host = "0.0.0.0"\ntoken = "short"', "16 characters"),
                      ('token = "semi;colon"', "semicolons")):
-        sc.write_text(f'[plant]\nmodel = "lumped"\n[link]\nport = {free_port()}\n'
+        sc.write_text(f'[model]\nfidelity = "lumped4"\n[link]\nport = {free_port()}\n'
                       f'[dashboard]\n{db}\n')
         t = time.monotonic()
         assert main(["sil", str(sc), "--dashboard", "--remote", "--wait", "300"]) == 2

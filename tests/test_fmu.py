@@ -39,5 +39,5 @@ def test_exported_fmu_matches_simulate_directional(tmp_path):
 
 def test_export_fmu_rejects_a_bad_scenario(tmp_path):
     bad = tmp_path / "bad.toml"
-    bad.write_text("[plant]\nmodel = 'hybrid99'\n")
+    bad.write_text("[model]\nfidelity = 'hybrid'\npreset = 'hybrid99'\n")
     assert main(["export-fmu", str(bad), "--out", str(tmp_path / "x.fmu")]) == 2

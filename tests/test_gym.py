@@ -58,3 +58,30 @@ def test_env_starts_in_the_steady_drilling_state(model):
     assert o["bit_angular_velocity"] == pytest.approx(w0, rel=0.01)
     env.reset(seed=0)
     assert env.plant.last_observation["bit_angular_velocity"] == 0.0
+
+
+def test_env_from_a_scenario_file_uses_the_one_schema(tmp_path):
+    """The environment reads the scenario schema every command reads: its plant, bit, step,
+    episode length and reference come from the file; a bad file is one ScenarioError line."""
+    from downhole.errors import DownholeInputError, ScenarioError
+
+    sc = tmp_path / "env.toml"
+    sc.write_text('[model]\nfidelity = "lumped4"\n[bit]\nepsilon = "90 MPa"\n'
+                  '[simulation]\ndt = "1 ms"\nduration = "0.5 s"\n'
+                  '[reference]\naxial_velocity = "12 mm/s"\nangular_velocity = "15 rad/s"\n')
+    env = DrillingEnv.from_scenario(sc, control_dt=0.05)
+    assert env.plant.plant.model.bit.epsilon == pytest.approx(90e6)
+    assert env.max_steps == 10 and env.fixed_reference == (pytest.approx(0.012), 15.0)
+    obs, info = env.reset(seed=0)
+    assert info["reference"] == (pytest.approx(0.012), 15.0)
+    n, done = 0, False
+    while not done:
+        _, _, term, trunc, _ = env.step(np.zeros(2))
+        n, done = n + 1, term or trunc
+    assert n == 10
+    sc.write_text('[plant]\nmodel = "lumped"\n')
+    with pytest.raises(ScenarioError, match="plant.model: renamed: use model.fidelity"):
+        DrillingEnv.from_scenario(sc)
+    sc.write_text('[model]\nfidelity = "hybrid"\ninterface = "state"\n')
+    with pytest.raises(DownholeInputError, match="interface"):
+        DrillingEnv.from_scenario(sc)

@@ -290,7 +290,7 @@ def test_every_reader_refuses_hostile_files(tmp_path, guard):
                 reader(path)
     sil = (EXAMPLES / "sil_open_loop.toml").read_text().replace('dt = "1 ms"', 'dt = "nan"')
     assert '"nan"' in sil
-    with pytest.raises(ScenarioError, match="runtime.dt"):
+    with pytest.raises(ScenarioError, match="simulation.dt"):
         load_sil_scenario(write(tmp_path, sil, "sil.toml"))
     dp = (EXAMPLES / "dp_customized.toml").read_text().replace("horizon = 20.0",
                                                                "horizon = inf")
@@ -411,13 +411,13 @@ def _cli_case(name, tmp_path):
         return ["simulate", "s.toml", "--out", "out"], "simulation.duration"
     if name == "sil-nan":
         write(tmp_path, ex("sil_open_loop.toml").replace('dt = "1 ms"', 'dt = "nan"'))
-        return ["sil", "s.toml", "--out", "out.nc", "--unpaced"], "runtime.dt"
+        return ["sil", "s.toml", "--out", "out.nc", "--unpaced"], "simulation.dt"
     if name == "sil-controller-directory":
         (tmp_path / "d").mkdir()
         return ["sil-controller", "--port", "9", "--scenario", "d"], "is a directory"
     if name == "export-fmu-torque":
-        write(tmp_path, ex("sil_open_loop.toml") + '\n[reference]\naxial = "1e300 m/s"\n')
-        return ["export-fmu", "s.toml", "--out", "out.fmu"], "reference.axial"
+        write(tmp_path, ex("sil_open_loop.toml") + '\n[reference]\naxial_velocity = "1e300 m/s"\n')
+        return ["export-fmu", "s.toml", "--out", "out.fmu"], "reference.axial_velocity"
     if name == "optimize-dp-inf":
         write(tmp_path, ex("dp_customized.toml").replace("step = 0.25", "step = inf"))
         return ["optimize", "dp", "s.toml", "--out", "out"], "step: expected a finite"
@@ -458,12 +458,12 @@ def test_sil_lumped_plant_step_is_checked_against_the_euler_bound(tmp_path):
     from downhole.sim.lumped_model import lumped_model
 
     bound, _ = euler_stable_dt(lumped_model("table_2_1", order=12))
-    plant = {"model": "lumped", "order": 12, "interface": "surface"}
-    parse_sil_scenario({"plant": plant, "runtime": {"dt": 0.9 * bound}, "controller":
-                        {"kind": "none"}})
-    with pytest.raises(ScenarioError, match=r"runtime.dt: .* stable only for dt <"):
-        parse_sil_scenario({"plant": plant, "runtime": {"dt": 0.01}, "controller":
-                            {"kind": "none"}})
-    with pytest.raises(ScenarioError, match="plant.lumped_preset"):
-        parse_sil_scenario({"plant": {**plant, "lumped_preset": "table_5_1"},
-                            "controller": {"kind": "none"}})
+    model = {"fidelity": "lumped12", "interface": "surface"}
+    parse_sil_scenario({"model": model, "simulation": {"dt": 0.9 * bound}, "controller":
+                        {"type": "none"}})
+    with pytest.raises(ScenarioError, match=r"simulation.dt: .* stable only for dt <"):
+        parse_sil_scenario({"model": model, "simulation": {"dt": 0.01}, "controller":
+                            {"type": "none"}})
+    with pytest.raises(ScenarioError, match="model.preset"):
+        parse_sil_scenario({"model": {**model, "preset": "table_5_1"},
+                            "controller": {"type": "none"}})

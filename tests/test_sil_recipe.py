@@ -49,8 +49,9 @@ def _finish(proc, timeout=120):
 
 def _pi_scenario(tmp_path, port, duration="1 s", extra=""):
     sc = tmp_path / "pi.toml"
-    sc.write_text(f'[plant]\nmodel = "hybrid68"\n[runtime]\nduration = "{duration}"\n'
-                  f'[controller]\nkind = "pi"\n[link]\nport = {port}\n{extra}')
+    sc.write_text(f'[model]\nfidelity = "hybrid"\npreset = "hybrid68"\n[simulation]\n'
+                  f'duration = "{duration}"\n[controller]\ntype = "pi"\n[link]\nport = {port}\n'
+                  f'{extra}')
     return sc
 
 
@@ -293,13 +294,14 @@ def _code_file(tmp_path):
 def test_scenario_with_a_python_controller_never_runs_it_without_the_opt_in(tmp_path, capsys):
     f, marker = _code_file(tmp_path)
     sc = tmp_path / "s.toml"
-    sc.write_text(f'[plant]\nmodel = "lumped"\n[controller]\nkind = "file"\nfile = "{f.name}"\n')
+    sc.write_text(f'[model]\nfidelity = "lumped4"\n[controller]\ntype = "file"\n'
+                  f'file = "{f.name}"\n')
     port = str(free_port())
     for argv in (["sil", str(sc), "--duration", "0.05", "--unpaced"],
                  ["sil", str(tmp_path / "plain.toml"), "--controller", str(f)],
                  ["sil-controller", "--scenario", str(sc), "--port", port, "--wait", "1"],
                  ["sil-controller", "--controller", str(f), "--port", port, "--wait", "1"]):
-        (tmp_path / "plain.toml").write_text('[plant]\nmodel = "lumped"\n')
+        (tmp_path / "plain.toml").write_text('[model]\nfidelity = "lumped4"\n')
         assert main(argv) == 2, argv
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1, err  # one line

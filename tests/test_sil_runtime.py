@@ -90,15 +90,33 @@ def test_hil_rig_over_the_link_matches_the_rig_in_process():
 
 
 def test_scenario_errors_name_the_field():
-    with pytest.raises(ScenarioError, match="runtime.dt"):
-        parse_sil_scenario({"runtime": {"dt": "-1 ms"}})
-    with pytest.raises(ScenarioError, match="plant.interface"):
-        parse_sil_scenario({"controller": {"kind": "dhp"}})
-    with pytest.raises(ScenarioError, match="plant.colour"):
-        parse_sil_scenario({"plant": {"colour": "red"}})
-    sc = parse_sil_scenario({"runtime": {"dt": "0.5 ms", "duration": "2 s"},
-                             "reference": {"angular": "120 rpm"}})
-    assert sc.runtime.dt == 5e-4 and sc.reference.angular == pytest.approx(4 * np.pi)
+    with pytest.raises(ScenarioError, match="simulation.dt"):
+        parse_sil_scenario({"simulation": {"dt": "-1 ms"}})
+    with pytest.raises(ScenarioError, match="model.interface"):
+        parse_sil_scenario({"controller": {"type": "dhp"}})
+    with pytest.raises(ScenarioError, match="model.colour"):
+        parse_sil_scenario({"model": {"colour": "red"}})
+    sc = parse_sil_scenario({"simulation": {"dt": "0.5 ms", "duration": "2 s"},
+                             "reference": {"angular_velocity": "120 rpm"}})
+    assert sc.simulation.dt == 5e-4
+    assert sc.reference.angular_velocity == pytest.approx(4 * np.pi)
+    # the older dialect: one line naming the key that replaces it
+    for old, new in ((({"runtime": {"dt": 1e-3}}), "simulation.dt"),
+                     (({"plant": {"model": "hybrid68"}}), "model.fidelity"),
+                     (({"controller": {"kind": "pi"}}), "controller.type"),
+                     (({"name": "x"}), "title"),
+                     (({"reference": {"axial": 0.01}}), "reference.axial_velocity")):
+        with pytest.raises(ScenarioError, match=f"renamed: use {new}"):
+            parse_sil_scenario(old)
+    # epsilon can be set in a SIL file: the plant's bit is the preset's with [bit] over it
+    from downhole.sil.scenario import build_from_scenario
+
+    sc = parse_sil_scenario({"model": {"fidelity": "lumped4"}, "bit": {"epsilon": "90 MPa"},
+                             "controller": {"type": "none"}})
+    plant, _ = build_from_scenario(sc)
+    assert plant.plant.model.bit.epsilon == pytest.approx(90e6)
+    with pytest.raises(ScenarioError, match="bit.epsilon"):
+        parse_sil_scenario({"bit": {"epsilon": "-1 MPa"}})
     with pytest.raises(DownholeInputError, match="wait_fraction"):
         RealTimeRunner(build_plant("lumped"), wait_fraction=1.5)
 

@@ -636,7 +636,7 @@ def test_the_cli_refuses_a_plant_beyond_loopback_without_a_key(tmp_path, capsys)
     from downhole.cli import main
 
     sc = tmp_path / "open.toml"
-    sc.write_text('[plant]\nmodel = "lumped"\n[controller]\nremote = true\n'
+    sc.write_text('[model]\nfidelity = "lumped4"\n[controller]\nremote = true\n'
                   '[link]\nhost = "0.0.0.0"\nport = 0\n')
     assert main(["sil", str(sc), "--duration", "0.1"]) == 2
     assert "beyond loopback" in capsys.readouterr().err

@@ -2,10 +2,10 @@
 closed loop with the input delay, write the gains (npz + JSON), a short report and a root plot.
 
 The scenario is the neutral-model scenario of ``downhole simulate`` (schema in
-:mod:`downhole.scenario.neutral`): ``[model]`` (type "neutral", preset, ``[model.string]``,
-``[model.bit]`` overrides), ``[controller] type = "eid"`` with the design options
+:mod:`downhole.scenario.neutral`): ``[model]`` (fidelity "neutral", preset, ``[model.string]``,
+``[bit]`` overrides), ``[controller] type = "eid"`` with the design options
 (``internal_model_gain``, ``filter_bandwidth``, ``observer_gain``, ``gain_bound``, ``predictor``,
-``delayed_input_observer``; all optional) and an optional ``[reference]``. ``[surface]`` and
+``delayed_input_observer``; all optional) and an optional ``[reference]``. ``[operation]`` and
 ``[simulation]`` are ignored here, so the same file both designs and runs the loop.
 """
 
@@ -30,8 +30,9 @@ def load_eid_scenario(path: Path):
 
     data, source, _ = load_scenario(path)
     model_t = data.get("model")
-    if isinstance(model_t, dict) and "type" not in model_t:
-        raise ScenarioError(source, "model.type", 'required field is missing (use "neutral")')
+    if isinstance(model_t, dict) and "fidelity" not in model_t:
+        raise ScenarioError(source, "model.fidelity", 'required field is missing (use '
+                            '"neutral")')
     sc = load_neutral_scenario(data, source)
     if sc.controller is None:
         raise ScenarioError(source, "controller", 'required table is missing ([controller] '

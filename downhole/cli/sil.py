@@ -12,7 +12,7 @@
 A Python controller file is code: both commands run one only with ``--allow-code``. Every long
 phase (design, waiting, running) shows progress on stderr (``--no-progress`` to silence it).
 
-``downhole sil`` checks ``--out`` and ``[runtime] chunk_dir`` before it builds anything. SIGINT
+``downhole sil`` checks ``--out`` and ``[realtime] chunk_dir`` before it builds anything. SIGINT
 and SIGTERM end a running loop after the current step: the recording is flushed, ``--out`` is
 written with the rows recorded so far (attribute ``stopped_by``) and the command exits with
 128 + the signal number. A signal while waiting for the controller ends the command with
@@ -46,10 +46,11 @@ def _positive_seconds(value: float | None, option: str) -> float | None:
 
 def _design_note(sc, what: str) -> None:
     """Say that a long design starts (the trainer's rich bars follow on a terminal)."""
-    if sc.controller.kind == "dhp" and not sc.controller.file:
+    if sc.controller.type == "dhp" and not sc.controller.file:
         d = sc.controller.dhp
-        typer.echo(f"{what}: designing the DHP controller ({d.samples} samples, horizon "
-                   f"{d.horizon:g} s, weights {d.weights}); this can take a minute or more",
+        typer.echo(f"{what}: designing the DHP controller ({d.training.n_samples} samples, "
+                   f"horizon {d.training.horizon:g} s, weights {d.weights}); this can take a "
+                   "minute or more",
                    err=True)
 
 
@@ -136,12 +137,12 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         sc.controller.remote = True
     if port is not None:
         sc.link.port = port
-    rtc = sc.runtime
+    rtc, sim = sc.realtime, sc.simulation
     # output paths first: a bad --out must not cost a controller design and a whole run
     if out is not None:
         check_output_path(out, kind="file")
     if rtc.chunk_dir is not None:
-        check_output_path(rtc.chunk_dir, option=f"{scenario}: runtime.chunk_dir", kind="folder")
+        check_output_path(rtc.chunk_dir, option=f"{scenario}: realtime.chunk_dir", kind="folder")
     cfile = str(controller) if controller else None
     token = None
     if dashboard:  # refuse bad dashboard settings now, not after the design and the wait
@@ -158,17 +159,18 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                                       progress=progress)
     hil = sc.link.mode == "hil"
     use_link = sc.controller.remote or hil
-    every = max(1, int(round(rtc.record_dt / rtc.dt)))
+    every = max(1, int(round(sim.record_dt / sim.dt)))
     runner = RealTimeRunner(
         plant, ctrl, link=(sc.link.host, sc.link.port) if use_link else None, hil=hil,
-        reference={"axial": sc.reference.axial, "angular": sc.reference.angular},
+        reference={"axial": sc.reference.axial_velocity,
+                   "angular": sc.reference.angular_velocity},
         paced=rtc.paced and not unpaced, record_every=every,
-        ring_rows=max(1, int(rtc.ring_seconds / rtc.record_dt)), chunk_dir=rtc.chunk_dir,
+        ring_rows=max(1, int(rtc.ring_seconds / sim.record_dt)), chunk_dir=rtc.chunk_dir,
         max_lag=rtc.max_lag, wait_fraction=rtc.wait_fraction,
         safety=SafetyPolicy(sc.safety.timeout, sc.safety.hold, sc.safety.ramp, sc.safety.resume),
-        controller_enabled=sc.controller.enabled and sc.controller.kind != "none",
-        realtime=rtc.realtime, link_key_file=link_key_file)
-    dur = duration if duration is not None else rtc.duration
+        controller_enabled=sc.controller.enabled and sc.controller.type != "none",
+        realtime=rtc.enabled, link_key_file=link_key_file)
+    dur = duration if duration is not None else sim.duration
     patience = wait if wait is not None else sc.link.connect_timeout
     stopper = _StopOnSignal(runner).install()
     out_file = OutputFile(out, "sil") if out is not None else None
@@ -246,7 +248,8 @@ def _write_sil_result(res, out, out_file, stopper) -> None:
 
 def _reference_limits(sc) -> dict:
     r = sc.reference
-    return {"axial": (r.axial_min, r.axial_max), "angular": (r.angular_min, r.angular_max)}
+    return {"axial": (r.axial_velocity_min, r.axial_velocity_max),
+            "angular": (r.angular_velocity_min, r.angular_velocity_max)}
 
 
 @app.command("sil-controller")
@@ -315,7 +318,7 @@ def sil_controller(port: Optional[int] = typer.Option(
         _, ctrl = build_from_scenario(sc, allow_code=allow_code, progress=progress)
         if ctrl is None:
             raise DownholeInputError(f"{scenario}: the scenario defines no controller "
-                                     f"([controller] kind = {sc.controller.kind!r})")
+                                     f"([controller] type = {sc.controller.type!r})")
     # 2. then the plant
     client = ControllerClient(host, port, name="downhole sil-controller",
                               key_file=link_key_file)

@@ -374,8 +374,12 @@ def check_step_count(source: str, duration: float, dt: float, record_dt: float |
 
 
 def load_scenario(path: str | Path) -> tuple[dict, str, str]:
-    """Read a TOML scenario file: returns ``(data, source, text)`` (see :func:`read_toml`)."""
-    return read_toml(path)
+    """Read a TOML scenario file: returns ``(data, source, text)`` (see :func:`read_toml`); an
+    older-dialect key gets one line naming its replacement
+    (:func:`downhole.scenario.schema.read_scenario`)."""
+    from downhole.scenario.schema import read_scenario
+
+    return read_scenario(path)
 
 
 def model_type(data: dict, source: str) -> str:

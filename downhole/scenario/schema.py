@@ -90,8 +90,8 @@ RENAMES: dict[str, str] = {
     # [plant] (SIL files) -> [model], [operation], [simulation]
     "plant": "[model] (fidelity, preset, interface), [operation] (wob, surface_speed, "
              "surface_torque, rop) and simulation.depth_of_cut",
-    "plant.model": "model.fidelity (lumped4 | lumped12 | fem | hybrid) and model.preset "
-                   "(hybrid24 | hybrid68 | hybrid108 for the hybrid)",
+    "plant.model": "model.fidelity (lumped4 | lumped12 | neutral | fem | hybrid) and "
+                   "model.preset (hybrid24 | hybrid68 | hybrid108 for the hybrid)",
     "plant.interface": "model.interface",
     "plant.depth_of_cut": "simulation.depth_of_cut",
     "plant.wob": "operation.wob",

@@ -238,7 +238,7 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
                 top_drive_speed: float = 10.0, design: str = "hybrid24", n_elements: int = 23,
                 lumped_preset: str = "table_2_1", order: int = 4,
                 axial_velocity: float = 0.01, surface_torque: float = 0.0,
-                design_model=None) -> SilPlant:
+                design_model=None, bit=None) -> SilPlant:
     """Build a :class:`SilPlant`.
 
     Parameters
@@ -263,6 +263,8 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         ``state``: default (open-loop) surface torque, N m (the default slack-off is ``wob``).
     design_model : ControlAffineModel, optional
         ``state``: use this design model instead of building it from ``design``.
+    bit : BitParams, optional
+        The bit (default: the model's preset's, Tables 2.1, 3.1, 5.1).
 
     Raises
     ------
@@ -273,7 +275,12 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         from downhole.sim import LumpedPlant
         from downhole.string.lumped import lumped_model
 
-        lm = lumped_model(lumped_preset, order=order)
+        if bit is None:
+            lm = lumped_model(lumped_preset, order=order)
+        else:
+            from downhole.params import get_preset
+
+            lm = lumped_model(get_preset(lumped_preset).string, bit, order=order)
         p = LumpedPlant(lm, dt=dt, mode="velocity", depth_of_cut=depth_of_cut)
         names = p.command_names
         return SilPlant(p, names, {names[0]: axial_velocity, names[1]: top_drive_speed},
@@ -282,7 +289,14 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
     if model == "neutral":
         from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, NeutralPlant
 
-        p = NeutralPlant("table_3_1", dt=dt, depth_of_cut=depth_of_cut)
+        if bit is None:
+            p = NeutralPlant("table_3_1", dt=dt, depth_of_cut=depth_of_cut)
+        else:
+            from downhole.params import get_preset
+            from downhole.string.neutral import neutral_model
+
+            p = NeutralPlant(neutral_model(get_preset("table_3_1").string, bit), dt=dt,
+                             depth_of_cut=depth_of_cut)
         names = p.command_names
         return SilPlant(p, names, {names[0]: NOMINAL_U_A - p.model.hang_command,
                                    names[1]: NOMINAL_U_T},
@@ -291,10 +305,11 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
     from downhole.string.fem import fem_model
     from downhole.string.hybrid import HYBRID_PRESETS, hybrid_model
 
+    kw = {} if bit is None else {"bit": bit}
     if model in HYBRID_PRESETS:
-        dmodel = hybrid_model(model)
+        dmodel = hybrid_model(model, **kw)
     elif model == "fem":
-        dmodel = fem_model(n_elements=n_elements)
+        dmodel = fem_model(n_elements=n_elements, **kw)
     else:
         raise DownholeInputError(f"unknown plant model {model!r}; expected one of "
                                  f"{(*HYBRID_PRESETS, 'fem', 'lumped', 'neutral')}")
