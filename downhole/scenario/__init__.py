@@ -71,6 +71,7 @@ class SimulationSettings(_Strict):
     integrator: Literal["euler", "newmark"] = "euler"
     record_dt: Q["time"] | None = Field(None, gt=0)
     rock_memory: bool = True
+    start: Literal["rest", "off_bottom", "steady"] = "rest"
 
 
 class SurfaceSettings(_Strict):
@@ -303,7 +304,7 @@ def _run_lumped(data: dict, source: str, text: str):
     sim = sc.simulation
     res = simulate(model, inputs, duration=sim.duration, dt=sim.dt,
                    depth_of_cut=sim.depth_of_cut, integrator=sim.integrator,
-                   record_dt=sim.record_dt, rock_memory=sim.rock_memory,
+                   record_dt=sim.record_dt, rock_memory=sim.rock_memory, start=sim.start,
                    attrs={"scenario": text, "scenario_source": source, "title": sc.title})
     if sc.reference is not None:
         t = res.time

@@ -377,6 +377,7 @@ class SimulationSettings(_Strict):
     dt: Q["time"] = Field(1e-3, gt=0, le=0.01)
     depth_of_cut: Literal["delayed", "approximate"] = "delayed"
     record_dt: Optional[Q["time"]] = Field(0.01, gt=0)
+    start: Literal["rest", "off_bottom", "steady"] = "rest"
 
     @model_validator(mode="after")
     def _steps(self):
@@ -709,7 +710,7 @@ def run_directional_scenario(data: dict, source: str, text: str):
         try:
             res = simulate_directional(model, sim.duration, sim.dt, top_drive=td, hook=hook,
                                        depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,
-                                       scenario=text, attrs=attrs, **kw)
+                                       scenario=text, attrs=attrs, start=sim.start, **kw)
         except ScenarioError:
             raise
         except DownholeInputError as exc:

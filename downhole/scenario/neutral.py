@@ -190,6 +190,7 @@ class NeutralSimulation(_Strict):
     record_dt: Optional[Q["time"]] = Field(None, gt=0)
     seed: int = 0
     noise: NoiseSettings = NoiseSettings()
+    start: Literal["rest", "off_bottom", "steady"] = "rest"
 
 
 class NeutralScenario(_Strict):
@@ -326,6 +327,6 @@ def run_neutral_scenario(data: dict, source: str, text: str):
                                 inputs=(surface.axial_command, surface.surface_speed),
                                 reference=reference, noise=noise,
                                 depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,
-                                seed=sim.seed, attrs=attrs)
+                                seed=sim.seed, attrs=attrs, start=sim.start)
     except DownholeInputError as exc:
         raise ScenarioError(source, "simulation", str(exc)) from None

@@ -143,6 +143,9 @@ class SilPlant:
         self.name = name
         self.state_names = tuple(state_names or ())
         self.info = dict(info or {})
+        #: The start of a bare ``reset()`` (the runtime's): ``{"start": "steady"}``, ... of
+        #: :meth:`downhole.sim.plant.Plant.reset`; empty: from rest.
+        self.default_start: dict = {}
         #: extra command names handed to the plant when present (HIL: the rig's bit velocities)
         self.passthrough: tuple = ()
         obs = plant.reset()
@@ -200,7 +203,7 @@ class SilPlant:
     def reset(self, **start) -> dict:
         """Reset the plant (``start``: ``start=``, ``set_point=``, ... of
         :meth:`downhole.sim.plant.Plant.reset`; none: from rest)."""
-        self._last = self._flatten(self.plant.reset(**start))
+        self._last = self._flatten(self.plant.reset(**(start or self.default_start)))
         return dict(self._last)
 
     def step(self, command: dict) -> dict:

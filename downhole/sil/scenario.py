@@ -120,7 +120,7 @@ class SimulationSection(_Strict):
     duration: Q["time"] = Field(20.0, gt=0)
     record_dt: Q["time"] = Field(0.01, gt=0)
     depth_of_cut: Literal["delayed", "approximate"] = "delayed"
-    start: Literal["rest"] = "rest"
+    start: Literal["rest", "off_bottom", "steady"] = "rest"
 
 
 class RealtimeSection(_Strict):
@@ -454,6 +454,15 @@ def build_from_scenario(sc: SilScenario, *, controller_file: str | None = None,
                             lumped_preset=m.preset or "table_2_1",
                             order=4 if m.fidelity == "lumped4" else 12,
                             axial_velocity=op.rop, bit=scenario_bit(sc))
+    if sim.start != "rest" and sc.link.mode != "hil":
+        from downhole.errors import DownholeInputError
+
+        # the start is computed for the plant's open-loop commands ([operation])
+        plant.default_start = {"start": sim.start, "set_point": plant.default_command()}
+        try:
+            plant.reset()
+        except DownholeInputError as exc:
+            raise DownholeInputError(f"simulation.start = {sim.start!r}: {exc}") from None
     ctrl = None
     kind = sc.controller.type
     file = scenario_controller_file(sc, controller_file)
