@@ -121,6 +121,9 @@ RENAMES: dict[str, str] = {
     "reference.axial_max": "reference.axial_velocity_max",
     "reference.angular_min": "reference.angular_velocity_min",
     "reference.angular_max": "reference.angular_velocity_max",
+    # [simulation.noise] (neutral files)
+    "simulation.noise.axial": "simulation.noise.axial_velocity",
+    "simulation.noise.angular": "simulation.noise.angular_velocity",
     # [controller.dhp] (SIL files)
     "controller.dhp.reference": "reference.type",
     "controller.dhp.horizon": "controller.dhp.training.horizon",
