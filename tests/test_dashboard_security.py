@@ -422,10 +422,10 @@ attack();
 
 
 @pytest.mark.parametrize("toml, field", [
-    ('[reference]\naxial = "60 mm/s"\n', "reference.axial"),
-    ('[reference]\nangular_min = "30 rad/s"\nangular_max = "10 rad/s"\n',
-     "reference.angular_min"),
-    ('[reference]\naxial_max = "nan m/s"\n', "reference.axial"),
+    ('[reference]\naxial_velocity = "60 mm/s"\n', "reference.axial_velocity"),
+    ('[reference]\nangular_velocity_min = "30 rad/s"\nangular_velocity_max = "10 rad/s"\n',
+     "reference.angular_velocity_min"),
+    ('[reference]\naxial_velocity_max = "nan m/s"\n', "reference.axial_velocity"),
     ('[dashboard]\ntoken = "two words"\n', "dashboard.token"),
     ('[dashboard]\ntoken = ""\n', "dashboard.token"),
     ('[dashboard]\nallowed_origins = ["evil.example"]\n', "dashboard.allowed_origins"),
@@ -449,7 +449,8 @@ def test_declared_ranges_reach_the_dashboard(tmp_path):
     from downhole.sil.scenario import load_sil_scenario
 
     sc = tmp_path / "s.toml"
-    sc.write_text('[reference]\nangular_max = "30 rad/s"\naxial_max = "20 mm/s"\n')
+    sc.write_text('[reference]\nangular_velocity_max = "30 rad/s"\n'
+                  'axial_velocity_max = "20 mm/s"\n')
     limits = _reference_limits(load_sil_scenario(sc))
     assert limits == {"axial": (0.0, pytest.approx(0.02)), "angular": (0.0, 30.0)}
     session, c = _client(reference_limits=limits)
