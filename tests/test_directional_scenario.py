@@ -106,6 +106,7 @@ def test_bad_survey_csv_is_reported_with_line(tmp_path, capsys):
     ("hybrid", "wave_section = [2500, 3500]\n[model.hybrid]\npreset = \"hybrid68\"",
      "model.wave_section", "curved"),
     ("hybrid", "wave_section = [3000, 2000]", "model.wave_section", "0 < B < C"),
+    ("hybrid", "wave_section = [0, 2000]", "model.wave_section", "0 < B < C"),
     ("hybrid", "wave_section = [2000]", "model.wave_section", "at least 2"),
     ("fem", "preset = \"table_2_1\"", "model.preset", "directional"),
 ])
