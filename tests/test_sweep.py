@@ -108,6 +108,12 @@ def test_random_sweep_is_reproducible_and_within_bounds():
     (["operation.surface_speed=1:5:3"], [], {}, "no metric given"),
     (["operation.surface_speed=1:5:3", "operation.surface_speed=1:2:2"], METRICS, {},
      "given more than once"),
+    # the older dialect's paths name the ones to use
+    (["surface.angular_velocity=1:5:3"], METRICS, {},
+     "--param surface.angular_velocity: renamed: use operation.surface_speed"),
+    (["surface.axial_velocity=1:5:3 mm/s"], METRICS, {},
+     "--param surface.axial_velocity: renamed: use operation.rop"),
+    (["model.bit.epsilon=1e6:2e6:3"], METRICS, {}, "--param model.bit.epsilon: renamed: use [bit]"),
 ])
 def test_malformed_specs_fail_before_any_case_runs(params, metrics, kwargs, message):
     ran = []

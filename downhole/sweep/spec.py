@@ -347,7 +347,14 @@ def validate_path(base: dict, source: str, spec: ParamSpec) -> None:
     already present in the file (their schemas live with their runners).
     """
     from downhole.scenario import is_lumped_type, model_type
+    from downhole.scenario.schema import RENAMES
 
+    parts = spec.path.split(".")
+    for n in range(len(parts), 0, -1):  # an older dialect's key: name the one to use
+        old = ".".join(parts[:n])
+        if old in RENAMES and old != "model.hybrid":  # model.hybrid.* is today's table
+            raise DownholeInputError(f"--param {spec.path}: renamed: use {RENAMES[old]} "
+                                     "(see docs/scenarios.md)")
     mtype = model_type(base, source)
     probe_values = [spec.low, spec.high]
     if not is_lumped_type(mtype):
