@@ -91,6 +91,24 @@ def test_every_rename_of_these_dialects_is_covered():
         assert new not in RENAMES, (old, new)
 
 
+@pytest.mark.parametrize("dotted", sorted(RENAMES))
+def test_every_rename_is_refused_by_the_one_reader(dotted, tmp_path):
+    """Every entry of the table, of every dialect (SIL and DHP included), through the reader
+    every command uses: one line naming the file, the key and its replacement."""
+    from downhole.errors import ScenarioError
+    from downhole.scenario.schema import read_scenario
+
+    value = "hybrid68" if dotted == "model.hybrid" else ({} if "." not in dotted and
+                                                          dotted != "name" else 1.0)
+    path = tmp_path / "old.toml"
+    path.write_text(tomli_w.dumps(_with_old_key({}, dotted, value)))
+    with pytest.raises(ScenarioError) as info:
+        read_scenario(path)
+    assert info.value.field == dotted
+    assert str(info.value) == f"{path}: {dotted}: renamed: use {RENAMES[dotted]} " \
+                              "(see docs/scenarios.md)"
+
+
 def _with_old_key(base: dict, dotted: str, value) -> dict:
     data = copy.deepcopy(base)
     *tables, key = dotted.split(".")
