@@ -47,11 +47,11 @@ WAIT = 180.0  # s: upper bound of any wait (a loaded 2-core machine); normally a
 SIM = """
 title = "{title}"
 [model]
-type = "lumped4"
+fidelity = "lumped4"
 preset = "table_2_1"
-[surface]
-axial_velocity = "10 mm/s"
-angular_velocity = "10 rad/s"
+[operation]
+rop = "10 mm/s"
+surface_speed = "10 rad/s"
 [simulation]
 duration = "{duration}"
 dt = "0.5 ms"
@@ -342,7 +342,7 @@ def test_bad_out_exits_2_before_any_work(command, problem, tmp_path, capsys, mon
     argv = {
         "simulate": ["simulate", sim, "--out", out],
         "optimize": ["optimize", "dp", dp, "--out", out],
-        "sweep": ["sweep", sim, "--param", "surface.angular_velocity=5:10:2", "--metric",
+        "sweep": ["sweep", sim, "--param", "operation.surface_speed=5:10:2", "--metric",
                   "mean_wob", "--processes", "1", "--out", out],
         "reproduce": ["reproduce", "fig2.3", "--quick", "--jobs", "1", "--out", out],
         "sil": ["sil", sil, "--unpaced", "--out", out],
@@ -484,7 +484,7 @@ def _sweep(tmp_path, duration="1 s"):
     scen = tmp_path / "s.toml"
     scen.write_text(SIM.format(title="sweep", duration="1 s", record_dt="10 ms"))
     out = tmp_path / "sweep"
-    argv = ["sweep", scen, "--param", "surface.angular_velocity=5:10:2", "--metric", "mean_wob",
+    argv = ["sweep", scen, "--param", "operation.surface_speed=5:10:2", "--metric", "mean_wob",
             "--processes", "1", "--no-plots", "--out", out]
     assert main([str(a) for a in argv]) == 0  # the previous run's results
     assert sorted(os.listdir(out)) == ["failed.json", "sweep.nc"]

@@ -40,7 +40,7 @@ def test_examples_run_through_the_cli(name, tmp_path):
 BASE = """
 title = "bad input"
 [model]
-type = "{mtype}"
+fidelity = "{mtype}"
 {model}
 {extra}
 [simulation]
@@ -49,7 +49,11 @@ dt = "1 ms"
 """
 
 
-def _run_bad(tmp_path, capsys, mtype="fem", model="elements = 20", extra=""):
+#: A directional preset with a described well or string (not the system runner).
+FEM20 = 'preset = "table_5_1"\n[model.fem]\nelements = 20'
+
+
+def _run_bad(tmp_path, capsys, mtype="fem", model=FEM20, extra=""):
     p = tmp_path / "bad.toml"
     p.write_text(textwrap.dedent(BASE.format(mtype=mtype, model=model, extra=extra)))
     out = tmp_path / "out"
@@ -74,8 +78,10 @@ def _run_bad(tmp_path, capsys, mtype="fem", model="elements = 20", extra=""):
      "string.segments.0", "must be smaller than outer_diameter"),
     ("[[string.segments]]\nlength = 1000\nouter_diameter = -0.1\ninner_diameter = 0.05",
      "string.segments.0.outer_diameter", "admissible range of a length, 0 to 100000 m"),
-    ("[hook]\nwob = \"120 kN\"\nweight = 3", "hook.weight", "unknown key"),
-    ("[controller]\ntype = \"pi\"\nspeed = \"10 m/s\"", "controller.speed", "rad/s"),
+    ("[rig.hook]\nmode = \"force\"\nweight = 3", "rig.hook.weight", "unknown key"),
+    ("[operation]\nwob = \"120 kN\"\nweight = 3", "operation.weight", "unknown key"),
+    ("[controller]\ntype = \"pi\"\n[operation]\nsurface_speed = \"10 m/s\"",
+     "operation.surface_speed", "rad/s"),
 ])
 def test_bad_well_string_and_tables_name_file_and_field(tmp_path, capsys, extra, field, words):
     err = _run_bad(tmp_path, capsys, extra=extra)
@@ -89,11 +95,19 @@ def test_bad_survey_csv_is_reported_with_line(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("mtype,model,field,words", [
-    ("fem", "elements = 1", "model.elements", "too few"),
+    ("fem", "[model.fem]\nelements = 1", "model.fem.elements", "too few"),
     ("fem", "element = 20", "model.element", "unknown key"),
-    ("hybrid", "nodes_ab = 3\nnodes_cd = 1", "model.nodes_cd", "greater than or equal to 2"),
-    ("hybrid", "hybrid = \"hybrid68\"\nelements = 20", "model", "FEM option"),
-    ("hybrid", "hybrid = \"hybrid68\"\nmd_b = 2500\nmd_c = 3500", "model.md_b", "curved"),
+    ("fem", "[model.fem]\nelement = 20", "model.fem.element", "unknown key"),
+    ("hybrid", "[model.hybrid]\nnodes_ab = 3\nnodes_cd = 1", "model.hybrid.nodes_cd",
+     "greater than or equal to 2"),
+    ("hybrid", "[model.hybrid]\npreset = \"hybrid68\"\n[model.fem]\nelements = 20", "model",
+     "FEM option"),
+    ("fem", "[model.hybrid]\nnodes_ab = 4", "model", "hybrid options"),
+    ("hybrid", "wave_section = [2500, 3500]\n[model.hybrid]\npreset = \"hybrid68\"",
+     "model.wave_section", "curved"),
+    ("hybrid", "wave_section = [3000, 2000]", "model.wave_section", "0 < B < C"),
+    ("hybrid", "wave_section = [0, 2000]", "model.wave_section", "0 < B < C"),
+    ("hybrid", "wave_section = [2000]", "model.wave_section", "at least 2"),
     ("fem", "preset = \"table_2_1\"", "model.preset", "directional"),
 ])
 def test_bad_discretization_names_the_field(tmp_path, capsys, mtype, model, field, words):
@@ -121,8 +135,9 @@ def test_dhp_controller_file_drives_the_directional_plant(tmp_path, capsys):
     ctrl.save(tmp_path / "ctrl")
     text = textwrap.dedent("""
         [model]
-        type = "hybrid"
-        hybrid = "hybrid68"
+        fidelity = "hybrid"
+        [model.hybrid]
+        preset = "hybrid68"
         [controller]
         type = "dhp"
         file = "ctrl"
@@ -157,7 +172,8 @@ def test_minimal_scenario_uses_the_table_5_1_defaults(tmp_path):
     from downhole.string.fem import fem_model
 
     p = tmp_path / "min.toml"
-    p.write_text('[model]\ntype = "fem"\nelements = 30\n[simulation]\nduration = "1 s"\n')
+    p.write_text('[model]\nfidelity = "fem"\n[model.fem]\nelements = 30\n'
+                 '[simulation]\nduration = "1 s"\n')
     res = run_scenario(p)
     assert res["reference_angular_velocity"][-1] == 10.0          # PI at 10 rad/s
     assert res["wob"][0] == pytest.approx(120e3, rel=1e-6)          # static WOB 120 kN
@@ -167,5 +183,5 @@ def test_minimal_scenario_uses_the_table_5_1_defaults(tmp_path):
 
 def test_wave_segment_shorter_than_dt_names_simulation_dt(tmp_path, capsys):
     err = _run_bad(tmp_path, capsys, mtype="hybrid",
-                   model='hybrid = "hybrid24"\nmd_b = 2000\nmd_c = 2005')
+                   model='wave_section = [2000, 2005]\n[model.hybrid]\npreset = "hybrid24"')
     assert ": simulation.dt: " in err and "shorter than the step" in err

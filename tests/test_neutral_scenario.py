@@ -49,7 +49,7 @@ def test_design_then_simulate_a_saved_design(tmp_path):
     assert (tmp_path / "eid" / "roots.png").exists()
     assert '"stable": true' in (tmp_path / "eid" / "report.md").read_text()
     sc = tmp_path / "saved.toml"
-    sc.write_text('[model]\ntype = "neutral"\n[controller]\ntype = "eid"\nfile = "eid"\n'
+    sc.write_text('[model]\nfidelity = "neutral"\n[controller]\ntype = "eid"\nfile = "eid"\n'
                   '[reference]\naxial_velocity = "8 mm/s"\nangular_velocity = 25.0\n'
                   '[simulation]\nduration = "20 s"\ndt = "0.5 ms"\n')
     assert main(["simulate", str(sc), "--out", str(tmp_path / "run")]) == 0
@@ -60,23 +60,25 @@ def test_design_then_simulate_a_saved_design(tmp_path):
 
 
 BAD = [
-    ('[model]\ntype = "neutral"\n[model.bit]\nepsilon = "-5 MPa"\n[simulation]\nduration = 1.0\n',
-     "model.bit.epsilon"),
-    ('[model]\ntype = "neutral"\n[model.string]\nlength = 0\n[simulation]\nduration = 1.0\n',
+    ('[model]\nfidelity = "neutral"\n[bit]\nepsilon = "-5 MPa"\n[simulation]\nduration = 1.0\n',
+     "bit.epsilon"),
+    ('[model]\nfidelity = "neutral"\n[model.string]\nlength = 0\n[simulation]\nduration = 1.0\n',
      "model.string.length"),
-    ('[model]\ntype = "neutral"\n[controller]\ntype = "eid"\nobserver_gain = [1.0]\n'
+    ('[model]\nfidelity = "neutral"\n[controller]\ntype = "eid"\nobserver_gain = [1.0]\n'
      '[simulation]\nduration = 1.0\n', "controller.observer_gain"),
-    ('[model]\ntype = "neutral"\n[controller]\ntype = "eid"\n[reference]\ntype = "sine"\n'
+    ('[model]\nfidelity = "neutral"\n[controller]\ntype = "eid"\n[reference]\ntype = "sine"\n'
      '[simulation]\nduration = 1.0\n', "reference.type"),
-    ('[model]\ntype = "neutral"\n[simulation]\nduration = 1.0\n[simulation.noise]\n'
-     'axial = "1 rad/s"\n', "simulation.noise.axial"),
-    ('[model]\ntype = "neutral"\n[simulation]\nduration = 1.0\ndt = 0.5\n', "simulation.dt"),
-    ('[model]\ntype = "neutral"\n[surface]\nrpm = 3\n[simulation]\nduration = 1.0\n',
-     "surface.rpm"),
-    ('[model]\ntype = "neutral"\n[controller]\ntype = "eid"\nfile = "nowhere"\n'
+    ('[model]\nfidelity = "neutral"\n[simulation]\nduration = 1.0\n[simulation.noise]\n'
+     'axial_velocity = "1 rad/s"\n', "simulation.noise.axial_velocity"),
+    ('[model]\nfidelity = "neutral"\n[simulation]\nduration = 1.0\ndt = 0.5\n', "simulation.dt"),
+    ('[model]\nfidelity = "neutral"\n[operation]\nrpm = 3\n[simulation]\nduration = 1.0\n',
+     "operation.rpm"),
+    ('[model]\nfidelity = "neutral"\n[controller]\ntype = "eid"\nfile = "nowhere"\n'
      '[simulation]\nduration = 1.0\n', "controller.file"),
-    ('[model]\ntype = "neutral"\n[surface]\naxial_velocity = 1.1\n', "simulation"),
-    ('[model]\ntype = "neutral"\npreset = "table_2_1"\n[simulation]\nduration = 1.0\n',
+    ('[model]\nfidelity = "neutral"\n[operation]\naxial_command = 1.1\n', "simulation"),
+    ('[model]\nfidelity = "neutral"\n[controller]\ntype = "eid"\n[operation]\n'
+     'axial_command = 1.1\n[simulation]\nduration = 1.0\n', "operation"),
+    ('[model]\nfidelity = "neutral"\npreset = "table_2_1"\n[simulation]\nduration = 1.0\n',
      "model.preset"),
 ]
 
@@ -94,11 +96,12 @@ def test_bad_fields_exit_2_naming_file_and_field(text, field, tmp_path, capsys):
 
 def test_design_eid_rejects_a_saved_design_reference(tmp_path, capsys):
     sc = tmp_path / "d.toml"
-    sc.write_text('[model]\ntype = "neutral"\n[controller]\ntype = "eid"\nfile = "x"\n')
+    sc.write_text('[model]\nfidelity = "neutral"\n[controller]\ntype = "eid"\nfile = "x"\n')
     assert main(["design", "eid", str(sc), "--out", str(tmp_path / "o")]) == 2
     assert "controller.file" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
-    sc.write_text('[model]\ntype = "neutral"\n[controller]\ntype = "eid"\nfilter_bandwidth = [1, -2]\n')
+    sc.write_text('[model]\nfidelity = "neutral"\n[controller]\ntype = "eid"\n'
+                  'filter_bandwidth = [1, -2]\n')
     assert main(["design", "eid", str(sc), "--out", str(tmp_path / "o")]) == 2
     assert "controller.filter_bandwidth" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()

@@ -13,11 +13,11 @@ from downhole.analysis.metrics import SUMMARY_KEYS
 GOOD = """
 title = "short nominal"
 [model]
-type = "lumped4"
+fidelity = "lumped4"
 preset = "table_2_1"
-[surface]
-axial_velocity = "36 m/h"
-angular_velocity = "95.49296585513721 rpm"
+[operation]
+rop = "36 m/h"
+surface_speed = "95.49296585513721 rpm"
 [reference]
 axial_velocity = "10 mm/s"
 angular_velocity = [[0, "0 rad/s"], [5, "10 rad/s"]]
@@ -72,17 +72,19 @@ def test_netcdf_round_trip_preserves_channels_and_scenario(tmp_path):
 BAD = {
     "missing field": (GOOD.replace('duration = "4 s"\n', ""), "simulation.duration",
                       "required"),
-    "missing model type": (GOOD.replace('type = "lumped4"\n', ""), "model.type", "required"),
+    "missing model fidelity": (GOOD.replace('fidelity = "lumped4"\n', ""), "model.fidelity",
+                               "required"),
     "wrong type": (GOOD.replace('record_dt = "10 ms"', "record_dt = true"),
                    "simulation.record_dt", ""),
-    "unknown key": (GOOD.replace("[surface]\n", "[surface]\nangular_velocty = 3\n"),
-                    "surface.angular_velocty", "unknown key"),
-    "negative mass": (GOOD.replace('preset = "table_2_1"', 'preset = "table_2_1"\nstring = {mass = -5}'),
+    "unknown key": (GOOD.replace("[operation]\n", "[operation]\nsurface_sped = 3\n"),
+                    "operation.surface_sped", "unknown key"),
+    "negative mass": (GOOD.replace('preset = "table_2_1"',
+                                   'preset = "table_2_1"\nstring = {mass = -5}'),
                       "model.string.mass", "admissible range of a mass, 0 to 1e+09 kg"),
-    "zero blades": (GOOD.replace('preset = "table_2_1"', 'preset = "table_2_1"\nbit = {n_blades = 0}'),
-                    "model.bit.n_blades", "greater than or equal to 1"),
-    "bad unit": (GOOD.replace('"36 m/h"', '"36 blorbs/h"'), "surface.axial_velocity", "blorbs"),
-    "wrong dimension": (GOOD.replace('"36 m/h"', '"36 kg"'), "surface.axial_velocity", "m/s"),
+    "zero blades": (GOOD.replace("[operation]", "[bit]\nn_blades = 0\n[operation]"),
+                    "bit.n_blades", "greater than or equal to 1"),
+    "bad unit": (GOOD.replace('"36 m/h"', '"36 blorbs/h"'), "operation.rop", "blorbs"),
+    "wrong dimension": (GOOD.replace('"36 m/h"', '"36 kg"'), "operation.rop", "m/s"),
     "unknown preset": (GOOD.replace('preset = "table_2_1"', 'preset = "table_9_9"'),
                        "model.preset", "known presets"),
     "bad toml": ("[model\n", "", "not valid TOML"),
@@ -98,7 +100,7 @@ def test_bad_scenarios_fail_cleanly(case, tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err  # one line, no traceback
     assert err.startswith(f"error: {scen}")
-    assert field in err and expect in err
+    assert f": {field}" in err and expect in err
     assert not out.exists()  # nothing written
 
 
@@ -109,7 +111,7 @@ def test_diverging_run_reports_time_and_channel(tmp_path, capsys):
     from downhole.sim import simulate
     from downhole.sim.lumped_model import lumped_model
 
-    text = GOOD.replace('type = "lumped4"', 'type = "lumped12"').replace(
+    text = GOOD.replace('fidelity = "lumped4"', 'fidelity = "lumped12"').replace(
         'dt = "0.5 ms"', 'dt = "50 ms"').replace('duration = "4 s"', 'duration = "60 s"').replace(
         'record_dt = "10 ms"', 'record_dt = "50 ms"')
     scen = write(tmp_path, text)

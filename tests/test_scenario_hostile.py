@@ -32,11 +32,11 @@ FT = 0.3048            # m, exact
 GOOD = textwrap.dedent("""\
     title = "hostile-input base"
     [model]
-    type = "lumped4"
+    fidelity = "lumped4"
     preset = "table_2_1"
-    [surface]
-    axial_velocity = "10 mm/s"
-    angular_velocity = "10 rad/s"
+    [operation]
+    rop = "10 mm/s"
+    surface_speed = "10 rad/s"
     [simulation]
     duration = "4 s"
     dt = "0.5 ms"
@@ -159,12 +159,11 @@ def test_out_of_range_values_name_the_admissible_range(value, dim, fragment):
 
 
 def test_absurd_scenario_values_name_field_and_range(tmp_path):
-    p = write(tmp_path, GOOD.replace('preset = "table_2_1"',
-                                     'preset = "table_2_1"\nbit = { radius = "1e12 m" }'))
-    expect_error(p, "model.bit.radius", "admissible range of a length", "100000 m")
-    p = write(tmp_path, GOOD.replace('angular_velocity = "10 rad/s"',
-                                     'angular_velocity = "1e300 rad/s"'))
-    expect_error(p, "surface.angular_velocity", "admissible range")
+    p = write(tmp_path, GOOD.replace('[operation]', '[bit]\nradius = "1e12 m"\n[operation]'))
+    expect_error(p, "bit.radius", "admissible range of a length", "100000 m")
+    p = write(tmp_path, GOOD.replace('surface_speed = "10 rad/s"',
+                                     'surface_speed = "1e300 rad/s"'))
+    expect_error(p, "operation.surface_speed", "admissible range")
     p = write(tmp_path, GOOD.replace('duration = "4 s"', 'duration = "1e9 s"'))
     expect_error(p, "simulation.duration", "0 to 1e+06 s")
 
@@ -239,16 +238,16 @@ def test_values_no_field_accepts(tmp_path, line, field, fragment):
 
 # ------------------------------------------------------------------ shapes and types
 @pytest.mark.parametrize("old, new, field", [
-    ('angular_velocity = "10 rad/s"', "angular_velocity = [[0]]", "surface.angular_velocity"),
-    ('angular_velocity = "10 rad/s"', 'angular_velocity = [[0, "1 rad/s", 2]]',
-     "surface.angular_velocity"),
-    ('angular_velocity = "10 rad/s"', 'angular_velocity = [[0, ["1 rad/s"]]]',
-     "surface.angular_velocity"),
-    ('angular_velocity = "10 rad/s"', 'angular_velocity = [[0, "nan"]]',
-     "surface.angular_velocity"),
-    ('angular_velocity = "10 rad/s"', "angular_velocity = []", "surface.angular_velocity"),
-    ('angular_velocity = "10 rad/s"', "angular_velocity = true", "surface.angular_velocity"),
-    ('type = "lumped4"', 'type = ["lumped4"]', "model.type"),
+    ('surface_speed = "10 rad/s"', "surface_speed = [[0]]", "operation.surface_speed"),
+    ('surface_speed = "10 rad/s"', 'surface_speed = [[0, "1 rad/s", 2]]',
+     "operation.surface_speed"),
+    ('surface_speed = "10 rad/s"', 'surface_speed = [[0, ["1 rad/s"]]]',
+     "operation.surface_speed"),
+    ('surface_speed = "10 rad/s"', 'surface_speed = [[0, "nan"]]',
+     "operation.surface_speed"),
+    ('surface_speed = "10 rad/s"', "surface_speed = []", "operation.surface_speed"),
+    ('surface_speed = "10 rad/s"', "surface_speed = true", "operation.surface_speed"),
+    ('fidelity = "lumped4"', 'fidelity = ["lumped4"]', "model.fidelity"),
     ('duration = "4 s"', 'duration = "4 s * 10**10**8"', "simulation.duration"),
 ])
 def test_wrong_shapes_and_types_name_the_field(tmp_path, old, new, field, guard):
@@ -344,8 +343,8 @@ def test_euler_bound_is_where_the_linear_chain_turns_unstable(order):
 
 
 def _lumped12_scenario(dt, duration):
-    return {"model": {"type": "lumped12", "preset": "table_2_1"},
-            "surface": {"axial_velocity": "10 mm/s", "angular_velocity": "10 rad/s"},
+    return {"model": {"fidelity": "lumped12", "preset": "table_2_1"},
+            "operation": {"rop": "10 mm/s", "surface_speed": "10 rad/s"},
             "simulation": {"duration": duration, "dt": dt, "integrator": "euler",
                            "record_dt": dt}}
 

@@ -86,13 +86,13 @@ def demo(out: Path = typer.Option(Path("out"), "--out", help="output folder")):
 
     cases = {
         "nominal": {"title": "Nominal Table 2.1: 10 mm/s, 10 rad/s, delayed depth of cut",
-                    "model": {"type": "lumped4", "preset": "table_2_1"},
-                    "surface": {"axial_velocity": "10 mm/s", "angular_velocity": "10 rad/s"},
+                    "model": {"fidelity": "lumped4", "preset": "table_2_1"},
+                    "operation": {"rop": "10 mm/s", "surface_speed": "10 rad/s"},
                     "reference": {"axial_velocity": "10 mm/s", "angular_velocity": "10 rad/s"},
                     "simulation": {"duration": "60 s", "dt": "0.5 ms", "record_dt": "10 ms"}},
         "stickslip": {"title": "Stick-slip: Table 2.1 at 2 rad/s, delayed depth of cut",
-                      "model": {"type": "lumped4", "preset": "table_2_1"},
-                      "surface": {"axial_velocity": "10 mm/s", "angular_velocity": "2 rad/s"},
+                      "model": {"fidelity": "lumped4", "preset": "table_2_1"},
+                      "operation": {"rop": "10 mm/s", "surface_speed": "2 rad/s"},
                       "simulation": {"duration": "100 s", "dt": "0.5 ms", "record_dt": "10 ms"}},
     }
     check_output_path(out, kind="folder")

@@ -25,7 +25,7 @@ def sweep(
     param: Optional[List[str]] = typer.Option(
         None, "--param", help="NAME=START:STOP:COUNT (grid), NAME=START:STOP (with --random) or "
                               "NAME=V1,V2,...; NAME is a dotted scenario path such as "
-                              "surface.angular_velocity or model.bit.epsilon; units allowed "
+                              "operation.surface_speed or bit.epsilon; units allowed "
                               "(2:20:10 mm/s). Repeat for more dimensions."),
     metric: Optional[List[str]] = typer.Option(None, "--metric", help="metric to record "
                                                "(repeat); e.g. stick_slip_severity"),

@@ -17,9 +17,9 @@ from downhole.scenario import run_scenario
 
 def _scenario(title, order, v0, w0, duration):
     return {"title": title,
-            "model": {"type": f"lumped{order}", "preset": "table_2_1"},
-            "surface": {"mode": "velocity", "axial_velocity": f"{v0 * 1e3:g} mm/s",
-                        "angular_velocity": f"{w0:g} rad/s"},
+            "model": {"fidelity": f"lumped{order}", "preset": "table_2_1"},
+            "operation": {"mode": "velocity", "rop": f"{v0 * 1e3:g} mm/s",
+                          "surface_speed": f"{w0:g} rad/s"},
             "simulation": {"duration": f"{duration:g} s", "dt": "0.5 ms", "record_dt": "10 ms",
                            "depth_of_cut": "delayed", "integrator": "euler"}}
 
@@ -140,7 +140,7 @@ def stickslip_lumped(out_dir, quick):
 def models_4th_vs_12th(out_dir, quick):
     duration = 40.0 if quick else None
     r12 = _run("models-4th-vs-12th", out_dir, duration)
-    r4 = _run("models-4th-vs-12th", out_dir, duration, model={"type": "lumped4"})
+    r4 = _run("models-4th-vs-12th", out_dir, duration, model={"fidelity": "lumped4"})
     sel = r4.time >= 20.0
     rel = {}
     for ch in ("bit_axial_velocity", "bit_angular_velocity"):

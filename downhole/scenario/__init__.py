@@ -4,7 +4,8 @@ A scenario is validated completely before anything runs; every error names the f
 field and what was expected (:class:`downhole.errors.ScenarioError`). Numbers may carry units
 ("10 rad/s", "120 rpm", "30 m/h", "25 klbf", "0.5 ms"). See ``docs/scenarios.md``.
 
-Model types are pluggable: :func:`register_model_type` adds a runner for ``[model] type = ...``.
+Model types are pluggable: :func:`register_model_type` adds a runner for ``[model] fidelity =
+...``.
 """
 
 from __future__ import annotations

@@ -152,10 +152,14 @@ class DirectionalModelSettings(_Strict):
         if self.fidelity == "hybrid" and self.fem is not None:
             raise ValueError("[model.fem]: a FEM option, but fidelity = 'hybrid' (use "
                              "[model.hybrid] preset = 'hybrid68' or nodes_ab / nodes_cd)")
-        ws = self.wave_section
-        if ws is not None and not ws[0] < ws[1]:
-            raise ValueError(f"wave_section: expected [B, C] with 0 < B < C (m), got {ws}")
         return self
+
+    @field_validator("wave_section", mode="after")
+    @classmethod
+    def _wave_section(cls, ws):
+        if ws is not None and not 0 < ws[0] < ws[1]:
+            raise ValueError(f"expected [B, C] with 0 < B < C (m), got {ws}")
+        return ws
 
     # the discretization, flat (None where not given)
     @property

@@ -1,6 +1,6 @@
-"""Scenario files for the neutral-type model (``[model] fidelity = "neutral"`` with a preset): schema, validation
-and the runner behind ``downhole simulate`` (open loop or with an EID controller); the same file
-drives ``downhole design eid``.
+"""Scenario files for the neutral-type model (``[model] fidelity = "neutral"`` with a preset):
+schema, validation and the runner behind ``downhole simulate`` (open loop or with an EID
+controller); the same file drives ``downhole design eid``.
 
 Schema (every table but ``[model]`` and ``[simulation]`` optional; numbers may carry units)::
 
@@ -309,7 +309,7 @@ def validate_neutral_scenario(data: dict, source: str):
 
 
 def run_neutral_scenario(data: dict, source: str, text: str):
-    """Run a neutral-model scenario (registered for ``[model] type = "neutral"``); returns a
+    """Run a neutral-model scenario (``[model] fidelity = "neutral"`` of a preset); returns a
     :class:`~downhole.sim.Result` with the scenario text in ``attrs["scenario"]``."""
     from downhole.string.neutral import simulate_neutral
 

@@ -73,12 +73,14 @@ RENAMES: dict[str, str] = {
     # [surface] (lumped and neutral files) -> [operation]
     "surface": "[operation] (surface_speed, rop, mode, hook_load, surface_torque)",
     "surface.mode": "operation.mode",
-    "surface.axial_velocity": "operation.rop",
+    "surface.axial_velocity": "operation.rop (a neutral file: operation.axial_command, U_A)",
     "surface.angular_velocity": "operation.surface_speed",
     "surface.hook_load": "operation.hook_load",
     "surface.surface_torque": "operation.surface_torque",
     # [hook] (FEM / hybrid files) -> [rig.hook] and [operation]
     "hook": "[rig.hook] (servo_stiffness, servo_damping, block_mass) and operation.wob / rop",
+    "hook.type": "rig.hook.mode",
+    "hook.hook_load": "operation.hook_load",
     "hook.wob": "operation.wob",
     "hook.velocity": "operation.rop",
     "hook.servo_stiffness": "rig.hook.servo_stiffness",
@@ -87,6 +89,9 @@ RENAMES: dict[str, str] = {
     # [controller]
     "controller.kind": "controller.type",
     "controller.speed": "operation.surface_speed",
+    "controller.kp": "rig.top_drive.kp",
+    "controller.ki": "rig.top_drive.ki",
+    "controller.inertia": "rig.top_drive.inertia",
     # [plant] (SIL files) -> [model], [operation], [simulation]
     "plant": "[model] (fidelity, preset, interface), [operation] (wob, surface_speed, "
              "surface_torque, rop) and simulation.depth_of_cut",

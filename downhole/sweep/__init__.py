@@ -2,7 +2,7 @@
 
 >>> from downhole.sweep import run_sweep                                   # doctest: +SKIP
 >>> ds = run_sweep("examples/sweep_stability_map.toml",
-...                ["surface.angular_velocity=1:12:12", "surface.axial_velocity=2:20:10 mm/s"],
+...                ["operation.surface_speed=1:12:12", "operation.rop=2:20:10 mm/s"],
 ...                ["stick_slip_severity", "bit_bounce_fraction"], processes=2)
 >>> stability_map(ds, "map.png")
 

@@ -30,8 +30,8 @@ def display_units(units: str) -> tuple[str, float]:
     return _DISPLAY.get(units, (units, 1.0))
 
 
-_FRIENDLY = {"surface.angular_velocity": "rotary speed", "surface.axial_velocity": "feed velocity",
-             "surface.hook_load": "hook load", "surface.surface_torque": "surface torque"}
+_FRIENDLY = {"operation.surface_speed": "rotary speed", "operation.rop": "feed velocity",
+             "operation.hook_load": "hook load", "operation.surface_torque": "surface torque"}
 
 
 def _label(ds, name) -> tuple[str, float]:
@@ -143,7 +143,7 @@ def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = No
         ``mean_wob`` for WOB iso-lines).
     x, y : str, optional
         Dimensions on the horizontal and vertical axes; default: a dimension whose name
-        contains ``angular_velocity`` (rotary speed) on x, the other on y.
+        contains ``surface_speed`` or ``angular_velocity`` (rotary speed) on x, the other on y.
     severity_threshold, bounce_threshold : float
         Classification thresholds (see :func:`classify_regimes`).
 
@@ -161,7 +161,7 @@ def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = No
         raise DownholeInputError("the stability map needs a 2-D grid sweep (two --param "
                                  f"START:STOP:COUNT ranges), got dimensions {dims}")
     if x is None:
-        x = next((d for d in dims if "angular_velocity" in d), dims[1])
+        x = next((d for d in dims if "surface_speed" in d or "angular_velocity" in d), dims[1])
     if y is None:
         y = next(d for d in dims if d != x)
     for d in (x, y):

@@ -126,8 +126,8 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
         A scenario TOML file (its optional ``[sweep]`` table supplies defaults for the other
         arguments) or an already-parsed scenario dict.
     params : list of str or dict
-        ``["surface.angular_velocity=2:12:11", "model.bit.epsilon=60 MPa:90 MPa:4"]`` or
-        ``{"surface.angular_velocity": "2:12:11"}``; see :mod:`downhole.sweep.spec`.
+        ``["operation.surface_speed=2:12:11", "bit.epsilon=60 MPa:90 MPa:4"]`` or
+        ``{"operation.surface_speed": "2:12:11"}``; see :mod:`downhole.sweep.spec`.
     metrics : list of str
         Names from :data:`downhole.sweep.spec.METRICS`.
     random : int, optional

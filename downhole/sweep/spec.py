@@ -151,7 +151,7 @@ class ParamSpec:
     Attributes
     ----------
     path : str
-        Dotted scenario path, e.g. ``surface.angular_velocity`` or ``model.bit.epsilon``.
+        Dotted scenario path, e.g. ``operation.surface_speed`` or ``bit.epsilon``.
     values : ndarray or None
         Grid values in SI (None for a pure random range).
     low, high : float
@@ -208,8 +208,8 @@ def _quantity(text: str, what: str, default_unit: str | None = None):
 
 #: SI units of scenario paths typed as bare numbers (the last path component, or the full path).
 KNOWN_UNITS = {
-    "surface.axial_velocity": "m/s", "surface.angular_velocity": "rad/s",
-    "surface.hook_load": "N", "surface.surface_torque": "N*m",
+    "operation.rop": "m/s", "operation.axial_command": "m/s", "operation.surface_speed": "rad/s",
+    "operation.hook_load": "N", "operation.surface_torque": "N*m", "operation.wob": "N",
     "reference.axial_velocity": "m/s", "reference.angular_velocity": "rad/s",
     "duration": "s", "dt": "s", "record_dt": "s",
     "mass": "kg", "inertia": "kg*m**2", "axial_stiffness": "N/m", "axial_damping": "N*s/m",
@@ -240,12 +240,12 @@ def parse_param(text: str, random: bool = False) -> ParamSpec:
     """
     if not isinstance(text, str) or "=" not in text:
         raise DownholeInputError(f"--param {text!r}: expected NAME=START:STOP:COUNT "
-                                 "(e.g. surface.angular_velocity=2:12:11)")
+                                 "(e.g. operation.surface_speed=2:12:11)")
     name, spec = (s.strip() for s in text.split("=", 1))
     what = f"--param {name}"
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)+", name):
         raise DownholeInputError(f"--param {text!r}: NAME must be a dotted scenario path such as "
-                                 "model.bit.epsilon or surface.angular_velocity")
+                                 "bit.epsilon or operation.surface_speed")
     if not spec:
         raise DownholeInputError(f"{what}: empty range; expected START:STOP:COUNT")
     if ":" in spec:
@@ -347,7 +347,14 @@ def validate_path(base: dict, source: str, spec: ParamSpec) -> None:
     already present in the file (their schemas live with their runners).
     """
     from downhole.scenario import is_lumped_type, model_type
+    from downhole.scenario.schema import RENAMES
 
+    parts = spec.path.split(".")
+    for n in range(len(parts), 0, -1):  # an older dialect's key: name the one to use
+        old = ".".join(parts[:n])
+        if old in RENAMES and old != "model.hybrid":  # model.hybrid.* is today's table
+            raise DownholeInputError(f"--param {spec.path}: renamed: use {RENAMES[old]} "
+                                     "(see docs/scenarios.md)")
     mtype = model_type(base, source)
     probe_values = [spec.low, spec.high]
     if not is_lumped_type(mtype):
