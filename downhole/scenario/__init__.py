@@ -378,6 +378,10 @@ def model_type(data: dict, source: str) -> str:
     if not isinstance(model, dict):
         raise ScenarioError(source, "model", "expected a table [model]")
     _load_plugins()
+    from downhole.scenario.dhp import is_dhp_dialect
+
+    if is_dhp_dialect(data):  # [controller] type = "dhp" with its design: downhole.scenario.dhp
+        return "dhp"
     if "fidelity" in model:
         if "type" in model:
             raise ScenarioError(source, "model.type", "give either [model] fidelity (a system "
