@@ -79,6 +79,7 @@ def test_cli_optimize_dp(tmp_path, capsys):
     assert (tmp_path / "o" / "solution.png").is_file()
     assert main(["optimize", "dp", str(scen), "--method", "magic", "--out",
                  str(tmp_path / "o2")]) == 2
+    capsys.readouterr()
     scen.write_text("[optimize]\nhorizon = 3.0\nstep = 0.4\n")
     assert main(["optimize", "dp", str(scen), "--out", str(tmp_path / "o3")]) == 2
     err = capsys.readouterr().err
@@ -186,7 +187,8 @@ substep = 0.005
 substep = 0.005
 """
     units = (si.replace("epsilon = 60e6", 'epsilon = "60 MPa"')
-             .replace("horizon = 20.0", 'horizon = "20 s"').replace("step = 0.25", 'step = "250 ms"')
+             .replace("horizon = 20.0", 'horizon = "20 s"')
+             .replace("step = 0.25", 'step = "250 ms"')
              .replace("max = 0.02", 'max = "72 m/h"').replace("max = 20.0", 'max = "20 rad/s"')
              .replace("v_m = 0.01", 'v_m = "10 mm/s"').replace("w_m = 10.0", 'w_m = "10 rad/s"')
              .replace("v_d = 0.01", 'v_d = "36 m/h"').replace("w_d = 10.0", 'w_d = "10 rad/s"')
