@@ -70,8 +70,8 @@ def test_design_dhp_writes_controller_report_and_result(tmp_path, capsys):
     ('[controller]\ntype = "pi"\n', "controller.type"),
     ('[bit]\nepsilon = "-3 MPa"\n', "bit.epsilon"),
     ('[reference]\nt_final = "10 s"\n', "reference.t_final: used by type = 'ramp' only"),
-    ('[controller.dhp.training]\nhorizon = "1e5 s"\n', "controller.dhp.training.horizon: "
-     "horizon / dt = 1e+08 training steps"),
+    ('[controller.dhp.training]\nhorizon = "1e5 s"\n',
+     "controller.dhp.training.horizon: horizon / dt = 1e+08 training steps"),
 ])
 def test_bad_scenarios_exit_2_with_one_line(tmp_path, capsys, text, msg):
     sc = tmp_path / "bad.toml"
