@@ -250,3 +250,13 @@ def test_simulate_runs_a_migrated_design_quick(tmp_path):
     assert res["reference_axial_velocity"][-1] == pytest.approx(0.01)
     assert res["surface_torque"].max() > 1e3
     assert np.isfinite(res["bit_angular_velocity"]).all()
+
+
+def test_a_described_system_with_a_dhp_controller_is_not_a_dhp_design():
+    from downhole.scenario.dhp import is_dhp_dialect
+
+    assert is_dhp_dialect({"controller": {"type": "dhp", "dhp": {}}})
+    assert not is_dhp_dialect({"controller": {"type": "dhp"}, "model": {"fidelity": "fem"},
+                               "well": {}, "string": {}, "operation": {}})
+    assert not is_dhp_dialect({"controller": {"type": "pi"}})
+    assert not is_dhp_dialect({"controller": {"type": "dhp"}, "model": {"type": "hybrid"}})

@@ -220,14 +220,16 @@ class DHPScenario(_Strict):
 
 def is_dhp_dialect(data: dict) -> bool:
     """True for a file that ``downhole simulate`` runs as a DHP design: ``[controller] type =
-    "dhp"`` with the design table ``[controller.dhp]`` (or without a controller ``file``), and
-    no older ``[model] type``. A file with ``type = "dhp"`` and only a ``file`` runs the trained
+    "dhp"`` with the design table ``[controller.dhp]`` (or without a controller ``file``), no
+    older ``[model] type`` and no described system (``[well]``, ``[string]``, ``[rig]``,
+    ``[operation]``). A file with ``type = "dhp"`` and only a ``file`` runs the trained
     controller on the described system instead."""
     ctl = data.get("controller")
     model = data.get("model", {})
     return (isinstance(ctl, dict) and ctl.get("type") == "dhp"
             and (isinstance(ctl.get("dhp"), dict) or "file" not in ctl)
-            and not (isinstance(model, dict) and "type" in model))
+            and not (isinstance(model, dict) and "type" in model)
+            and not any(key in data for key in ("well", "string", "rig", "operation")))
 
 
 def load_dhp_scenario(path) -> dict:
