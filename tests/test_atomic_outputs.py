@@ -60,29 +60,31 @@ record_dt = "{record_dt}"
 LONG = "100000 s"  # hours of simulated time: the kill comes long before the end
 
 DP = """
+[model]
+fidelity = "lumped4"
+preset = "table_2_1"
+[optimize]
 horizon = 5.0
 step = 0.25
-[model]
-preset = "table_2_1"
-[x2]
+[optimize.x2]
 min = 0.0
 max = 0.02
 points = 11
-[x4]
+[optimize.x4]
 min = 0.0
 max = 20.0
 points = 11
-[targets]
+[optimize.targets]
 v_m = 0.01
 w_m = 10.0
 v_d = 0.01
 w_d = 10.0
-[weights]
+[optimize.weights]
 lambda1 = 1.0e4
 lambda2 = 1.0e-2
 lambda3 = 1.0e5
 lambda4 = 1.0e-1
-[bounds]
+[optimize.bounds]
 force = [0.0, 200.0e3]
 torque = [0.0, 30.0e3]
 """

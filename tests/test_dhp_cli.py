@@ -10,17 +10,21 @@ from downhole.control.dhp import load_controller
 
 SCEN = """
 [model]
-kind = "fem24"
+fidelity = "fem"
+preset = "design"
+[controller]
+type = "dhp"
+[controller.dhp]
+design = "fem24"
+[controller.dhp.training]
+horizon = "8 s"
+n_samples = 50
 [reference]
 type = "step"
-axial = "10 mm/s"
-angular = 20.0
-[training]
-horizon = 8.0
-n_samples = 50
+axial_velocity = "10 mm/s"
+angular_velocity = 20.0
 [simulation]
 duration = 8.0
-plant = "design"
 """
 
 
@@ -41,17 +45,33 @@ def test_design_dhp_writes_controller_report_and_result(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("text, msg", [
-    ('[model]\nkind = "fem25"\n', "model.kind: expected 'fem24', 'fem' or 'lumped'"),
-    ('[training]\nhorizon = "0.1 ms"\n', "shorter than one step"),
-    ('[training]\nn_samples = 10\nhorizon = 0.01\n', "n_samples = 10 is fewer than"),
+    ('[controller.dhp]\ndesign = "fem25"\n', "controller.dhp.design: Input should be 'fem24'"),
+    ('[controller.dhp.training]\nhorizon = "0.1 ms"\n', "shorter than one step"),
+    ('[controller.dhp.training]\nn_samples = 10\nhorizon = 0.01\n', "n_samples = 10 is fewer than"),
     ('[reference]\ntype = "square"\n', "reference.type"),
-    ('[weights]\nq_bit = [1, 1]\n', "unknown penalty weight keys"),
-    ('[simulation]\nplant = "rig"\n', "simulation.plant"),
+    ('[controller.dhp.weights]\nq_bit = [1, 1]\n', "unknown penalty weight keys"),
+    ('[controller.dhp]\nweights = "heavy"\n', "controller.dhp.weights: "),
+    ('[model]\nfidelity = "rig"\n', "model.fidelity"),
+    ('[model]\nfidelity = "lumped4"\n', "model.fidelity: a 'fem24' design has the FEM's states"),
+    ('[model]\nfidelity = "hybrid"\npreset = "hybrid24"\n', "model.preset: the hybrid plant"),
     ('[nonsense]\n', "unknown table"),
-    ('[model]\nkind = "lumped"\npreset = "table_3_1"\n', "needs a lumped one"),
-    ('[plan]\nknots = 3\n', "plan.knots: unknown key"),
-    ('[plan]\nn_knots = 30\n', "plan: PlanSettings: the knots end at 12 s"),
-    ('[model]\nkind = "lumped"\n[plan]\n', "plan: a planned start-up needs a FEM design"),
+    ('[controller.dhp]\ndesign = "lumped"\npreset = "table_3_1"\n', "needs a lumped one"),
+    ('[controller.dhp]\nelements = 7\n', "controller.dhp.elements: used by design = 'fem'"),
+    ('[controller.dhp]\nfriction = true\n', "controller.dhp.friction: expected a friction"),
+    ('[controller.dhp]\ninput_limits = [["300 kN", "-50 kN"], [-6e4, 6e4]]\n',
+     "controller.dhp.input_limits: force limits"),
+    ('[controller.dhp]\ninput_limits = [[1, 2, 3], [-6e4, 6e4]]\n',
+     "controller.dhp.input_limits.0"),
+    ('[controller.dhp.plan]\nknots = 3\n', "controller.dhp.plan.knots: unknown key"),
+    ('[controller.dhp.plan]\nn_knots = 30\n',
+     "controller.dhp.plan: PlanSettings: the knots end at 12 s"),
+    ('[controller.dhp]\ndesign = "lumped"\n[controller.dhp.plan]\n',
+     "controller.dhp.plan: a planned start-up needs a FEM design"),
+    ('[controller]\ntype = "pi"\n', "controller.type"),
+    ('[bit]\nepsilon = "-3 MPa"\n', "bit.epsilon"),
+    ('[reference]\nt_final = "10 s"\n', "reference.t_final: used by type = 'ramp' only"),
+    ('[controller.dhp.training]\nhorizon = "1e5 s"\n',
+     "controller.dhp.training.horizon: horizon / dt = 1e+08 training steps"),
 ])
 def test_bad_scenarios_exit_2_with_one_line(tmp_path, capsys, text, msg):
     sc = tmp_path / "bad.toml"
@@ -67,14 +87,14 @@ def test_downhole_simulate_runs_a_dhp_scenario_with_a_saved_controller(tmp_path)
     sc.write_text(SCEN)
     assert main(["design", "dhp", str(sc), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
     run = tmp_path / "run.toml"
-    run.write_text('title = "saved DHP"\n[controller]\nfile = "o/dhp_controller"\n'
-                   + SCEN.replace("[model]\n", '[model]\ntype = "dhp"\n'))
+    run.write_text('title = "saved DHP"\n'
+                   + SCEN.replace('type = "dhp"\n', 'type = "dhp"\nfile = "o/dhp_controller"\n'))
     assert main(["simulate", str(run), "--out", str(tmp_path / "r")]) == 0
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     flat = json.dumps(summary)
     assert "mean_rop" in flat
     bad = tmp_path / "bad.toml"
-    bad.write_text('[controller]\nfile = "nowhere"\n[model]\ntype = "dhp"\n')
+    bad.write_text('[controller]\ntype = "dhp"\nfile = "nowhere"\n[controller.dhp]\n')
     assert main(["simulate", str(bad), "--out", str(tmp_path / "b")]) == 2
 
 
@@ -83,8 +103,8 @@ def test_design_dhp_with_a_plan_table_plans_the_start_up(tmp_path, capsys):
     closed loop follows the plan (the bit at rest until the planned torque wave arrives, the
     commands the planned knots), and the report records the plan."""
     sc = tmp_path / "p.toml"
-    sc.write_text(SCEN.replace('plant = "design"', 'plant = "fem24"') + """
-[plan]
+    sc.write_text(SCEN.replace('preset = "design"', 'preset = "fem24"') + """
+[controller.dhp.plan]
 duration = 3.0
 knot_spacing = 0.5
 n_knots = 5

@@ -1,8 +1,10 @@
 """``downhole design dhp SCENARIO.toml --out DIR``: train a DHP (SNAC) tracking controller.
 
 Writes ``DIR/dhp_controller.npz`` + ``DIR/dhp_controller.json``, ``DIR/report.json`` and, with a
-``[simulation]`` table, ``DIR/closed_loop.nc`` and ``DIR/closed_loop.png``. The scenario schema
-and the runner behind ``downhole simulate`` live in :mod:`downhole.scenario.dhp`.
+``[simulation]`` table, ``DIR/closed_loop.nc`` and ``DIR/closed_loop.png`` (the closed loop on
+the ``[model]`` plant). The scenario schema (``[controller.dhp]`` the design, ``[model]`` the
+plant, ``[bit]``, ``[reference]``, ``[simulation]``; docs/dhp.md) and the runner behind
+``downhole simulate`` live in :mod:`downhole.scenario.dhp`.
 """
 
 from __future__ import annotations
@@ -59,7 +61,10 @@ def _design_and_write(folder, scenario, sc, progress) -> None:
     if sc["simulation"] is not None:
         res = run_scenario_simulation(sc, ctrl)
         res.save(out / "closed_loop.nc")
-        res.plot(out / "closed_loop.png", title=f"DHP closed loop ({sc['simulation']['plant']}, "
+        plant = sc["plant"]
+        label = plant["fidelity"] if plant["preset"] is None else \
+            f"{plant['fidelity']} {plant['preset']}"
+        res.plot(out / "closed_loop.png", title=f"DHP closed loop ({label}, "
                                                 f"{sc['simulation']['depth_of_cut']})")
         window = (min(5.0, 0.5 * sc["simulation"]["duration"]), sc["simulation"]["duration"])
         report["simulation"] = {**sc["simulation"], "window": list(window),

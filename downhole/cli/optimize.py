@@ -1,8 +1,10 @@
 """``downhole optimize dp SCENARIO.toml --method customized|standard|robust --out DIR``.
 
-Solves the Ch. 2 drilling optimal control problem described by a DP problem file (TOML schema in
-docs/dp.md, examples in ``examples/dp_*.toml``), writes the solution (``solution.npz`` +
-``solution.json``), a plot of the bit velocities and inputs, and prints a one-screen summary.
+Solves the Ch. 2 drilling optimal control problem described by a DP problem file (``[model]``,
+``[bit]`` and the problem in ``[optimize]``; TOML schema in docs/dp.md, examples in
+``examples/dp_*.toml``), writes the solution (``solution.npz`` + ``solution.json``), a plot of
+the bit velocities and inputs, and prints a one-screen summary. ``--method`` overrides the file's
+``optimize.method`` (default ``customized``).
 """
 
 from __future__ import annotations
@@ -27,8 +29,9 @@ app.add_typer(optimize_app, name="optimize")
 @optimize_app.command("dp")
 def dp(
     scenario: Path = typer.Argument(..., help="DP problem TOML file (see docs/dp.md)"),
-    method: str = typer.Option("customized", "--method",
-                               help="customized | standard | robust"),
+    method: str = typer.Option(None, "--method",
+                               help="customized | standard | robust (default: the file's "
+                                    "optimize.method, else customized)"),
     out: Path = typer.Option(Path("out/dp"), "--out", help="output folder"),
     regions: bool = typer.Option(None, "--regions/--no-regions",
                                  help="customized: use the seed's x1/x3 index regions "
@@ -41,15 +44,16 @@ def dp(
     from rich.console import Console
     from rich.table import Table
 
-    from downhole.control.dp import METHODS, load_problem, replay_path, solve, trajectory_cost
-
+    from downhole.control.dp import METHODS, replay_path, solve, trajectory_cost
+    from downhole.control.dp.problem import load_dp_scenario
     from downhole.errors import DownholeInputError
 
-    if method not in METHODS:
+    if method is not None and method not in METHODS:
         # raised (not fail()): main() maps it to exit code 2
         raise DownholeInputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
     check_output_path(out, kind="folder")
-    problem = load_problem(scenario)
+    problem, file_method = load_dp_scenario(scenario)
+    method = method or file_method or "customized"
     kwargs = {"regions": regions} if method == "customized" and regions is not None else {}
     with OutputFolder(out, SOLUTION_FILES, "optimize dp") as folder:
         sol = solve(problem, method, progress=progress, **kwargs)

@@ -403,8 +403,9 @@ def model_type(data: dict, source: str) -> str:
     if not isinstance(model, dict):
         raise ScenarioError(source, "model", "expected a table [model]")
     _load_plugins()
-    ctrl = data.get("controller")
-    if isinstance(ctrl, dict) and ctrl.get("type") == "dhp" and "file" not in ctrl:
+    from downhole.scenario.dhp import is_dhp_dialect
+
+    if is_dhp_dialect(data):  # [controller] type = "dhp" with its design: downhole.scenario.dhp
         return "dhp"
     names = [k for k in MODEL_TYPES if k not in ("dhp", "system")]
     if "fidelity" not in model:

@@ -1,4 +1,4 @@
-"""DHP design scenarios (``[model] type = "dhp"``): schema, design and closed-loop runner.
+"""DHP design scenarios (``[controller] type = "dhp"``): schema, design and closed-loop runner.
 
 The command ``downhole design dhp SCENARIO.toml --out DIR`` (:mod:`downhole.cli.design_dhp`)
 trains a DHP (SNAC) tracking controller from such a file and writes
@@ -7,41 +7,50 @@ trains a DHP (SNAC) tracking controller from such a file and writes
 with a ``[simulation]`` table, the closed-loop summary) and, when simulated,
 ``DIR/closed_loop.nc`` and ``DIR/closed_loop.png``.
 
-The same file runs with ``downhole simulate SCENARIO.toml --out DIR`` (``[model] type = "dhp"``
-selects this runner): it trains the controller (or loads ``[controller] file``) and returns the
-``[simulation]`` closed loop as the run's Result.
+The same file runs with ``downhole simulate SCENARIO.toml --out DIR``: ``[controller] type =
+"dhp"`` with a ``[controller.dhp]`` table (the design; or without ``file``) selects this runner.
+It trains the controller (or loads ``[controller] file``) and returns the closed loop on the
+``[model]`` plant as the run's Result.
 
-Scenario schema (every table and key optional; numbers are SI, strings with units accepted
-where a unit is shown)::
+The file uses the tables and key names of every scenario (:mod:`downhole.scenario.schema`,
+``docs/scenarios.md``). Every table and key is optional; numbers are SI, and every physical
+value also takes a unit string (``"10 mm/s"``, ``"1 ms"``, ``"60 kN*m"``)::
 
-    title = "..."               # optional, shown by downhole simulate
+    title = "..."                 # optional, shown by downhole simulate
 
-    [controller]                # optional: use a trained controller instead of training
-    file = "out/dhp/dhp_controller"     # relative to the scenario file
+    [model]                       # the plant the closed loop is simulated on
+    fidelity = "fem"              # fem | hybrid | lumped4 (default: fem for the FEM designs,
+                                  #   lumped4 for the lumped design)
+    preset = "fem24"              # fem: "fem24" (the 24-state FEM of the Table 5.1 well; the
+                                  #   default of design fem24; design fem runs on its own FEM
+                                  #   when preset is omitted); hybrid: "hybrid68" (the Ch. 6
+                                  #   68-state hybrid); lumped4: a lumped preset (default: the
+                                  #   design's); any fidelity: "design" (the control-affine
+                                  #   design model itself, at the design's fidelity)
 
-    [model]
-    type = "dhp"                # required by `downhole simulate`, optional here
-    kind = "fem24"              # "fem24": Table 5.1 well, 24-state FEM (6 nodes, the seed's
-                                #   design model); "fem": Table 5.1 FEM with n_elements;
-                                #   "lumped": 4th-order lumped model (Eq. 2.1)
-    n_elements = 5              # kind = "fem": elements (4 (n_elements + 1) states)
-    preset = "table_2_1"        # kind = "lumped": a lumped preset
-    dt = 0.001                  # s
-    epsilon = "45 MPa"          # optional: any BitParams field overrides the bit
-    input_limits = [[-50e3, 300e3], [-60e3, 60e3]]   # slack-off N, torque N m (FEM kinds)
-    friction = true             # FEM kinds: wellbore friction in the design model
+    [bit]                         # optional: any BitParams field over the design's bit (the
+    epsilon = "45 MPa"            #   plant's too)
 
-    [reference]
-    type = "step"               # "step" | "ramp" (Eqs. 4.48-4.49) | "sine" (Eq. 4.47) | "user"
-    axial = "10 mm/s"           # step value; ramp low level; sine mean
-    angular = "20 rad/s"        # idem
-    t_final = 40.0              # ramp: its t_f, s (default: the training horizon)
-    frequency = 0.314159        # sine: rad/s
-    time = [0.0, 10.0]          # user: s
-    axial_values = [0.01, 0.02]     # user: m/s
-    angular_values = [20.0, 30.0]   # user: rad/s
+    [controller]
+    type = "dhp"
+    file = "out/dhp/dhp_controller"     # optional: a trained controller (relative to this
+                                        #   file) instead of training (downhole simulate)
 
-    [weights]                   # Eq. 4.45 layout, non-dimensional (PenaltyWeights)
+    [controller.dhp]              # the design
+    design = "fem24"              # "fem24": Table 5.1 well, 24-state FEM (6 nodes, the seed's
+                                  #   design model); "fem": Table 5.1 FEM with `elements`;
+                                  #   "lumped": 4th-order lumped model (Eq. 2.1)
+    elements = 5                  # design fem: elements (4 (elements + 1) states), 3..500
+    preset = "table_2_1"          # design lumped: a lumped preset
+    dt = "1 ms"
+    input_limits = [["-50 kN", "300 kN"], ["-60 kN*m", "60 kN*m"]]  # slack-off force, surface
+                                  #   torque (FEM designs)
+    friction = 0.5                # FEM designs: wellbore friction coefficient of the design
+                                  #   model (default: the well's, 0.5 for Table 5.1; 0: none)
+    weights = "robust"            # a named set (downhole/experiments/weight_sets.toml:
+                                  #   design, robust, hybrid, planned) or the table below
+
+    [controller.dhp.weights]      # Eq. 4.45 layout, non-dimensional (PenaltyWeights)
     bit_velocity = [100.0, 100.0]
     bit_position = [0.1, 0.1]
     top_position = [0.0, 0.0]
@@ -50,89 +59,177 @@ where a unit is shown)::
     nodes = []
     final_scale = 1.0
     r = [1.0, 1.0]
-    integral = [0.0, 0.0]       # integral action (beyond the seed): > 0 adds integrator states
+    integral = [0.0, 0.0]         # integral action (beyond the seed): > 0 adds integrator states
 
-    [training]                  # DHPSettings + horizon
-    horizon = 40.0              # s
-    method = "riccati"          # "riccati" | "closed_form" | "algorithm1" | "algorithm1_numpy"
-    n_samples = 200             # N_S (>= 2 (n + 1) advised)
-    n_iterations = 20           # N_I (Algorithm 1)
+    [controller.dhp.training]     # DHPSettings + horizon
+    horizon = "40 s"
+    method = "riccati"            # "riccati" | "closed_form" | "algorithm1" | "algorithm1_numpy"
+    n_samples = 200               # N_S (>= 2 (n + 1) advised)
+    n_iterations = 20             # N_I (Algorithm 1)
     threshold = 1e-6
     sample_radius = 0.02
     warm_start = true
     seed = 0
     resample_every = 1
-    threads = 1                 # threads for the per-step sample/force fits (riccati)
+    threads = 1                   # threads for the per-step sample/force fits (riccati)
     use_feed_forward = true
-    past_horizon = "stationary" # or "error"
+    past_horizon = "stationary"   # or "error"
 
-    [plan]                      # optional (FEM kinds): plan the start-up on the design FEM
-                                #   (two degrees of freedom, downhole.control.dhp.plan); any
-                                #   PlanSettings field, e.g.
-    duration = 7.0              # s, planned segment
-    knot_spacing = 0.4          # s
+    [controller.dhp.plan]         # optional (FEM designs): plan the start-up on the design FEM
+                                  #   (two degrees of freedom, downhole.control.dhp.plan); any
+                                  #   PlanSettings field, e.g.
+    duration = "7 s"              # planned segment
+    knot_spacing = "0.4 s"
     n_knots = 12
-    settle_from = 3.0           # s, bit-velocity errors count from here
-    max_evaluations = 80        # FEM runs of the least-squares solver
+    settle_from = "3 s"           # bit-velocity errors count from here
+    max_evaluations = 80          # FEM runs of the least-squares solver
 
-    [simulation]                # optional closed-loop check after training
-    duration = 20.0             # s
-    plant = "fem24"             # "design" (the control-affine model itself), "fem24",
-                                #   "hybrid68" (Ch. 6 plant), "lumped" (lumped models only)
-    depth_of_cut = "approximate"    # or "delayed" (the true plant)
+    [reference]
+    type = "step"                 # "step" | "ramp" (Eqs. 4.48-4.49) | "sine" (Eq. 4.47) | "user"
+    axial_velocity = "10 mm/s"    # step value; ramp low level; sine mean
+    angular_velocity = "20 rad/s" # idem
+    t_final = "40 s"              # ramp: its t_f (default: the training horizon)
+    frequency = "0.314159 rad/s"  # sine
+    time = [0.0, 10.0]            # user: s
+    axial_velocity_values = ["10 mm/s", "20 mm/s"]     # user
+    angular_velocity_values = ["20 rad/s", "30 rad/s"] # user
+
+    [simulation]                  # optional closed-loop check after training
+    duration = "20 s"             # default: the training horizon
+    depth_of_cut = "approximate"  # or "delayed" (the true plant)
+
+Keys of the older DHP dialect (``[model] type = "dhp"``, ``kind``, ``n_elements``, ``[weights]``,
+``[training]``, ``[plan]``, ``simulation.plant``, ``reference.axial``, ...) are refused with one
+line naming the key to use (:data:`downhole.scenario.schema.RENAMES`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+from typing import Annotated, Any, Literal, Optional, Union
+
+from pydantic import BeforeValidator, Field, StrictInt, ValidationError
 
 from downhole.errors import DownholeInputError, ScenarioError
+from downhole.params.quantity import Q
+from downhole.scenario import _raise_validation, _Strict
 
-__all__ = ["load_dhp_scenario", "parse_dhp_scenario", "design_from_scenario",
-           "run_scenario_simulation", "run_dhp_scenario"]
+__all__ = ["DHPScenario", "DHPDesignSettings", "DHPTrainingSettings", "load_dhp_scenario",
+           "parse_dhp_scenario", "design_from_scenario", "run_scenario_simulation",
+           "run_dhp_scenario", "is_dhp_dialect"]
 
-_TABLES = {"model", "reference", "weights", "training", "plan", "simulation"}
-_MODEL_KEYS = {"kind", "n_elements", "preset", "dt", "input_limits", "friction"}
-_TRAIN_KEYS = {"horizon", "method", "n_samples", "n_iterations", "threshold", "sample_radius",
-               "warm_start", "seed", "resample_every", "use_feed_forward", "past_horizon",
-               "threads"}
-_SIM_KEYS = {"duration", "plant", "depth_of_cut"}
-_REF_UNITS = {"axial": "velocity", "angular": "angular_velocity", "t_final": "time",
-              "frequency": "angular_velocity"}
+#: Most training steps (horizon / dt) and closed-loop steps (duration / dt) of one file.
+MAX_TRAINING_STEPS = 1_000_000
+MAX_SIMULATION_STEPS = 20_000_000
 
-
-def _si(src, field, value, dim):
-    from downhole.units import to_si
-
-    try:
-        return float(to_si(value, dim))
-    except Exception as exc:  # UnitError or bad type
-        raise ScenarioError(src, field, f"{value!r} is not a valid {dim.replace('_', ' ')}: "
-                                        f"{exc}") from None
+#: Keys valid elsewhere in the scenario vocabulary whose DHP meaning moved (the global renames
+#: are in :data:`downhole.scenario.schema.RENAMES`).
+_LOCAL_RENAMES = {"model.friction": "controller.dhp.friction (a coefficient; the design's)"}
 
 
-def _limits(src, value):
-    """``model.input_limits``: [[slack-off min, max] (N), [torque min, max] (N m)]."""
-    field = "model.input_limits"
-    if not (isinstance(value, list) and len(value) == 2
-            and all(isinstance(p, list) and len(p) == 2 for p in value)):
-        raise ScenarioError(src, field, f"expected [[min, max], [min, max]] (slack-off force N, "
-                                        f"surface torque N m), got {value!r:.60}")
-    out = []
-    for (lo, hi), dim, name in zip(value, ("force", "torque"), ("force", "torque")):
-        lo, hi = _si(src, field, lo, dim), _si(src, field, hi, dim)
-        if not lo < hi:
-            raise ScenarioError(src, field, f"{name} limits [{lo:g}, {hi:g}] are empty; expected "
-                                            "min < max")
-        out.append([lo, hi])
-    return out
+def _no_bool(value):
+    if isinstance(value, bool):
+        raise ValueError(f"expected a friction coefficient (a number >= 0: omit it for the "
+                         f"well's own, 0 for none), got boolean {str(value).lower()}")
+    return value
 
 
-def _check_keys(src, table, data, allowed):
-    bad = set(data) - allowed
-    if bad:
-        raise ScenarioError(src, f"{table}.{sorted(bad)[0]}",
-                            f"unknown key; expected one of {sorted(allowed)}")
+_Velocity = Annotated[Q["velocity"], Field(ge=-1.0, le=1.0)]
+_Angular = Annotated[Q["angular_velocity"], Field(ge=-200.0, le=200.0)]
+
+
+class DHPPlantSettings(_Strict):
+    """``[model]``: the plant the closed loop runs on."""
+
+    fidelity: Optional[Literal["fem", "hybrid", "lumped4"]] = None
+    preset: Optional[str] = Field(None, max_length=64)
+
+
+class DHPTrainingSettings(_Strict):
+    """``[controller.dhp.training]``: the training horizon and the DHPSettings."""
+
+    horizon: Q["time"] = Field(40.0, gt=0, le=1e5)
+    method: str = Field("riccati", max_length=64)
+    n_samples: Optional[StrictInt] = Field(None, ge=1, le=100_000)
+    n_iterations: StrictInt = Field(20, ge=1, le=10_000)
+    threshold: float = Field(1e-6, gt=0)
+    sample_radius: Union[float, list[float]] = 0.02
+    warm_start: bool = True
+    seed: StrictInt = Field(0, ge=0)
+    resample_every: StrictInt = Field(1, ge=1, le=100_000)
+    threads: StrictInt = Field(1, ge=1, le=1024)
+    use_feed_forward: bool = True
+    past_horizon: Literal["stationary", "error"] = "stationary"
+
+
+class DHPDesignSettings(_Strict):
+    """``[controller.dhp]``: the design model, the weights, the training and the plan."""
+
+    design: Literal["fem24", "fem", "lumped"] = "fem24"
+    elements: Optional[StrictInt] = Field(None, ge=3, le=500)
+    preset: Optional[str] = Field(None, max_length=64)
+    dt: Q["time"] = Field(1e-3, gt=0, le=0.1)
+    input_limits: tuple[tuple[Q["force"], Q["force"]], tuple[Q["torque"], Q["torque"]]] = (
+        (-50e3, 300e3), (-60e3, 60e3))
+    friction: Optional[Annotated[float, BeforeValidator(_no_bool)]] = Field(None, ge=0, le=10)
+    weights: Union[str, dict[str, Any], None] = None
+    training: DHPTrainingSettings = DHPTrainingSettings()
+    plan: Optional[dict[str, Any]] = None
+
+
+class DHPControllerSettings(_Strict):
+    """``[controller]`` of a DHP scenario."""
+
+    type: Literal["dhp"] = "dhp"
+    file: Optional[str] = Field(None, min_length=1, max_length=4096)
+    dhp: DHPDesignSettings = DHPDesignSettings()
+
+
+class DHPReferenceSettings(_Strict):
+    """``[reference]``: the bit-velocity reference the controller tracks."""
+
+    type: Literal["step", "ramp", "sine", "user"] = "step"
+    axial_velocity: Optional[_Velocity] = None
+    angular_velocity: Optional[_Angular] = None
+    t_final: Optional[Q["time"]] = Field(None, gt=0, le=1e5)
+    frequency: Optional[Q["angular_velocity"]] = Field(None, ge=0, le=1e3)
+    time: list[Q["time"]] = Field(default_factory=list, max_length=100_000)
+    axial_velocity_values: list[_Velocity] = Field(default_factory=list, max_length=100_000)
+    angular_velocity_values: list[_Angular] = Field(default_factory=list, max_length=100_000)
+
+
+class DHPSimulationSettings(_Strict):
+    """``[simulation]``: the closed-loop check."""
+
+    duration: Optional[Q["time"]] = Field(None, gt=0, le=1e5)
+    depth_of_cut: Literal["approximate", "delayed"] = "approximate"
+
+
+class DHPScenario(_Strict):
+    """A whole DHP design scenario file."""
+
+    title: str = ""
+    description: str = ""
+    model: DHPPlantSettings = DHPPlantSettings()
+    bit: dict[str, Any] = Field(default_factory=dict)
+    controller: DHPControllerSettings = DHPControllerSettings()
+    reference: DHPReferenceSettings = DHPReferenceSettings()
+    simulation: Optional[DHPSimulationSettings] = None
+
+
+def is_dhp_dialect(data: dict) -> bool:
+    """True for a file that ``downhole simulate`` runs as a DHP design: ``[controller] type =
+    "dhp"`` with the design table ``[controller.dhp]`` (or without a controller ``file``), no
+    older ``[model] type`` and no described system (``[well]``, ``[string]``, ``[rig]``,
+    ``[operation]``). A file with ``type = "dhp"`` and only a ``file`` runs the trained
+    controller on the described system instead."""
+    ctl = data.get("controller")
+    model = data.get("model", {})
+    return (isinstance(ctl, dict) and ctl.get("type") == "dhp"
+            and (isinstance(ctl.get("dhp"), dict) or "file" not in ctl)
+            and not (isinstance(model, dict) and "type" in model)
+            and not any(key in data for key in ("well", "string", "rig", "operation")))
 
 
 def load_dhp_scenario(path) -> dict:
@@ -140,160 +237,327 @@ def load_dhp_scenario(path) -> dict:
 
     Returns a dict with ``model`` (:class:`~downhole.control.affine.ControlAffineModel`),
     ``plant_source`` (what the simulation plants are built from), ``reference``, ``weights``,
-    ``settings``, ``horizon``, ``design`` (extra design kwargs) and ``simulation`` (dict or None).
+    ``settings``, ``horizon``, ``design`` (extra design kwargs), ``plant`` (the ``[model]``
+    plant: fidelity, preset and how it is built) and ``simulation`` (dict or None).
 
     Raises
     ------
     ScenarioError
-        Naming the file, the field and what was expected.
+        Naming the file, the dotted field and what was expected.
     """
+    from downhole.scenario.schema import read_scenario
 
-    from downhole.scenario import read_toml
-
-    data, src, text = read_toml(path)
+    data, src, text = read_scenario(path)
     return parse_dhp_scenario(data, src, text, base=Path(path).parent)
+
+
+def _check_local_renames(data: dict, src: str) -> None:
+    for dotted, new in _LOCAL_RENAMES.items():
+        table, key = dotted.split(".")
+        if isinstance(data.get(table), dict) and key in data[table]:
+            raise ScenarioError(src, dotted, f"renamed in a DHP scenario: use {new} "
+                                "(see docs/dhp.md)")
 
 
 def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
                        base: Path | None = None) -> dict:
-    """Validate an already-parsed DHP scenario (see :func:`load_dhp_scenario`)."""
-    from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights
+    """Validate an already-parsed DHP scenario (see :func:`load_dhp_scenario`).
 
-    data = dict(data)
-    data.pop("title", None)
-    ctl = data.pop("controller", None)
+    Raises
+    ------
+    ScenarioError
+        Naming ``src``, the dotted field and what was expected (an older-dialect key: the key to
+        use instead).
+    """
+    from downhole.control.dhp import DHPSettings
+    from downhole.scenario.schema import check_dialect
+
+    check_dialect(data, src)
+    _check_local_renames(data, src)
+    try:
+        sc = DHPScenario.model_validate(data)
+    except ValidationError as exc:
+        _raise_validation(src, exc)
+    d = sc.controller.dhp
     controller_file = None
-    if ctl is not None:
-        if not isinstance(ctl, dict) or set(ctl) - {"file"} or "file" not in ctl:
-            raise ScenarioError(src, "controller", "expected a table with one key: file = "
-                                                   "\"path/to/dhp_controller\"")
-        controller_file = Path(ctl["file"])
+    if sc.controller.file is not None:
+        controller_file = Path(sc.controller.file)
         if not controller_file.is_absolute() and base is not None:
             controller_file = base / controller_file
-    bad = set(data) - _TABLES
-    if bad:
-        raise ScenarioError(src, sorted(bad)[0], f"unknown table; expected {sorted(_TABLES)}")
-    for name in sorted(_TABLES):
-        if name in data and not isinstance(data[name], dict):
-            raise ScenarioError(src, name, f"expected a table [{name}], got "
-                                           f"{type(data[name]).__name__} {data[name]!r:.40}")
 
     # --------------------------------------------------------------------- training
-    tt = dict(data.get("training", {}))
-    _check_keys(src, "training", tt, _TRAIN_KEYS)
-    horizon = _si(src, "training.horizon", tt.pop("horizon", 40.0), "time")
-    use_ff = bool(tt.pop("use_feed_forward", True))
-    past = tt.pop("past_horizon", "stationary")
-    if past not in ("stationary", "error"):
-        raise ScenarioError(src, "training.past_horizon", f"expected 'stationary' or 'error', "
-                                                          f"got {past!r}")
-    for key, most in (("n_samples", 100_000), ("n_iterations", 10_000), ("threads", 1024),
-                      ("resample_every", 100_000)):
-        value = tt.get(key)
-        if isinstance(value, int) and not isinstance(value, bool) and value > most:
-            raise ScenarioError(src, f"training.{key}", f"{value} is more than the {most} "
-                                                        "this setting accepts")
-    if "sample_radius" in tt and isinstance(tt["sample_radius"], list):
-        tt["sample_radius"] = tuple(tt["sample_radius"])
+    tr = d.training
+    horizon = tr.horizon
+    if horizon / d.dt > MAX_TRAINING_STEPS:
+        raise ScenarioError(src, "controller.dhp.training.horizon", f"horizon / dt = "
+                            f"{horizon / d.dt:.3g} training steps; at most {MAX_TRAINING_STEPS} "
+                            f"(horizon <= {MAX_TRAINING_STEPS * d.dt:g} s at dt = {d.dt:g} s)")
+    kw = tr.model_dump(exclude_unset=True, exclude={"horizon", "use_feed_forward",
+                                                    "past_horizon"})
+    if isinstance(kw.get("sample_radius"), list):
+        kw["sample_radius"] = tuple(kw["sample_radius"])
     try:
-        settings = DHPSettings(**tt)
+        settings = DHPSettings(**kw)
     except (DownholeInputError, TypeError) as exc:
-        raise ScenarioError(src, "training", str(exc)) from None
+        raise ScenarioError(src, "controller.dhp.training", str(exc)) from None
 
     # --------------------------------------------------------------------- model
-    mt = dict(data.get("model", {}))
-    mtype = mt.pop("type", "dhp")
-    if mtype != "dhp":
-        raise ScenarioError(src, "model.type", f"a DHP scenario has type = 'dhp', got {mtype!r}")
-    kind = mt.pop("kind", "fem24")
-    dt = _si(src, "model.dt", mt.pop("dt", 1e-3), "time")
-    bit_over = {k: mt.pop(k) for k in list(mt) if k not in _MODEL_KEYS}
-    limits = _limits(src, mt.pop("input_limits", [[-50e3, 300e3], [-60e3, 60e3]]))
-    friction = bool(mt.pop("friction", True))
-    model, plant_source = _build_model(src, kind, mt, dt, bit_over, limits, friction)
+    model, plant_source = _build_design(src, sc)
+    plant = _resolve_plant(src, sc, plant_source)
 
     # --------------------------------------------------------------------- reference
-    rt = dict(data.get("reference", {}))
-    rtype = rt.pop("type", "step")
-    allowed = {"axial", "angular", "t_final", "frequency", "time", "axial_values",
-               "angular_values"}
-    _check_keys(src, "reference", rt, allowed)
-    for k, dim in _REF_UNITS.items():
-        if k in rt:
-            rt[k] = _si(src, f"reference.{k}", rt[k], dim)
+    ref = _reference(src, sc.reference, horizon)
+    weights = _weights(src, d.weights)
+
+    # --------------------------------------------------------------------- plan
+    plan = None
+    if d.plan is not None:
+        plan = _plan(src, d.plan, plant_source)
+
+    # --------------------------------------------------------------------- simulation
+    sim = None
+    if sc.simulation is not None:
+        sim = _simulation(src, sc.simulation, horizon, d.dt, plant)
+    return {"model": model, "plant_source": plant_source, "reference": ref, "weights": weights,
+            "settings": settings, "horizon": horizon,
+            "design": {"use_feed_forward": tr.use_feed_forward,
+                       "past_horizon": tr.past_horizon},
+            "plant": plant, "simulation": sim, "text": text,
+            "controller_file": controller_file, "plan": plan, "title": sc.title}
+
+
+def _simulation(src, s, horizon, dt, plant) -> dict:
+    duration = horizon if s.duration is None else s.duration
+    if duration / dt > MAX_SIMULATION_STEPS:
+        raise ScenarioError(src, "simulation.duration", f"duration / dt = {duration / dt:.3g} "
+                            f"steps; at most {MAX_SIMULATION_STEPS:.0e} (duration <= "
+                            f"{MAX_SIMULATION_STEPS * dt:g} s at controller.dhp.dt = {dt:g} s)")
+    return {"duration": duration, "depth_of_cut": s.depth_of_cut,
+            "fidelity": plant["fidelity"], "preset": plant["preset"], "plant": plant["kind"]}
+
+
+def _reference(src, r, horizon):
+    from downhole.control.dhp import BitReference
+
+    ax, an = r.axial_velocity, r.angular_velocity
+    for name in ("t_final", "frequency", "time", "axial_velocity_values",
+                 "angular_velocity_values"):
+        used = name in r.model_fields_set
+        wanted = {"t_final": "ramp", "frequency": "sine"}.get(name, "user")
+        if used and r.type != wanted:
+            raise ScenarioError(src, f"reference.{name}", f"used by type = '{wanted}' only; "
+                                f"this reference is type = {r.type!r}")
+    if r.type == "user":
+        for name in ("axial_velocity", "angular_velocity"):
+            if name in r.model_fields_set:
+                raise ScenarioError(src, f"reference.{name}", "type = 'user' takes "
+                                    f"reference.{name}_values (with reference.time)")
     try:
-        if rtype == "step":
-            ref = BitReference.step(rt.get("axial", 0.01), rt.get("angular", 20.0))
-        elif rtype == "ramp":
-            ref = BitReference.ramp(rt.get("t_final", horizon), rt.get("axial", 0.01),
-                                    rt.get("angular", 20.0))
-        elif rtype == "sine":
-            ref = BitReference.sine(rt.get("axial", 0.02), rt.get("angular", 40.0),
-                                    rt.get("frequency", 0.1 * 3.141592653589793))
-        elif rtype == "user":
-            ref = BitReference.user(rt.get("time", []), rt.get("axial_values", []),
-                                    rt.get("angular_values", []))
+        if r.type == "step":
+            return BitReference.step(0.01 if ax is None else ax, 20.0 if an is None else an)
+        if r.type == "ramp":
+            return BitReference.ramp(horizon if r.t_final is None else r.t_final,
+                                     0.01 if ax is None else ax, 20.0 if an is None else an)
+        if r.type == "sine":
+            return BitReference.sine(0.02 if ax is None else ax, 40.0 if an is None else an,
+                                     0.1 * 3.141592653589793 if r.frequency is None
+                                     else r.frequency)
+        return BitReference.user(r.time, r.axial_velocity_values, r.angular_velocity_values)
+    except DownholeInputError as exc:
+        raise ScenarioError(src, "reference", str(exc)) from None
+
+
+def _weights(src, spec):
+    from downhole.control.dhp import PenaltyWeights
+    from downhole.control.dhp.weight_sets import weight_set
+
+    field = "controller.dhp.weights"
+    try:
+        if spec is None:
+            return PenaltyWeights()
+        if isinstance(spec, str):
+            return PenaltyWeights(**weight_set(spec))
+        return PenaltyWeights.from_dict(spec)
+    except (DownholeInputError, TypeError, ValueError) as exc:
+        raise ScenarioError(src, field, str(exc)) from None
+
+
+_PLAN_UNITS = {"duration": "time", "knot_spacing": "time", "settle_from": "time",
+               "late_from": "time", "steady_from": "time", "axial_tolerance": "velocity",
+               "angular_tolerance": "angular_velocity", "top_drive_inertia": "inertia"}
+
+
+def _plan(src, spec: dict, plant_source):
+    from dataclasses import fields
+
+    from downhole.control.dhp.plan import PlanSettings
+    from downhole.units import UnitError, to_si
+
+    known = {f.name for f in fields(PlanSettings)}
+    kw = {}
+    for key, value in spec.items():
+        field = f"controller.dhp.plan.{key}"
+        if key not in known:
+            raise ScenarioError(src, field, f"unknown key; expected one of {sorted(known)}")
+        if key in _PLAN_UNITS:
+            try:
+                value = to_si(value, _PLAN_UNITS[key])
+            except UnitError as exc:
+                raise ScenarioError(src, field, str(exc)) from None
+        elif isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ScenarioError(src, field, f"expected a number, got {value!r:.40}")
+        kw[key] = value
+    if plant_source[0] != "directional":
+        raise ScenarioError(src, "controller.dhp.plan", "a planned start-up needs a FEM "
+                            "design model (controller.dhp.design = 'fem24' or 'fem'), got "
+                            "'lumped'")
+    try:
+        return PlanSettings(**kw)
+    except DownholeInputError as exc:
+        raise ScenarioError(src, "controller.dhp.plan", str(exc)) from None
+
+
+def _bit_with(src, base, over: dict):
+    from downhole.params import BitParams
+
+    if not over:
+        return base
+    if "preset" in over:
+        raise ScenarioError(src, "bit.preset", "the design brings its bit (Table 5.1's or the "
+                            "lumped preset's); give only bit parameters here (epsilon, ...)")
+    try:
+        return BitParams(**{**base.model_dump(), **over})
+    except ValidationError as exc:
+        _raise_validation(src, exc, "bit.")
+    except (ValueError, TypeError) as exc:
+        raise ScenarioError(src, "bit", str(exc)) from None
+
+
+def _lumped_preset(src, name, field):
+    from downhole.params import get_preset
+
+    try:
+        pre = get_preset(name)
+    except KeyError as exc:
+        raise ScenarioError(src, field, str(exc.args[0])) from None
+    if pre.kind != "lumped":
+        raise ScenarioError(src, field, f"{name!r} is a {pre.kind} preset; a lumped model "
+                            "needs a lumped one (e.g. table_2_1)")
+    return pre
+
+
+def _build_design(src, sc: DHPScenario):
+    """The control-affine design model and what the plants are built from."""
+    from downhole.control.dhp import lumped_affine_model
+    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
+
+    d = sc.controller.dhp
+    given = d.model_fields_set
+    if d.elements is not None and d.design != "fem":
+        raise ScenarioError(src, "controller.dhp.elements", f"used by design = 'fem' only; "
+                            f"this design is {d.design!r}")
+    if d.preset is not None and d.design != "lumped":
+        raise ScenarioError(src, "controller.dhp.preset", f"used by design = 'lumped' only "
+                            f"(the FEM designs are the Table 5.1 well); this design is "
+                            f"{d.design!r}")
+    for name in ("input_limits", "friction"):
+        if name in given and d.design == "lumped":
+            raise ScenarioError(src, f"controller.dhp.{name}", "used by the FEM designs "
+                                "(fem24, fem) only; the lumped design has none")
+    for (lo, hi), name in zip(d.input_limits, ("force", "torque")):
+        if not lo < hi:
+            raise ScenarioError(src, "controller.dhp.input_limits", f"{name} limits "
+                                f"[{lo:g}, {hi:g}] are empty; expected min < max")
+    try:
+        if d.design == "lumped":
+            pre = _lumped_preset(src, d.preset or "table_2_1", "controller.dhp.preset")
+            bit = _bit_with(src, pre.bit, sc.bit)
+            return (lumped_affine_model(pre.string, bit, dt=d.dt),
+                    ("lumped", pre.string, bit))
+        fem24, hyb68 = table_5_1_models()
+        if d.design == "fem":
+            from downhole.string.fem import fem_model
+
+            dm = fem_model(n_elements=5 if d.elements is None else d.elements)
         else:
-            raise ScenarioError(src, "reference.type", f"expected step, ramp, sine or user, "
-                                                       f"got {rtype!r}")
+            dm = fem24
+        if sc.bit:
+            dm = dataclasses.replace(dm, bit=_bit_with(src, dm.bit, sc.bit))
+            hyb68 = dataclasses.replace(hyb68, bit=_bit_with(src, hyb68.bit, sc.bit))
+        limits = [list(p) for p in d.input_limits]
+        if d.friction is None:
+            design_fem = dm
+        else:
+            design_fem = dataclasses.replace(dm, mu=float(d.friction))
+        model = directional_affine_model(design_fem, d.dt, input_limits=limits, friction=True)
+        return model, ("directional", dm, hyb68)
     except DownholeInputError as exc:
         if isinstance(exc, ScenarioError):
             raise
-        raise ScenarioError(src, "reference", str(exc)) from None
+        raise ScenarioError(src, "controller.dhp", str(exc)) from None
 
-    # --------------------------------------------------------------------- weights
-    wt = dict(data.get("weights", {}))
-    try:
-        weights = PenaltyWeights.from_dict(wt) if wt else PenaltyWeights()
-    except (DownholeInputError, TypeError) as exc:
-        raise ScenarioError(src, "weights", str(exc)) from None
 
-    # --------------------------------------------------------------------- plan
-    plan = data.get("plan")
-    if plan is not None:
-        from dataclasses import fields
-
-        from downhole.control.dhp.plan import PlanSettings
-
-        if not isinstance(plan, dict):
-            raise ScenarioError(src, "plan", "expected a table of PlanSettings fields")
-        _check_keys(src, "plan", plan, {f.name for f in fields(PlanSettings)})
-        if plant_source[0] != "directional":
-            raise ScenarioError(src, "plan", f"a planned start-up needs a FEM design model "
-                                             f"(model.kind = 'fem24' or 'fem'), got {kind!r}")
-        try:
-            plan = PlanSettings(**plan)
-        except DownholeInputError as exc:
-            raise ScenarioError(src, "plan", str(exc)) from None
-
-    # --------------------------------------------------------------------- simulation
-    sim = data.get("simulation")
-    if sim is not None:
-        sim = dict(sim)
-        _check_keys(src, "simulation", sim, _SIM_KEYS)
-        sim["duration"] = _si(src, "simulation.duration", sim.get("duration", horizon), "time")
-        plants = ("design", "fem24", "hybrid68", "lumped")
-        sim.setdefault("plant", "design" if kind == "lumped" else "fem24")
-        if sim["plant"] not in plants:
-            raise ScenarioError(src, "simulation.plant", f"expected one of {plants}, got "
-                                                         f"{sim['plant']!r}")
-        if (sim["plant"] == "lumped") != (kind == "lumped") and sim["plant"] != "design":
-            raise ScenarioError(src, "simulation.plant", f"plant {sim['plant']!r} does not fit "
-                                                         f"a model of kind {kind!r}")
-        sim.setdefault("depth_of_cut", "approximate")
-        if sim["depth_of_cut"] not in ("approximate", "delayed"):
-            raise ScenarioError(src, "simulation.depth_of_cut", "expected 'approximate' or "
-                                                                "'delayed'")
-    return {"model": model, "plant_source": plant_source, "reference": ref, "weights": weights,
-            "settings": settings, "horizon": horizon,
-            "design": {"use_feed_forward": use_ff, "past_horizon": past},
-            "simulation": sim, "text": text, "controller_file": controller_file,
-            "plan": plan}
+def _resolve_plant(src, sc: DHPScenario, plant_source) -> dict:
+    """``[model]``: the plant's fidelity and preset, checked against the design."""
+    d = sc.controller.dhp
+    lumped = plant_source[0] == "lumped"
+    own = "lumped4" if lumped else "fem"
+    fid = sc.model.fidelity or own
+    preset = sc.model.preset
+    if lumped and fid != "lumped4":
+        raise ScenarioError(src, "model.fidelity", f"the lumped design runs on the 4th-order "
+                            f"lumped plant (fidelity = 'lumped4'), got {fid!r}")
+    if not lumped and fid == "lumped4":
+        raise ScenarioError(src, "model.fidelity", f"a {d.design!r} design has the FEM's "
+                            f"states: it runs on fidelity 'fem' or 'hybrid', got 'lumped4'")
+    if preset == "design":
+        if fid != own:
+            raise ScenarioError(src, "model.preset", f"preset = 'design' is the control-affine "
+                                f"design model itself, at the design's fidelity ({own!r}); "
+                                f"got fidelity {fid!r}")
+        return {"fidelity": fid, "preset": "design", "kind": "design"}
+    if fid == "lumped4":
+        name = preset or d.preset or "table_2_1"
+        pre = _lumped_preset(src, name, "model.preset")
+        bit = plant_source[2] if name == (d.preset or "table_2_1") else \
+            _bit_with(src, pre.bit, sc.bit)
+        return {"fidelity": fid, "preset": name, "kind": "lumped",
+                "params": (pre.string, bit)}
+    if fid == "hybrid":
+        if preset not in (None, "hybrid68"):
+            raise ScenarioError(src, "model.preset", f"the hybrid plant is 'hybrid68' (the "
+                                f"68-state Ch. 6 hybrid of the Table 5.1 well) or 'design', "
+                                f"got {preset!r}")
+        return {"fidelity": fid, "preset": "hybrid68", "kind": "hybrid68"}
+    if d.design == "fem24":
+        if preset not in (None, "fem24"):
+            raise ScenarioError(src, "model.preset", f"the FEM plant of design 'fem24' is "
+                                f"'fem24' (the 24-state FEM of Table 5.1) or 'design', got "
+                                f"{preset!r}")
+        return {"fidelity": fid, "preset": "fem24", "kind": "fem24"}
+    if preset is not None:
+        raise ScenarioError(src, "model.preset", f"a 'fem' design runs on its own FEM "
+                            f"({plant_source[1].name}): omit model.preset (or 'design'), got "
+                            f"{preset!r}")
+    return {"fidelity": fid, "preset": None, "kind": "fem24"}
 
 
 def design_from_scenario(sc: dict, progress: bool = False):
-    """Train the scenario's controller; with a ``[plan]`` table, plan the start-up on the design
-    FEM and return the two-degree-of-freedom controller (its plan in ``ctrl.plan``)."""
+    """Train the scenario's controller; with a ``[controller.dhp.plan]`` table, plan the
+    start-up on the design FEM and return the two-degree-of-freedom controller (its plan in
+    ``ctrl.plan``).
+
+    Parameters
+    ----------
+    sc : dict
+        A parsed scenario (:func:`parse_dhp_scenario`).
+    progress : bool
+        Show progress bars.
+
+    Returns
+    -------
+    DHPController
+    """
     from downhole.control.dhp import design_dhp
     from downhole.control.dhp.plan import design_dhp_planned
 
@@ -305,98 +569,43 @@ def design_from_scenario(sc: dict, progress: bool = False):
                               plan_settings=sc["plan"], **kw)
 
 
-def _build_model(src, kind, mt, dt, bit_over, limits, friction):
-    from downhole.control.dhp import lumped_affine_model
-    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
-    from downhole.params import BitParams, get_preset
-
-    def bit_with(base):
-        if not bit_over:
-            return base
-        try:
-            return BitParams(**{**base.model_dump(), **bit_over})
-        except ValueError as exc:
-            raise ScenarioError(src, "model", f"bad bit override {sorted(bit_over)}: "
-                                              f"{str(exc).splitlines()[0]}") from None
-
-    try:
-        if kind == "lumped":
-            preset = mt.pop("preset", "table_2_1")
-            if not isinstance(preset, str):
-                raise ScenarioError(src, "model.preset", f"expected a preset name, got "
-                                                         f"{preset!r:.40}")
-            _check_keys(src, "model", mt, set())
-            try:
-                pre = get_preset(preset)
-            except KeyError as exc:
-                raise ScenarioError(src, "model.preset", str(exc.args[0])) from None
-            if pre.kind != "lumped":
-                raise ScenarioError(src, "model.preset", f"{preset!r} is a {pre.kind} preset; "
-                                                         "kind = 'lumped' needs a lumped one")
-            bit = bit_with(pre.bit)
-            return lumped_affine_model(pre.string, bit, dt=dt), ("lumped", pre.string, bit)
-        if kind in ("fem24", "fem"):
-            import dataclasses
-
-            fem24, hyb68 = table_5_1_models()
-            if kind == "fem":
-                from downhole.string.fem import fem_model
-
-                ne = mt.pop("n_elements", 5)
-                if not isinstance(ne, int) or isinstance(ne, bool) or not 3 <= ne <= 500:
-                    raise ScenarioError(src, "model.n_elements", f"expected an integer from 3 "
-                                                                 f"to 500, got {ne!r}")
-                dm = fem_model(n_elements=ne)
-            else:
-                dm = fem24
-            _check_keys(src, "model", mt, set())
-            if bit_over:
-                dm = dataclasses.replace(dm, bit=bit_with(dm.bit))
-                hyb68 = dataclasses.replace(hyb68, bit=bit_with(hyb68.bit))
-            model = directional_affine_model(dm, dt, input_limits=limits, friction=friction)
-            return model, ("directional", dm, hyb68)
-    except DownholeInputError as exc:
-        if isinstance(exc, ScenarioError):
-            raise
-        raise ScenarioError(src, "model", str(exc)) from None
-    raise ScenarioError(src, "model.kind", f"expected 'fem24', 'fem' or 'lumped', got {kind!r}")
-
-
 def run_scenario_simulation(sc: dict, ctrl):
-    """Closed-loop run of a trained controller as the scenario's ``[simulation]`` says."""
+    """Closed-loop run of a trained controller on the scenario's ``[model]`` plant, as its
+    ``[simulation]`` says; returns the Result."""
     from downhole.control.dhp import lumped_true_plant, run_design_model, run_on_plant
     from downhole.control.dhp.directional import DirectionalStatePlant
 
     sim = sc["simulation"]
     model = sc["model"]
     src = sc["plant_source"]
+    kind = sc["plant"]["kind"]
     attrs = {"scenario": sc["text"]}
-    if sim["plant"] == "design":
+    if kind == "design":
         return run_design_model(ctrl, model, sim["duration"], record_every=10, attrs=attrs)
-    if sim["plant"] == "lumped":
-        plant, adapter = lumped_true_plant(src[1], src[2], dt=model.dt,
+    if kind == "lumped":
+        string, bit = sc["plant"]["params"]
+        plant, adapter = lumped_true_plant(string, bit, dt=model.dt,
                                            depth_of_cut=sim["depth_of_cut"])
-        attrs["bit_radius"] = src[2].radius
+        attrs["bit_radius"] = bit.radius
         return run_on_plant(ctrl, plant, sim["duration"], adapter=adapter, record_every=10,
                             attrs=attrs)
-    dm = src[1] if sim["plant"] == "fem24" else src[2]
+    dm = src[1] if kind == "fem24" else src[2]
     plant = DirectionalStatePlant(dm, model, model.dt, depth_of_cut=sim["depth_of_cut"])
     attrs["bit_radius"] = dm.bit.radius
     return run_on_plant(ctrl, plant, sim["duration"], record_every=10, attrs=attrs)
 
 
 def run_dhp_scenario(data: dict, source: str = "<dict>", text: str = ""):
-    """``downhole simulate`` runner for ``[model] type = "dhp"``: train (or load ``[controller]
-    file``) and run the ``[simulation]`` closed loop; returns the Result."""
+    """``downhole simulate`` runner for a DHP scenario: train (or load ``[controller] file``)
+    and run the closed loop on the ``[model]`` plant (``[simulation]``; default: over the
+    training horizon, approximate depth of cut); returns the Result."""
     from downhole.control.dhp import load_controller
 
-    base = Path(source).parent if source != "<dict>" else None
+    base = Path(source).parent if not source.startswith("<") else None
     sc = parse_dhp_scenario(data, source, text, base=base)
     if sc["simulation"] is None:
-        kind = sc["plant_source"][0]
-        sc["simulation"] = {"duration": sc["horizon"],
-                            "plant": "lumped" if kind == "lumped" else "fem24",
-                            "depth_of_cut": "approximate"}
+        sc["simulation"] = _simulation(source, DHPSimulationSettings(), sc["horizon"],
+                                       sc["model"].dt, sc["plant"])
     if sc["controller_file"] is not None:
         try:
             ctrl = load_controller(sc["controller_file"])

@@ -49,7 +49,7 @@ from pathlib import Path
 from downhole._reader import read_toml
 from downhole.errors import ScenarioError
 
-__all__ = ["TABLES", "RENAMES", "read_scenario", "check_dialect"]
+__all__ = ["TABLES", "RENAMES", "VALUE_RENAMES", "read_scenario", "check_dialect"]
 
 #: Every top-level key of a scenario file.
 TABLES = ("title", "description", "model", "well", "string", "bit", "rig", "operation",
@@ -133,6 +133,33 @@ RENAMES: dict[str, str] = {
     "controller.dhp.reference": "reference.type",
     "controller.dhp.horizon": "controller.dhp.training.horizon",
     "controller.dhp.samples": "controller.dhp.training.n_samples",
+    # ---------------------------------------------------------------- DHP files (design dhp)
+    "weights": "[controller.dhp.weights] (DHP files; or weights = \"<named set>\" there) or "
+               "[optimize.weights] (DP files)",
+    "training": "[controller.dhp.training]",
+    "plan": "[controller.dhp.plan]",
+    "model.kind": "controller.dhp.design (fem24 | fem | lumped)",
+    "model.n_elements": "controller.dhp.elements",
+    "model.dt": "controller.dhp.dt (DHP files) or simulation.dt",
+    "model.input_limits": "controller.dhp.input_limits",
+    "model.epsilon": "bit.epsilon",
+    "simulation.plant": "[model] fidelity (fem | hybrid | lumped4) and preset (fem24 | hybrid68 "
+                        "| a lumped preset | design): the plant simulated",
+    "reference.axial_values": "reference.axial_velocity_values",
+    "reference.angular_values": "reference.angular_velocity_values",
+    # ---------------------------------------------------------------- DP files (optimize dp)
+    "dp": "[optimize] (the DP problem)",
+    "horizon": "optimize.horizon",
+    "step": "optimize.step",
+    "x1_regions": "optimize.x1_regions",
+    "x3_regions": "optimize.x3_regions",
+    "x2": "[optimize.x2]",
+    "x4": "[optimize.x4]",
+    "targets": "[optimize.targets]",
+    "bounds": "[optimize.bounds]",
+    "robust": "[optimize.robust]",
+    "standard": "[optimize.standard]",
+    # ---------------------------------------------------------------- end of DHP / DP files
 }
 
 
@@ -145,10 +172,10 @@ def _lookup(data: dict, dotted: str):
     return True, node
 
 
-#: Top-level tables of the DHP and DP files still read by their own loaders (being migrated to
-#: [controller.dhp] and [optimize]); removed from here when they are.
-_PENDING = ("weights", "training", "plan", "horizon", "step", "x2", "x4", "targets", "bounds",
-            "robust", "standard", "dp")
+#: Older keys whose replacement depends on their value: (dotted key, value) -> replacement.
+VALUE_RENAMES: dict[tuple[str, str], str] = {
+    ("model.type", "dhp"): 'controller.type = "dhp" and the design in [controller.dhp]',
+}
 
 
 def check_dialect(data: dict, source: str) -> None:
@@ -163,10 +190,11 @@ def check_dialect(data: dict, source: str) -> None:
         found, value = _lookup(data, dotted)
         if not found or (dotted == "model.hybrid" and not isinstance(value, str)):
             continue
-        raise ScenarioError(source, dotted, f"renamed: use {RENAMES[dotted]} "
-                            "(see docs/scenarios.md)")
+        new = VALUE_RENAMES.get((dotted, value), RENAMES[dotted]) if isinstance(value, str) \
+            else RENAMES[dotted]
+        raise ScenarioError(source, dotted, f"renamed: use {new} (see docs/scenarios.md)")
     for key in data:
-        if key not in TABLES and key not in _PENDING:
+        if key not in TABLES:
             raise ScenarioError(source, key, f"unknown table; a scenario has {', '.join(TABLES)}"
                                 " (see docs/scenarios.md)")
 

@@ -4,25 +4,37 @@ A :class:`DPProblem` holds the horizon and DP step, the (x2, x4) search grids (b
 angular velocity), the optional x1/x3 index regions of the seed's Table 2.2, the cost weights
 lambda1..4 and targets (v_m, w_m, v_d, w_d) of Eq. 2.13, the string force/torque bounds (and
 optional top-drive speed bounds), the 4th-order model parameters (a preset, e.g. ``table_2_1``,
-with an optional epsilon override) and the settings of the standard and robust DP. Every
+with optional bit-parameter overrides) and the settings of the standard and robust DP. Every
 inconsistency is rejected with a precise :class:`~downhole.errors.DownholeInputError` (or
 :class:`~downhole.errors.ScenarioError` when loaded from a TOML file) before any search.
+
+A problem file (:func:`load_problem`, ``docs/dp.md``) uses the tables of every scenario
+(:mod:`downhole.scenario.schema`): ``[model]`` (``fidelity = "lumped4"``, ``preset``), ``[bit]``
+(``epsilon`` and any other bit parameter over the preset's) and ``[optimize]`` (the problem:
+``method``, ``horizon``, ``step``, ``x1_regions``, ``x3_regions`` and the tables
+``[optimize.x2]``, ``[optimize.x4]``, ``[optimize.targets]``, ``[optimize.weights]``,
+``[optimize.bounds]``, ``[optimize.robust]``, ``[optimize.standard]``). Physical values take
+unit strings ("36 m/h", "20 s", "200 kN"); bare numbers are SI.
 """
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Optional
+from typing import Any, Literal, Optional
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, StrictInt, ValidationError, field_validator
 
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params import BitParams, LumpedParams, get_preset
 from downhole.params.quantity import Q
 
-__all__ = ["GridSpec", "DPProblem", "ModelArrays", "load_problem", "problem_from_dict"]
+__all__ = ["GridSpec", "DPProblem", "DPScenario", "ModelArrays", "load_problem",
+           "load_dp_scenario", "dp_problem_of", "problem_from_dict", "METHOD_NAMES"]
+
+#: The solvers a problem file may name in ``optimize.method``.
+METHOD_NAMES = ("customized", "standard", "robust")
 
 _TOL = 1e-9
 
@@ -30,6 +42,14 @@ _TOL = 1e-9
 #: Largest DP grid (points per state axis, input levels per axis) and most DP steps / substeps.
 MAX_GRID_POINTS = 2001
 MAX_DP_STEPS = 100_000
+
+
+class _ProblemError(DownholeInputError):
+    """An inconsistent problem; ``field`` is the :class:`DPProblem` field it concerns."""
+
+    def __init__(self, field: str, message: str):
+        self.field = field
+        super().__init__(message)
 
 
 class GridSpec(BaseModel):
@@ -79,10 +99,10 @@ class BoundSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    force: tuple[float, float] = (0.0, 200.0e3)
-    torque: tuple[float, float] = (0.0, 30.0e3)
-    top_speed: Optional[tuple[float, float]] = None
-    rotary_speed: Optional[tuple[float, float]] = None
+    force: tuple[Q["force"], Q["force"]] = (0.0, 200.0e3)
+    torque: tuple[Q["torque"], Q["torque"]] = (0.0, 30.0e3)
+    top_speed: Optional[tuple[Q["velocity"], Q["velocity"]]] = None
+    rotary_speed: Optional[tuple[Q["angular_velocity"], Q["angular_velocity"]]] = None
 
 
 class RobustSpec(BaseModel):
@@ -95,7 +115,7 @@ class RobustSpec(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     epsilon_scales: tuple[float, ...] = Field((0.9, 1.0, 1.1), max_length=100)
-    substep: float = Field(5e-3, gt=0)
+    substep: Q["time"] = Field(5e-3, gt=0)
 
 
 class StandardSpec(BaseModel):
@@ -106,16 +126,18 @@ class StandardSpec(BaseModel):
 
     force_levels: int = Field(21, ge=2, le=MAX_GRID_POINTS)
     torque_levels: int = Field(21, ge=2, le=MAX_GRID_POINTS)
-    substep: float = Field(5e-3, gt=0)
+    substep: Q["time"] = Field(5e-3, gt=0)
 
 
 class ModelSpec(BaseModel):
-    """The 4th-order model: a lumped preset and an optional epsilon override (Pa)."""
+    """The 4th-order model: a lumped preset, an optional epsilon override (Pa) and further
+    bit-parameter overrides (``bit``: BitParams fields over the preset's, SI or unit strings)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     preset: str = "table_2_1"
     epsilon: Optional[Q["pressure"]] = None
+    bit: dict[str, Any] = Field(default_factory=dict)
 
 
 class DPProblem(BaseModel):
@@ -164,7 +186,7 @@ class DPProblem(BaseModel):
             super().__init__(**data)
         except ValidationError as exc:
             field, msg = _flatten_error(exc)
-            raise DownholeInputError(f"{field}: {msg}" if field else msg) from None
+            raise _ProblemError(field, f"{field}: {msg}" if field else msg) from None
 
     # ------------------------------------------------------------------ derived
     @property
@@ -189,6 +211,8 @@ class DPProblem(BaseModel):
         """The lumped and bit parameters (preset with the epsilon override applied)."""
         preset = get_preset(self.model.preset)
         bit = preset.bit
+        if self.model.bit:
+            bit = BitParams(**{**bit.model_dump(), **self.model.bit})
         if self.model.epsilon is not None:
             bit = bit.model_copy(update={"epsilon": float(self.model.epsilon)})
         return preset.string, bit
@@ -217,23 +241,26 @@ class DPProblem(BaseModel):
         self._check()
 
     def _check(self) -> None:
-        err = DownholeInputError
+        err = _ProblemError
         if not self.horizon > 0:
-            raise err(f"horizon must be > 0 s, got {self.horizon!r}")
+            raise err("horizon", f"horizon must be > 0 s, got {self.horizon!r}")
         if not self.step > 0:
-            raise err(f"step must be > 0 s, got {self.step!r}")
+            raise err("step", f"step must be > 0 s, got {self.step!r}")
         ratio = self.horizon / self.step
         if ratio > MAX_DP_STEPS:
-            raise err(f"step {self.step} s gives horizon/step = {ratio:.3g} DP steps; at most "
+            raise err("step",
+                      f"step {self.step} s gives horizon/step = {ratio:.3g} DP steps; at most "
                       f"{MAX_DP_STEPS} (step >= {self.horizon / MAX_DP_STEPS:.3g} s)")
         if abs(ratio - round(ratio)) > 1e-6 * max(1.0, ratio) or round(ratio) < 1:
-            raise err(f"step {self.step} s does not divide horizon {self.horizon} s "
+            raise err("step", f"step {self.step} s does not divide horizon {self.horizon} s "
                       f"(horizon/step = {ratio:.6g}; expected a positive integer)")
         for name, grid, unit in (("x2", self.x2, "m/s"), ("x4", self.x4, "rad/s")):
             if grid.points < 2:
-                raise err(f"grid {name} needs at least 2 points, got points={grid.points}")
+                raise err(f"{name}.points",
+                          f"grid {name} needs at least 2 points, got points={grid.points}")
             if not (math.isfinite(grid.min) and math.isfinite(grid.max)) or grid.max <= grid.min:
-                raise err(f"grid {name} is empty or inverted: min={grid.min} {unit} must be < "
+                raise err(f"{name}.max",
+                          f"grid {name} is empty or inverted: min={grid.min} {unit} must be < "
                           f"max={grid.max} {unit}")
             vals = grid.values()
             spacing = vals[1] - vals[0]
@@ -242,20 +269,23 @@ class DPProblem(BaseModel):
                                 (("x4 initial state", 0.0), ("w_m", self.targets.w_m),
                                  ("w_d", self.targets.w_d))):
                 label = tname if tname.endswith("state") else f"targets.{tname}"
+                field = f"{name}.min" if tname.endswith("state") else f"targets.{tname}"
                 if tval < grid.min - _TOL * spacing or tval > grid.max + _TOL * spacing:
-                    raise err(f"{label} = {tval} {unit} is outside the {name} grid "
+                    raise err(field, f"{label} = {tval} {unit} is outside the {name} grid "
                               f"[{grid.min}, {grid.max}] {unit}")
                 off = np.min(np.abs(vals - tval))
                 if off > 1e-6 * spacing:
-                    raise err(f"{label} = {tval} {unit} is not on the {name} grid "
+                    raise err(field, f"{label} = {tval} {unit} is not on the {name} grid "
                               f"(spacing {spacing:.6g} {unit}, nearest point off by {off:.3g}); "
                               f"choose min/max/points so that it is a grid point")
         for name in ("x1_regions", "x3_regions"):
             val = getattr(self, name)
             if val is not None and val < 1:
-                raise err(f"{name} must be a positive number of regions or omitted, got {val}")
+                raise err(name,
+                          f"{name} must be a positive number of regions or omitted, got {val}")
         if (self.x1_regions is None) != (self.x3_regions is None):
-            raise err("x1_regions and x3_regions must be given together (or both omitted), got "
+            raise err("x3_regions",
+                      "x1_regions and x3_regions must be given together (or both omitted), got "
                       f"x1_regions={self.x1_regions}, x3_regions={self.x3_regions}")
         for name, pair, unit in (("force", self.bounds.force, "N"),
                                  ("torque", self.bounds.torque, "N m"),
@@ -264,27 +294,39 @@ class DPProblem(BaseModel):
             if pair is None:
                 continue
             if not (pair[0] < pair[1]):
-                raise err(f"bounds.{name} = {list(pair)} {unit} is empty: expected [min, max] "
+                raise err(f"bounds.{name}",
+                          f"bounds.{name} = {list(pair)} {unit} is empty: expected [min, max] "
                           f"with min < max")
         scales = self.robust.epsilon_scales
         if len(scales) < 1 or any(not (s > 0) for s in scales):
-            raise err(f"robust.epsilon_scales must be positive factors, got {list(scales)}")
+            raise err("robust.epsilon_scales",
+                      f"robust.epsilon_scales must be positive factors, got {list(scales)}")
         for name in ("substep",):
             for spec, label in ((self.robust, "robust"), (self.standard, "standard")):
                 if self.step / getattr(spec, name) > MAX_DP_STEPS:
-                    raise err(f"{label}.{name} = {getattr(spec, name)} s is below "
+                    raise err(f"{label}.{name}",
+                              f"{label}.{name} = {getattr(spec, name)} s is below "
                               f"{self.step / MAX_DP_STEPS:.3g} s (at most {MAX_DP_STEPS} "
                               "substeps per DP step)")
                 if getattr(spec, name) > self.step:
-                    raise err(f"{label}.{name} = {getattr(spec, name)} s exceeds the DP step "
+                    raise err(f"{label}.{name}",
+                              f"{label}.{name} = {getattr(spec, name)} s exceeds the DP step "
                               f"{self.step} s")
         try:
             self.params()
+        except ValidationError as exc:
+            e = exc.errors()[0]
+            where = ".".join(str(p) for p in e.get("loc", ()))
+            msg = e.get("msg", str(exc)).removeprefix("Value error, ")
+            if e.get("type") == "extra_forbidden":
+                msg = "unknown bit parameter"
+            raise err(f"model.bit.{where}", f"model.bit.{where}: {msg}") from None
         except KeyError as exc:
-            raise err(f"model.preset: {exc.args[0]}") from None
+            raise err("model.preset", f"model.preset: {exc.args[0]}") from None
         preset = get_preset(self.model.preset)
         if preset.kind != "lumped":
-            raise err(f"model.preset {self.model.preset!r} is a {preset.kind} preset; the DP "
+            raise err("model.preset",
+                      f"model.preset {self.model.preset!r} is a {preset.kind} preset; the DP "
                       "needs a lumped one (e.g. table_2_1, plausible_lumped)")
         self._check_hold_feasible()
 
@@ -298,12 +340,14 @@ class DPProblem(BaseModel):
             f, t = steady_loads(v, w, a.ca, a.ct, a.bit)
             lo, hi = self.bounds.force
             if not lo <= f <= hi:
-                raise DownholeInputError(
+                raise _ProblemError(
+                    "bounds.force",
                     f"infeasible bounds: holding the {label} = ({v} m/s, {w} rad/s) needs a "
                     f"string force of {f:.4g} N, outside bounds.force = [{lo:.4g}, {hi:.4g}] N")
             lo, hi = self.bounds.torque
             if not lo <= t <= hi:
-                raise DownholeInputError(
+                raise _ProblemError(
+                    "bounds.torque",
                     f"infeasible bounds: holding the {label} = ({v} m/s, {w} rad/s) needs a "
                     f"string torque of {t:.4g} N m, outside bounds.torque = [{lo:.4g}, {hi:.4g}] "
                     "N m")
@@ -333,6 +377,12 @@ class ModelArrays:
 
 def _flatten_error(exc: ValidationError) -> tuple[str, str]:
     e = exc.errors()[0]
+    inner = (e.get("ctx") or {}).get("error")
+    if isinstance(inner, _ProblemError) and not e.get("loc"):
+        # raised by DPProblem.__init__ / _check (pydantic wraps it when validating a dict)
+        msg = str(inner)
+        return inner.field, msg[len(inner.field) + 2:] if inner.field and msg.startswith(
+            f"{inner.field}: ") else msg
     field = ".".join(str(p) for p in e.get("loc", ()))
     msg = e.get("msg", str(exc))
     if msg.startswith("Value error, "):
@@ -343,7 +393,8 @@ def _flatten_error(exc: ValidationError) -> tuple[str, str]:
 
 
 def problem_from_dict(data: dict, source: str = "<dict>") -> DPProblem:
-    """Build a :class:`DPProblem` from a plain dict (the TOML schema of docs/dp.md).
+    """Build a :class:`DPProblem` from a plain dict of its fields (``DPProblem.model_dump()``,
+    as stored in a solution's JSON; a problem *file* is read by :func:`load_problem`).
 
     Raises
     ------
@@ -357,23 +408,148 @@ def problem_from_dict(data: dict, source: str = "<dict>") -> DPProblem:
         raise ScenarioError(source, field, msg) from None
     except ScenarioError:
         raise
+    except _ProblemError as exc:
+        raise ScenarioError(source, exc.field, str(exc)) from None
     except DownholeInputError as exc:
         raise ScenarioError(source, "", str(exc)) from None
 
 
-def load_problem(path: str | Path) -> DPProblem:
-    """Read a DP problem TOML file (schema in docs/dp.md; examples in ``examples/dp_*.toml``).
+# ------------------------------------------------------------------------------ problem files
+class _FileStrict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
 
-    The file may hold the problem at top level or under a ``[dp]`` table.
+
+class _VelocityGrid(_FileStrict):
+    """``[optimize.x2]``: bit axial velocity grid (m/s, or unit strings)."""
+
+    min: Q["velocity"]
+    max: Q["velocity"]
+    points: StrictInt = Field(..., ge=2, le=MAX_GRID_POINTS)
+
+
+class _AngularGrid(_FileStrict):
+    """``[optimize.x4]``: bit angular velocity grid (rad/s, or unit strings)."""
+
+    min: Q["angular_velocity"]
+    max: Q["angular_velocity"]
+    points: StrictInt = Field(..., ge=2, le=MAX_GRID_POINTS)
+
+
+class DPOptimizeSettings(_FileStrict):
+    """``[optimize]``: the problem (the fields of :class:`DPProblem` but ``model``) and the
+    solver (``method``; ``--method`` on the command line overrides it)."""
+
+    method: Optional[Literal["customized", "standard", "robust"]] = None
+    horizon: Q["time"] = Field(20.0, gt=0)
+    step: Q["time"] = Field(0.25, gt=0)
+    x1_regions: Optional[StrictInt] = Field(None, le=MAX_GRID_POINTS)
+    x3_regions: Optional[StrictInt] = Field(None, le=MAX_GRID_POINTS)
+    x2: _VelocityGrid = _VelocityGrid(min=0.0, max=0.02, points=21)
+    x4: _AngularGrid = _AngularGrid(min=0.0, max=20.0, points=21)
+    targets: TargetSpec = TargetSpec()
+    weights: WeightSpec = WeightSpec()
+    bounds: BoundSpec = BoundSpec()
+    robust: RobustSpec = RobustSpec()
+    standard: StandardSpec = StandardSpec()
+
+
+class DPModelSettings(_FileStrict):
+    """``[model]`` of a problem file: the DP's model (the 4th-order lumped model of Eq. 2.1)."""
+
+    fidelity: str = "lumped4"
+    preset: str = Field("table_2_1", max_length=64)
+
+    @field_validator("fidelity")
+    @classmethod
+    def _lumped4(cls, v):
+        if v != "lumped4":
+            raise ValueError(f"the DP optimizes the 4th-order lumped model (Eqs. 2.12-2.14): "
+                             f"expected 'lumped4', got {v!r}")
+        return v
+
+
+class DPScenario(_FileStrict):
+    """A whole problem file (``downhole optimize dp``)."""
+
+    title: str = ""
+    description: str = ""
+    model: DPModelSettings = DPModelSettings()
+    bit: dict[str, Any] = Field(default_factory=dict)
+    optimize: DPOptimizeSettings = DPOptimizeSettings()
+
+
+def _file_field(field: str) -> str:
+    """A :class:`DPProblem` field as the problem file names it."""
+    if field == "model.preset":
+        return field
+    if field.startswith("model.bit."):
+        return "bit." + field[len("model.bit."):]
+    if field == "model.epsilon":
+        return "bit.epsilon"
+    return f"optimize.{field}" if field else ""
+
+
+def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, Optional[str]]:
+    """Validate a parsed problem file: ``(problem, method or None)``.
 
     Raises
     ------
     ScenarioError
-        If the file is missing, is not valid TOML or fails validation.
+        Naming the source, the dotted field of the file (``optimize.x2.points``,
+        ``bit.epsilon``, ...) and what was expected; a key of the older DP dialect (top-level
+        ``horizon``, ``[x2]``, ``[dp]``, ``model.epsilon``, ...) gets the key to use instead.
     """
-    from downhole._reader import read_toml
+    from downhole.scenario import _raise_validation
+    from downhole.scenario.schema import check_dialect
 
-    data, _, _ = read_toml(path)
-    if "dp" in data and isinstance(data["dp"], dict):
-        data = data["dp"]
-    return problem_from_dict(data, source=str(path))
+    check_dialect(data, source)
+    try:
+        sc = DPScenario.model_validate(data)
+    except ValidationError as exc:
+        _raise_validation(source, exc)
+    bit = dict(sc.bit)
+    if "preset" in bit:
+        raise ScenarioError(source, "bit.preset", f"model.preset = {sc.model.preset!r} brings "
+                            "its bit; give only bit parameters here (epsilon, ...)")
+    epsilon = bit.pop("epsilon", None)
+    opt = sc.optimize.model_dump(exclude={"method"})
+    opt["model"] = {"preset": sc.model.preset, "epsilon": epsilon, "bit": bit}
+    try:
+        problem = DPProblem.model_validate(opt)
+    except ValidationError as exc:
+        field, msg = _flatten_error(exc)
+        raise ScenarioError(source, _file_field(field), msg) from None
+    except ScenarioError:
+        raise
+    except _ProblemError as exc:
+        raise ScenarioError(source, _file_field(exc.field), str(exc)) from None
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "", str(exc)) from None
+    return problem, sc.optimize.method
+
+
+def load_dp_scenario(path: str | Path) -> tuple[DPProblem, Optional[str]]:
+    """Read a problem file (schema in docs/dp.md; examples in ``examples/dp_*.toml``):
+    ``(problem, optimize.method or None)``.
+
+    Raises
+    ------
+    ScenarioError
+        If the file is unreadable, is not valid TOML or fails validation (one line naming the
+        file, the dotted field and what was expected).
+    """
+    from downhole.scenario.schema import read_scenario
+
+    data, source, _ = read_scenario(path)
+    return dp_problem_of(data, source)
+
+
+def load_problem(path: str | Path) -> DPProblem:
+    """Read a problem file: its :class:`DPProblem` (see :func:`load_dp_scenario`).
+
+    Raises
+    ------
+    ScenarioError
+        If the file is unreadable, is not valid TOML or fails validation.
+    """
+    return load_dp_scenario(path)[0]
