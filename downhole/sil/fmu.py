@@ -24,16 +24,23 @@ import math
 import pickle
 import shutil
 import tempfile
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Callable, Mapping
 
 import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.sim.result import Result
 
-__all__ = ["export_fmu", "export_plant_fmu", "simulate_fmu", "run_fmu_closed_loop",
-           "fmu_signals"]
+__all__ = [
+    "export_fmu",
+    "export_plant_fmu",
+    "export_system_fmu",
+    "fmu_signals",
+    "run_fmu_closed_loop",
+    "simulate_fmu",
+    "system_plant",
+]
 
 #: Prefix of the FMU input that carries command signal ``name``.
 COMMAND_PREFIX = "command_"
@@ -113,7 +120,8 @@ def _check_plant(plant) -> None:
 
 
 def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
-                     set_point: Mapping[str, float] | None = None) -> Path:
+                     set_point: Mapping[str, float] | None = None,
+                     command_start: Mapping[str, float] | None = None) -> Path:
     """Build ``out`` (an ``.fmu``) wrapping ``plant``, a plant of the Plant contract.
 
     The plant is pickled into the FMU's resources as it is now (model, step ``dt``, options such
@@ -133,6 +141,9 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
         How every run of the FMU starts (:data:`downhole.sim.plant.START_MODES`).
     set_point : mapping, optional
         Set-point of the start (default: the plant's default command).
+    command_start : mapping, optional
+        Start values of the inputs ``command_<name>`` (default: the plant's default command);
+        the command an importing tool applies until it sets the inputs.
 
     Returns
     -------
@@ -143,18 +154,30 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
     ------
     DownholeInputError
         ``out`` does not end in ``.fmu``; ``plant`` is not a plant of the contract, cannot be
-        pickled, or cannot start as asked (the plant's reason).
+        pickled, or cannot start as asked (the plant's reason); a ``command_start`` entry
+        that is not a command of the plant or not admissible.
     """
     import downhole
+    from downhole.signals import check_command_value
     from downhole.sim.plant import check_start
 
     out = _check_out(out)
     _check_plant(plant)
     check_start(start)
     set_point = None if set_point is None else {str(k): float(v) for k, v in set_point.items()}
+    command_start = dict(command_start or {})
+    unknown = [k for k in command_start if k not in plant.command_names]
+    if unknown:
+        raise DownholeInputError(f"command_start names {unknown}; {type(plant).__name__} takes "
+                                 f"{list(plant.command_names)}")
+    for k, v in command_start.items():
+        why = check_command_value(k, v)
+        if why is not None:
+            raise DownholeInputError(f"command_start: {why}")
+    command_start = {k: float(v) for k, v in command_start.items()}
     try:
         blob = pickle.dumps(plant)
-    except Exception as exc:
+    except Exception as exc:  # noqa: BLE001 - any pickling failure, named
         raise DownholeInputError(f"{type(plant).__name__} cannot be pickled into the FMU: "
                                  f"{exc}") from None
     copy = pickle.loads(blob)  # fail here, not inside the FMU
@@ -163,11 +186,75 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
     def resources(res: Path) -> list:
         (res / "plant.pkl").write_bytes(blob)
         (res / "start.json").write_text(json.dumps({
-            "start": start, "set_point": set_point, "plant": type(plant).__name__,
+            "start": start, "set_point": set_point, "command_start": command_start,
+            "plant": type(plant).__name__,
             "downhole_version": downhole.__version__}))
         return [res / "plant.pkl", res / "start.json"]
 
     return _build(out, resources)
+
+
+def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: float = 10.0,
+                 rop: float = 0.0, depth_of_cut: str = "delayed", integrator: str = "newmark"):
+    """The velocity-driven plant of ``model`` (``system.build(fidelity)``) that
+    :func:`export_system_fmu` wraps: commands ``top_drive_axial_velocity`` (m/s) and
+    ``top_drive_angular_velocity`` (rad/s) at every fidelity.
+
+    ``lumped4`` / ``lumped12``: :class:`~downhole.sim.LumpedPlant` (velocity-driven top, the
+    given ``integrator``); ``neutral``: :class:`~downhole.string.neutral.NeutralPlant`;
+    ``fem`` / ``hybrid``: :class:`~downhole.string.fem.DirectionalPlant` with the rig's PI top
+    drive (``surface_speed`` its default set-point) and a velocity-servo hook (block velocity
+    ``rop``).
+    """
+    if fidelity in ("lumped4", "lumped12"):
+        from downhole.sim import LumpedPlant
+
+        return LumpedPlant(model, dt=dt, depth_of_cut=depth_of_cut, integrator=integrator)
+    if fidelity == "neutral":
+        from downhole.string.neutral import NeutralPlant
+
+        return NeutralPlant(model, dt=dt, depth_of_cut=depth_of_cut)
+    import dataclasses
+
+    from downhole.params.rig import Hook
+    from downhole.string.fem import DirectionalPlant
+
+    top = dataclasses.replace(system.rig.top_drive, mode="pi", speed=surface_speed)
+    h = system.rig.hook
+    hook = Hook(mode="velocity", velocity=rop, block_mass=h.block_mass,
+                servo_stiffness=h.servo_stiffness, servo_damping=h.servo_damping)
+    return DirectionalPlant(model, dt, top_drive=top, hook=hook, depth_of_cut=depth_of_cut)
+
+
+def export_system_fmu(scenario, out="plant.fmu", *, fidelity: str | None = None) -> Path:
+    """Build ``out`` from a scenario that describes the system (``[model] fidelity``) at
+    ``fidelity`` (default: the file's): the plant of :func:`system_plant` with the scenario's
+    ``[simulation] dt`` (default: the fidelity's), ``depth_of_cut``, ``integrator`` and
+    ``start``; the inputs start at the scenario's set-points (``[operation] rop`` or the ROP of
+    the steady bit state at ``wob``, and ``surface_speed``).
+
+    Raises
+    ------
+    ScenarioError
+        Invalid scenario, or a feature the fidelity cannot represent (naming the field).
+    DownholeInputError
+        ``out`` does not end in ``.fmu``.
+    """
+    from downhole.scenario import read_toml
+    from downhole.scenario.system import DEFAULT_DT, steady_bit_state, validate_system_scenario
+
+    out = _check_out(out)
+    data, source, _ = read_toml(Path(scenario))
+    sc, fid, system, model = validate_system_scenario(data, source, fidelity)
+    sim, op = sc.simulation, sc.operation
+    dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]
+    rop, _, _ = steady_bit_state(system.bit, op.surface_speed, op.rop, op.wob)
+    plant = system_plant(system, model, fid, dt, surface_speed=op.surface_speed, rop=rop,
+                         depth_of_cut=sim.depth_of_cut, integrator=sim.integrator)
+    command = {"top_drive_axial_velocity": rop, "top_drive_angular_velocity": op.surface_speed}
+    return export_plant_fmu(plant, out, start=sim.start,
+                            set_point=None if sim.start == "rest" else command,
+                            command_start=command)
 
 
 def simulate_fmu(fmu, stop_time: float, step_size: float, start_values: dict | None = None
@@ -189,7 +276,7 @@ def _model_description(fmu: Path):
         raise DownholeInputError(f"{fmu}: no such FMU file")
     try:
         md = fmpy.read_model_description(str(fmu))
-    except Exception as exc:
+    except Exception as exc:  # noqa: BLE001 - zip, XML or schema errors
         raise DownholeInputError(f"{fmu}: not a readable FMU ({exc})") from None
     if md.fmiVersion != "2.0" or md.coSimulation is None:
         raise DownholeInputError(f"{fmu}: expected an FMI 2.0 co-simulation FMU, got FMI "
@@ -214,7 +301,7 @@ def fmu_signals(fmu) -> dict:
         if v.type != "Real":
             continue
         if v.causality == "input":
-            name = v.name[len(COMMAND_PREFIX):] if v.name.startswith(COMMAND_PREFIX) else v.name
+            name = v.name.removeprefix(COMMAND_PREFIX)
             commands[name] = float(v.start) if v.start is not None else 0.0
         elif v.causality == "output":
             observations.append(v.name)
@@ -277,11 +364,16 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
         command that is not finite or out of its admissible range (named, with the time); a
         step the FMU rejects (with the FMU's log message).
     """
-    import fmpy
     from ctypes import byref
 
-    from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+    import fmpy
+    from fmpy.fmi2 import (
+        FMU2Slave,
+        fmi2CallbackAllocateMemoryTYPE,
+        fmi2CallbackFreeMemoryTYPE,
+        fmi2CallbackFunctions,
+        fmi2CallbackLoggerTYPE,
+    )
 
     from downhole.signals import check_command_value
 
@@ -312,7 +404,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
     if isinstance(record_every, bool) or not isinstance(record_every, int) or record_every < 1:
         raise DownholeInputError(f"record_every must be a positive integer, got "
                                  f"{record_every!r}")
-    n = int(round(duration / dt))
+    n = round(duration / dt)
     ref_fn = reference if callable(reference) else (lambda t, r=dict(reference or {}): r)
     vr = {v.name: v.valueReference for v in md.modelVariables}
     out_vr = [vr[n_] for n_ in observed]
@@ -338,7 +430,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
     cmds = np.empty((len(keep), len(in_names)))
     instantiated = False
     try:
-        slave.instantiate(callbacks=callbacks)
+        slave.instantiate(callbacks=callbacks, loggingOn=True)
         instantiated = True
         slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
@@ -366,7 +458,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
             slave.setReal(in_vr, [float(held[c]) for c in in_names])
             try:
                 slave.doStep(currentCommunicationPoint=t, communicationStepSize=dt)
-            except Exception as exc:
+            except Exception as exc:  # noqa: BLE001 - FMICallException
                 said = "; ".join(log.messages[-3:]) or str(exc)
                 raise DownholeInputError(f"the FMU {fmu.name} rejected the step at t = {t:g} s "
                                          f"(dt = {dt:g} s): {said}") from None

@@ -24,17 +24,19 @@ from pythonfmu.enums import Fmi2Status
 
 
 def _load_plant(resources: Path):
-    """``(plant, reset_kwargs)`` from the FMU's resources."""
+    """``(plant, settings)`` from the FMU's resources (settings: ``start``, ``set_point``,
+    ``command_start``)."""
     if (resources / "plant.pkl").is_file():
         with open(resources / "plant.pkl", "rb") as fh:
             plant = pickle.load(fh)
         start = json.loads((resources / "start.json").read_text())
-        return plant, {"start": start["start"], "set_point": start["set_point"]}
+        return plant, start
+
     from downhole.sil.scenario import build_from_scenario, load_sil_scenario
 
     sc = load_sil_scenario(resources / "scenario.toml")
     plant, _ = build_from_scenario(sc, with_controller=False)
-    return plant, {}
+    return plant, {"start": "rest", "set_point": None, "command_start": {}}
 
 
 class DownholePlant(Fmi2Slave):
@@ -45,11 +47,13 @@ class DownholePlant(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self._plant, self._reset = _load_plant(Path(self.resources))
+        self._plant, settings = _load_plant(Path(self.resources))
+        self._reset = {"start": settings["start"], "set_point": settings["set_point"]}
         self._dt = float(self._plant.dt)
         self.default_experiment = DefaultExperiment(start_time=0.0, step_size=self._dt)
         self._in = [f"command_{c}" for c in self._plant.command_names]
-        for c, v in self._plant.default_command().items():
+        start_values = dict(self._plant.default_command(), **settings.get("command_start", {}))
+        for c, v in start_values.items():
             setattr(self, f"command_{c}", float(v))
             self.register_variable(Real(f"command_{c}", causality=Fmi2Causality.input,
                                         variability=Fmi2Variability.continuous))
@@ -67,7 +71,7 @@ class DownholePlant(Fmi2Slave):
         self._set_outputs(self._plant.reset(**self._reset))
 
     def do_step(self, current_time, step_size):
-        n = int(round(step_size / self._dt))
+        n = round(step_size / self._dt)
         if n < 1 or abs(n * self._dt - step_size) > 1e-9 * max(1.0, step_size):
             self.log(f"step size {step_size!r} s is not a whole multiple of the plant's dt = "
                      f"{self._dt!r} s", Fmi2Status.error)
@@ -77,7 +81,7 @@ class DownholePlant(Fmi2Slave):
         try:
             for _ in range(n):
                 obs = self._plant.step(cmd)
-        except Exception as exc:  # the plant's reason goes to the importing tool's log
+        except Exception as exc:  # noqa: BLE001 - the reason goes to the importer's log
             self.log(f"t = {current_time:g} s: {type(exc).__name__}: {exc}", Fmi2Status.error)
             return False
         self._set_outputs(obs)
