@@ -64,12 +64,20 @@ def system():
 
 
 @pytest.fixture(scope="module")
-def fmus(system, tmp_path_factory):
-    """One FMU per fidelity, exported from the plant the other runners use (about 0.1 s each)."""
+def fmus(tmp_path_factory):
+    """``fmu_for(fidelity, plant)``: the FMU of each fidelity, exported once per module (about
+    0.1 s) from the first plant a cell builds for it (the plant the other runners use)."""
     from downhole.sil.fmu import export_plant_fmu
 
     folder = tmp_path_factory.mktemp("fmus")
-    return {f: export_plant_fmu(_plant(system, f), folder / f"{f}.fmu") for f in FIDELITIES}
+    built = {}
+
+    def fmu_for(fidelity, plant):
+        if fidelity not in built:
+            built[fidelity] = export_plant_fmu(plant, folder / f"{fidelity}.fmu")
+        return built[fidelity]
+
+    return fmu_for
 
 
 @pytest.fixture(scope="module")
@@ -151,7 +159,7 @@ def test_controller_runs_at_every_fidelity_in_every_runner(system, eid_design, f
         plant = _plant(system, fidelity)
         ctrl = _controller(controller, plant, system, eid_design)
         assert check_pair(ctrl, plant) is None
-        w, cmd = _run(runner, plant, ctrl, fmus[fidelity])
+        w, cmd = _run(runner, plant, ctrl, fmus(fidelity, plant) if runner == "fmu" else None)
         assert np.all(np.isfinite(w)) and np.all(np.isfinite(cmd))
         assert np.all(np.abs(cmd) <= 100.0)
         out[runner] = (np.asarray(w), np.asarray(cmd))

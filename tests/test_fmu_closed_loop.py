@@ -125,6 +125,9 @@ def test_missing_signals_are_named(lumped_fmu):
         run_fmu_closed_loop(lumped_fmu, Needs(needs=("bit_angular_velocity", "x_1")), 0.01)
     with pytest.raises(DownholeInputError, match=r"sets \['surface_torque'\].*takes"):
         run_fmu_closed_loop(lumped_fmu, Needs(commands=("surface_torque",)), 0.01)
+    # a controller that declares nothing is caught at its first command
+    with pytest.raises(DownholeInputError, match=r"at t = 0 s sets \['surface_torque'\]"):
+        run_fmu_closed_loop(lumped_fmu, Needs(out={"surface_torque": 1.0}), 0.01)
 
 
 def test_bad_commands_are_named_and_never_applied(lumped_fmu):

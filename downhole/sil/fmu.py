@@ -24,6 +24,7 @@ import math
 import pickle
 import shutil
 import tempfile
+from collections import deque
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -295,26 +296,33 @@ def fmu_signals(fmu) -> dict:
     DownholeInputError
         Not a readable FMI 2.0 co-simulation FMU.
     """
-    md = _model_description(Path(fmu))
-    commands, observations = {}, []
+    return _signals(_model_description(Path(fmu)))
+
+
+def _signals(md, with_inputs: bool = False) -> dict:
+    commands, observations, inputs = {}, [], {}
     for v in md.modelVariables:
         if v.type != "Real":
             continue
         if v.causality == "input":
             name = v.name.removeprefix(COMMAND_PREFIX)
             commands[name] = float(v.start) if v.start is not None else 0.0
+            inputs[name] = v.valueReference
         elif v.causality == "output":
             observations.append(v.name)
     de = md.defaultExperiment
     step = float(de.stepSize) if de is not None and de.stepSize is not None else None
-    return {"commands": commands, "observations": observations, "step_size": step}
+    out = {"commands": commands, "observations": observations, "step_size": step}
+    if with_inputs:
+        out["input_references"] = inputs
+    return out
 
 
 class _Log:
-    """FMI logger callback that keeps the FMU's messages (for the error that names them)."""
+    """FMI logger callback that keeps the FMU's last messages (for the error that names them)."""
 
     def __init__(self):
-        self.messages: list[str] = []
+        self.messages: deque[str] = deque(maxlen=16)
 
     def __call__(self, env, instance, status, category, message):
         self.messages.append(message.decode("utf-8", "replace") if isinstance(message, bytes)
@@ -379,7 +387,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
 
     fmu = Path(fmu)
     md = _model_description(fmu)
-    sig = fmu_signals(fmu)
+    sig = _signals(md, with_inputs=True)
     observed, taken = sig["observations"], sig["commands"]
     cname = type(controller).__name__
     needs = tuple(getattr(controller, "needs", None) or ())
@@ -409,7 +417,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
     vr = {v.name: v.valueReference for v in md.modelVariables}
     out_vr = [vr[n_] for n_ in observed]
     in_names = list(taken)
-    in_vr = [vr[COMMAND_PREFIX + c] for c in in_names]
+    in_vr = [sig["input_references"][c] for c in in_names]
     held = dict(taken)
 
     log = _Log()
@@ -443,7 +451,12 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
             t = k * dt
             obs = dict(zip(observed, slave.getReal(out_vr)))
             obs.setdefault("time", t)
-            held.update(controller.command(t, obs, ref_fn(t)))
+            out = controller.command(t, obs, ref_fn(t))
+            unknown = [c for c in out if c not in held]
+            if unknown:
+                raise DownholeInputError(f"{cname} at t = {t:g} s sets {unknown}; the FMU "
+                                         f"{fmu.name} takes {sorted(taken)}")
+            held.update(out)
             if j < len(keep) and keep[j] == k:
                 rows[j] = [obs[c] for c in observed]
                 cmds[j] = [held[c] for c in in_names]
@@ -459,7 +472,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
             try:
                 slave.doStep(currentCommunicationPoint=t, communicationStepSize=dt)
             except Exception as exc:  # noqa: BLE001 - FMICallException
-                said = "; ".join(log.messages[-3:]) or str(exc)
+                said = "; ".join(list(log.messages)[-3:]) or str(exc)
                 raise DownholeInputError(f"the FMU {fmu.name} rejected the step at t = {t:g} s "
                                          f"(dt = {dt:g} s): {said}") from None
         slave.terminate()
