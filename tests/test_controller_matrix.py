@@ -1,7 +1,7 @@
 """Controller x fidelity x runner: every controller runs unchanged on every plant of one
 description whose signals it needs, and the runners agree.
 
-- controllers: the surface PI (``SurfacePI``), soft-torque / Z-torque (``ZTorque``) and EID;
+- controllers: the surface PI (``SurfacePI``), Z-torque (``ZTorque``) and EID;
 - fidelities: ``lumped4``, ``lumped12``, ``neutral``, ``fem``, ``hybrid`` of one
   :class:`~downhole.system.DrillingSystem` (Table 5.1, no friction), all velocity-driven (top-drive
   axial and angular velocity commands);
@@ -48,13 +48,14 @@ REASONS = {
     "dp": "the DP solution is an open-loop schedule of top velocities optimized on the "
           "4th-order model's states; its replay runs on the lumped plant it was optimized for "
           "(tests/test_dp.py), not as feedback on other fidelities",
-    "dhp_fmu": "the FMU of a DHP plant is the SIL scenario's interface = 'state' plant (24-state "
-               "design model's states as outputs x_1, ..., slack-off force and surface torque "
-               "as inputs): tests/test_fmu_closed_loop.py drives it with the trained DHP "
-               "(slow: the DHP design takes minutes)",
-    "dp_fmu": "the DP replay is open loop (a schedule of top velocities) for the 4th-order "
-              "model it was optimized on: simulate_fmu with that schedule as input is the FMU "
-              "equivalent; there is no feedback loop to run",
+    "dhp_fmu": "the DHP needs the 24-state design model's states, which only the FMU of the "
+               "SIL scenario's interface = 'state' plant outputs (x_1, ...; inputs slack-off "
+               "force and surface torque): tests/test_fmu_closed_loop.py drives that FMU with "
+               "the trained DHP and matches the in-process SIL loop (slow: the DHP design)",
+    "dp_fmu": "the DP replay is open loop: the top motion (path inversion of the optimal path, "
+              "SurfaceInputs.displacement) for the 4th-order model it was optimized on; against "
+              "an FMU it is an input table for the importing tool, not a feedback loop for "
+              "run_fmu_closed_loop",
 }
 
 

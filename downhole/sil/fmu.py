@@ -128,7 +128,9 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
     The plant is pickled into the FMU's resources as it is now (model, step ``dt``, options such
     as the integrator or the hook mode); every FMU instance unpickles its own copy and starts
     with ``plant.reset(start=start, set_point=set_point)`` when it leaves initialization mode.
-    The FMU runs in a Python environment with the same downhole version.
+    The FMU runs in a Python environment with the same downhole version. A plant that holds
+    local functions (the DHP ``state`` interface's design model) cannot be pickled: export its
+    SIL scenario with :func:`export_fmu` instead.
 
     Parameters
     ----------
