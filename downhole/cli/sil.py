@@ -368,16 +368,16 @@ def sil_controller(port: Optional[int] = typer.Option(
 
 @app.command("export-fmu")
 def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML, or a scenario that "
-                                                     "describes the system ([model] fidelity)"),
+                                                     "describes the system (model.fidelity)"),
                out: Path = typer.Option(Path("plant.fmu"), "--out", help="FMU file to write"),
                fidelity: Optional[str] = typer.Option(
                    None, "--fidelity", help="system scenarios: lumped4 | lumped12 | neutral | "
-                   "fem | hybrid (default: the file's [model] fidelity)")):
+                   "fem | hybrid (default: the file's model.fidelity)")):
     """Build an FMI 2.0 co-simulation FMU of the scenario's plant (pythonfmu).
 
-    A SIL scenario selects its plant with [plant] model; a scenario that describes the system
-    is exported at its [model] fidelity or --fidelity, velocity-driven at every fidelity
-    (inputs command_top_drive_axial_velocity, command_top_drive_angular_velocity).
+    A SIL scenario selects its plant with plant.model; a scenario that describes the system is
+    exported at its model.fidelity or --fidelity, velocity-driven at every fidelity (inputs
+    command_top_drive_axial_velocity and command_top_drive_angular_velocity).
     """
     from downhole.scenario import read_toml
     from downhole.scenario.system import is_system_dialect
