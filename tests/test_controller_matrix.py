@@ -1,6 +1,20 @@
 """Controller x fidelity x runner: every controller runs unchanged on every plant of one
-description whose signals it needs, offline (``run_closed_loop``), in the real-time SIL loop in
-process and over UDP; the runners agree. Cells that cannot work say why (``REASONS``)."""
+description whose signals it needs, and the runners agree.
+
+- controllers: the surface PI (``SurfacePI``), Z-torque (``ZTorque``) and EID;
+- fidelities: ``lumped4``, ``lumped12``, ``neutral``, ``fem``, ``hybrid`` of one
+  :class:`~downhole.system.DrillingSystem` (Table 5.1, no friction), all velocity-driven (top-drive
+  axial and angular velocity commands);
+- runners: ``offline`` (:func:`~downhole.control.base.run_closed_loop`), ``sil`` (the real-time
+  SIL loop in process, unpaced), ``udp`` (the SIL loop with the controller behind the UDP link)
+  and ``fmu`` (the plant exported with :func:`~downhole.sil.fmu.export_plant_fmu`, once per
+  fidelity per module, driven through FMPy's low-level API by
+  :func:`~downhole.sil.fmu.run_fmu_closed_loop`).
+
+Each cell checks the pair, runs every runner and requires the bit speed of ``sil``, ``udp`` and
+``fmu`` to equal the offline one (``rtol = atol = 1e-6``; they are the same loop, bit for bit in
+practice). All 15 controller x fidelity cells work in all four runners; the cells that cannot
+work (DHP and the DP replay off their own plants) say why in ``REASONS``."""
 
 import dataclasses
 import threading
@@ -22,7 +36,7 @@ from downhole.string.neutral import NeutralPlant
 from downhole.system import FIDELITIES, DrillingSystem
 
 DURATION = 0.3  # s simulated per cell
-RUNNERS = ("offline", "sil", "udp")
+RUNNERS = ("offline", "sil", "udp", "fmu")
 CONTROLLERS = ("pi", "ztorque", "eid")
 
 #: Cells that cannot work, and why (the test checks that check_pair or the plant says so too,
@@ -34,14 +48,37 @@ REASONS = {
     "dp": "the DP solution is an open-loop schedule of top velocities optimized on the "
           "4th-order model's states; its replay runs on the lumped plant it was optimized for "
           "(tests/test_dp.py), not as feedback on other fidelities",
-    "fmu": "the exported FMU is the plant; its closed loop is the importing tool's "
-           "(tests/test_fmu.py runs the round trip against the in-process plant)",
+    "dhp_fmu": "the DHP needs the 24-state design model's states, which only the FMU of the "
+               "SIL scenario's interface = 'state' plant outputs (x_1, ...; inputs slack-off "
+               "force and surface torque): tests/test_fmu_closed_loop.py drives that FMU with "
+               "the trained DHP and matches the in-process SIL loop (slow: the DHP design)",
+    "dp_fmu": "the DP replay is open loop: the top motion (path inversion of the optimal path, "
+              "SurfaceInputs.displacement) for the 4th-order model it was optimized on; against "
+              "an FMU it is an input table for the importing tool, not a feedback loop for "
+              "run_fmu_closed_loop",
 }
 
 
 @pytest.fixture(scope="module")
 def system():
     return DrillingSystem.table_5_1(friction=0.0)
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    """``fmu_for(fidelity, plant)``: the FMU of each fidelity, exported once per module (about
+    0.1 s) from the first plant a cell builds for it (the plant the other runners use)."""
+    from downhole.sil.fmu import export_plant_fmu
+
+    folder = tmp_path_factory.mktemp("fmus")
+    built = {}
+
+    def fmu_for(fidelity, plant):
+        if fidelity not in built:
+            built[fidelity] = export_plant_fmu(plant, folder / f"{fidelity}.fmu")
+        return built[fidelity]
+
+    return fmu_for
 
 
 @pytest.fixture(scope="module")
@@ -78,10 +115,16 @@ def _controller(name, plant, system, eid_design):
 REF = {"reference_axial_velocity": 0.005, "reference_angular_velocity": 10.0}
 
 
-def _run(runner, plant, ctrl):
+def _run(runner, plant, ctrl, fmu=None):
     if runner == "offline":
         r = run_closed_loop(plant, ctrl, DURATION, reference=REF)
         return r["bit_angular_velocity"], r["command:top_drive_angular_velocity"]
+    if runner == "fmu":
+        from downhole.sil.fmu import run_fmu_closed_loop
+
+        r = run_fmu_closed_loop(fmu, ctrl, DURATION, reference=REF)
+        assert r.attrs["dt"] == plant.dt  # the FMU's default step is the plant's
+        return r["bit_angular_velocity"], r["command_top_drive_angular_velocity"]
     sil = SilPlant(plant, plant.command_names, plant.default_command(),
                    {n: 0.0 for n in plant.command_names})
     ref = {"axial": REF["reference_axial_velocity"], "angular": REF["reference_angular_velocity"]}
@@ -110,20 +153,20 @@ def _run(runner, plant, ctrl):
 
 @pytest.mark.parametrize("fidelity", FIDELITIES)
 @pytest.mark.parametrize("controller", CONTROLLERS)
-def test_controller_runs_at_every_fidelity_in_every_runner(system, eid_design, controller,
+def test_controller_runs_at_every_fidelity_in_every_runner(system, eid_design, fmus, controller,
                                                            fidelity):
     out = {}
     for runner in RUNNERS:
         plant = _plant(system, fidelity)
         ctrl = _controller(controller, plant, system, eid_design)
         assert check_pair(ctrl, plant) is None
-        w, cmd = _run(runner, plant, ctrl)
+        w, cmd = _run(runner, plant, ctrl, fmus(fidelity, plant) if runner == "fmu" else None)
         assert np.all(np.isfinite(w)) and np.all(np.isfinite(cmd))
         assert np.all(np.abs(cmd) <= 100.0)
         out[runner] = (np.asarray(w), np.asarray(cmd))
     # the runners are the same loop: same plant, same controller, same commands
     n = min(len(v[0]) for v in out.values())
-    for runner in ("sil", "udp"):
+    for runner in ("sil", "udp", "fmu"):
         assert np.allclose(out[runner][0][:n], out["offline"][0][:n], rtol=1e-6, atol=1e-6), \
             runner
 
@@ -132,5 +175,5 @@ def test_cells_that_cannot_work_say_why(system):
     plant = LumpedPlant(system.build("lumped4"), mode="force")
     why = check_pair(ZTorque(480.0), plant)
     assert "takes" in why  # a force-driven top: no speed command to set
-    for key in ("dhp", "dp", "fmu"):
+    for key in ("dhp", "dp", "dhp_fmu", "dp_fmu"):
         assert len(REASONS[key]) > 40

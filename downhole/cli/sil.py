@@ -7,7 +7,8 @@
 - ``downhole sil-controller (--scenario S.toml | --controller FILE | --rig) [--port P]``
   is the controller end: it builds (designs) its controller first, then connects to the plant
   (the scenario's ``[link]`` address by default) and answers every observation.
-- ``downhole export-fmu SCENARIO.toml --out plant.fmu`` builds an FMI 2.0 co-simulation FMU.
+- ``downhole export-fmu SCENARIO.toml [--fidelity NAME] --out plant.fmu`` builds an FMI 2.0
+  co-simulation FMU (a SIL scenario's plant, or a system scenario at any fidelity).
 
 A Python controller file is code: both commands run one only with ``--allow-code``. Every long
 phase (design, waiting, running) shows progress on stderr (``--no-progress`` to silence it).
@@ -369,11 +370,30 @@ def sil_controller(port: Optional[int] = typer.Option(
 
 
 @app.command("export-fmu")
-def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML"),
-               out: Path = typer.Option(Path("plant.fmu"), "--out", help="FMU file to write")):
-    """Build an FMI 2.0 co-simulation FMU of the scenario's plant (pythonfmu)."""
+def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML, or a scenario that "
+                                                     "describes the system (model.fidelity)"),
+               out: Path = typer.Option(Path("plant.fmu"), "--out", help="FMU file to write"),
+               fidelity: Optional[str] = typer.Option(
+                   None, "--fidelity", help="system scenarios: lumped4 | lumped12 | neutral | "
+                   "fem | hybrid (default: the file's model.fidelity)")):
+    """Build an FMI 2.0 co-simulation FMU of the scenario's plant (pythonfmu).
+
+    A SIL scenario selects its plant with plant.model; a scenario that describes the system is
+    exported at its model.fidelity or --fidelity, velocity-driven at every fidelity (inputs
+    command_top_drive_axial_velocity and command_top_drive_angular_velocity).
+    """
+    from downhole.scenario import read_toml
+    from downhole.scenario.system import is_system_dialect
     from downhole.sil.fmu import export_fmu as _export
+    from downhole.sil.fmu import export_system_fmu
 
     check_output_path(out, kind="file")
-    path = _export(scenario, out)
+    data, source, _ = read_toml(scenario)
+    if is_system_dialect(data):
+        path = export_system_fmu(scenario, out, fidelity=fidelity)
+    elif fidelity is not None:
+        fail(f"{source}: --fidelity applies to a scenario that describes the system ([model] "
+             "fidelity); a SIL scenario selects its plant with [plant] model")
+    else:
+        path = _export(scenario, out)
     typer.echo(f"wrote {path}")
