@@ -371,29 +371,29 @@ def sil_controller(port: Optional[int] = typer.Option(
 
 @app.command("export-fmu")
 def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML, or a scenario that "
-                                                     "describes the system (model.fidelity)"),
+                                                     "describes the system ([well], [string])"),
                out: Path = typer.Option(Path("plant.fmu"), "--out", help="FMU file to write"),
                fidelity: Optional[str] = typer.Option(
                    None, "--fidelity", help="system scenarios: lumped4 | lumped12 | neutral | "
                    "fem | hybrid (default: the file's model.fidelity)")):
     """Build an FMI 2.0 co-simulation FMU of the scenario's plant (pythonfmu).
 
-    A SIL scenario selects its plant with plant.model; a scenario that describes the system is
-    exported at its model.fidelity or --fidelity, velocity-driven at every fidelity (inputs
+    A SIL scenario's plant is its model.fidelity and model.preset; a scenario that describes
+    the system ([well], [string]) is exported at its model.fidelity or --fidelity, velocity-driven at every fidelity (inputs
     command_top_drive_axial_velocity and command_top_drive_angular_velocity).
     """
-    from downhole.scenario import read_toml
-    from downhole.scenario.system import is_system_dialect
+    from downhole.scenario import model_type
+    from downhole.scenario.schema import read_scenario
     from downhole.sil.fmu import export_fmu as _export
     from downhole.sil.fmu import export_system_fmu
 
     check_output_path(out, kind="file")
-    data, source, _ = read_toml(scenario)
-    if is_system_dialect(data):
+    data, source, _ = read_scenario(scenario)
+    if ("well" in data or "string" in data) and model_type(data, source) == "system":
         path = export_system_fmu(scenario, out, fidelity=fidelity)
     elif fidelity is not None:
-        fail(f"{source}: --fidelity applies to a scenario that describes the system ([model] "
-             "fidelity); a SIL scenario selects its plant with [plant] model")
+        fail(f"{source}: --fidelity applies to a scenario that describes the system ([well], "
+             "[string]); a SIL scenario's plant is its [model] fidelity and preset")
     else:
         path = _export(scenario, out)
     typer.echo(f"wrote {path}")

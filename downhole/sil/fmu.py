@@ -243,11 +243,11 @@ def export_system_fmu(scenario, out="plant.fmu", *, fidelity: str | None = None)
     DownholeInputError
         ``out`` does not end in ``.fmu``.
     """
-    from downhole.scenario import read_toml
+    from downhole.scenario.schema import read_scenario
     from downhole.scenario.system import DEFAULT_DT, steady_bit_state, validate_system_scenario
 
     out = _check_out(out)
-    data, source, _ = read_toml(Path(scenario))
+    data, source, _ = read_scenario(Path(scenario))
     sc, fid, system, model = validate_system_scenario(data, source, fidelity)
     sim, op = sc.simulation, sc.operation
     dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]
