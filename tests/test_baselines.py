@@ -218,6 +218,13 @@ def test_missing_set_points_are_named():
         a.command(0.0, {"hook_load": 1e6}, None)
     with pytest.raises(DownholeInputError, match="not finite"):
         a.command(0.0, {"hook_load": 1e6}, {"reference_wob": float("nan")})
+    a.wob = 1e5
+    with pytest.raises(DownholeInputError, match="hook_load = nan is not finite"):
+        a.command(0.0, {"hook_load": float("nan")})
+    s = TopDriveSpeedPI(1e4, 2e3, 500.0, speed=5.0)
+    s.reset()
+    with pytest.raises(DownholeInputError, match="surface_torque = inf is not finite"):
+        s.command(0.0, {"surface_torque": float("inf")})
 
 
 def test_registry_names():

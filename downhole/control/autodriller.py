@@ -158,7 +158,11 @@ class AutoDriller(Controller):
 
     def wob_estimate(self, observation: Mapping[str, float]) -> float:
         """Surface WOB estimate W_hang - hook load, N."""
-        return self.hanging_weight - float(observation["hook_load"])
+        hook = float(observation["hook_load"])
+        if not math.isfinite(hook):
+            raise DownholeInputError(f"AutoDriller: observation hook_load = {hook!r} is not "
+                                     "finite")
+        return self.hanging_weight - hook
 
     def _set_points(self, reference):
         ref = reference or {}

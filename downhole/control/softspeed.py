@@ -201,6 +201,9 @@ class TopDriveSpeedPI(Controller):
                 reference: Mapping[str, float] | None = None) -> dict:
         sp = self._set_point(reference)
         torque = float(observation["surface_torque"])
+        if not math.isfinite(torque):
+            raise DownholeInputError(f"{type(self).__name__}: observation surface_torque = "
+                                     f"{torque!r} is not finite")
         if self._omega is None:
             # bumpless start: from the drive's speed, the motor torque balancing the string's
             self._omega = float(observation.get("top_drive_angular_velocity", sp))
