@@ -133,8 +133,9 @@ def test_softspeed_behaves_as_its_impedance_to_a_torque_oscillation(softspeed, m
     n = int(round(40 * period / c.dt))
     t = np.arange(n) * c.dt
     torque = t0 + amp * np.sin(w * t)
-    out = np.array([c.command(tk, {"surface_torque": tq, "top_drive_angular_velocity": 10.0}
-                              )["top_drive_angular_velocity"] for tk, tq in zip(t, torque)])
+    obs = [{"surface_torque": tq, "top_drive_angular_velocity": 10.0} for tq in torque]
+    out = np.array([c.command(tk, o)["top_drive_angular_velocity"]
+                    for tk, o in zip(t, obs, strict=True)])
     # the last 10 whole periods, after the start transient (damped by P / J)
     m = int(round(10 * period / c.dt))
     tt, y = t[-m:], out[-m:] - out[-m:].mean()
@@ -284,7 +285,7 @@ def _severity_pair(system, fidelity, soft, speed, duration, dt_lumped=5e-4):
         x = om[tail] - om[tail].mean()
         freq = np.fft.rfftfreq(x.size, t[1] - t[0])[np.argmax(np.abs(np.fft.rfft(x)))]
         out[key] = (stick_slip_severity(om[tail]), float(freq))
-        print(fidelity, key, "severity %.3f, dominant %.3f Hz" % out[key])
+        print(f"{fidelity} {key}: severity {out[key][0]:.3f}, dominant {out[key][1]:.3f} Hz")
     return out
 
 
@@ -321,7 +322,7 @@ def test_autodriller_brings_the_wob_to_its_set_point(system, fidelity):
     r = run_closed_loop(_plant(system, fidelity, dt_lumped=1e-3), ctrl, 60.0)
     late = r["time"] >= 45.0
     wob = r["wob"][late].mean()
-    print(fidelity, "mean WOB 45-60 s: %.0f N" % wob)
+    print(f"{fidelity}: mean WOB 45-60 s {wob:.0f} N")
     assert wob == pytest.approx(80e3, rel=0.03)
     v = r["command:top_drive_axial_velocity"][late].mean()
     assert v == pytest.approx(r["bit_axial_velocity"][late].mean(), rel=0.1)

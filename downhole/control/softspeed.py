@@ -229,8 +229,9 @@ class SoftSpeed(TopDriveSpeedPI):
     ----------
     system : DrillingSystem, optional
         The described system: Z from the top pipe section, w_s from
-        :func:`stick_slip_frequency` (torsional mode ``mode``), J from the rig's top drive. Explicit ``impedance``,
-        ``frequency`` and ``inertia`` override it (and are required without it).
+        :func:`stick_slip_frequency` (torsional mode ``mode``), J from the rig's top drive.
+        Explicit ``impedance``, ``frequency`` and ``inertia`` override it (and are required
+        without it).
     speed : float, optional
         Speed set-point, rad/s (default: the reference ``reference_angular_velocity``).
     fraction : float
