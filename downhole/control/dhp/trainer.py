@@ -575,8 +575,8 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
         Settings that do not fit the problem (too few samples for the basis, ...).
     TrainingDiverged
         mu >= 1 at some step of Algorithm 1 (with ``require_contraction``), non-finite or
-        exploding weights, or
-        Algorithm 1's error growing instead of shrinking; the message names the step and time.
+        exploding weights, or Algorithm 1's error growing instead of shrinking; the message names
+        the method (for mu), the step and the time.
 
     Examples
     --------
