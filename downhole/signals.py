@@ -186,6 +186,8 @@ def _declare_standard() -> None:
       low=-1.0, high=1.0)
     s("reference_angular_velocity", "rad/s", "angular_velocity",
       "reference bit angular velocity", low=-100.0, high=100.0)
+    s("reference_wob", "N", "force", "weight-on-bit set-point (auto-driller)", low=0.0,
+      high=2.0e6)
     # --- velocity commands of the velocity-driven (lumped, neutral) models ---
     s("command_axial", "m/s", "velocity", "commanded top axial velocity", low=-5.0, high=5.0)
     s("command_angular", "rad/s", "angular_velocity", "commanded top angular velocity",

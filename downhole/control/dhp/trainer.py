@@ -29,8 +29,12 @@ settings they see the very same samples.
 
 Algorithm 1's fixed-point iteration contracts only if mu = rho(g^T M g R^-1) < 1, where M is
 the target's derivative with respect to z_{k+1} (S at the last step, Q + A^T W_{z,k+1}^T
-before). Every method computes mu at every step and, with ``require_contraction`` (default),
-stops with :class:`TrainingDiverged` naming the step when mu >= 1.
+before). Every method computes mu at every step (``DHPTraining.mu``); with
+``require_contraction`` (default) the iterative methods (``"algorithm1"``,
+``"algorithm1_numpy"``) stop with :class:`TrainingDiverged` naming the method and the step when
+mu >= 1. The non-iterative methods (``"closed_form"``, ``"riccati"``) solve the fixed point
+directly - (I + M G) is invertible for any M, G >= 0 - so they train every well-posed problem
+(R > 0, Q, S >= 0) whatever mu is.
 
 Internally the network is fitted in centred form lambda_{k+1} = c_k + D_k^T (z_k - r_k)
 (identical to W_k = [c_k - D_k^T r_k; D_k] for phi = [1, z], better conditioned).
@@ -52,9 +56,11 @@ from downhole.control.dhp.riccati import (_chol_upper_lapack, _mu2, _small_inv, 
 from downhole.errors import DownholeError, DownholeInputError
 
 __all__ = ["DHPSettings", "DHPProblem", "DHPTraining", "TrainingDiverged", "LinearBasis",
-           "QuadraticBasis", "train_dhp", "METHODS", "finite_horizon_lqr"]
+           "QuadraticBasis", "train_dhp", "METHODS", "ITERATIVE_METHODS", "finite_horizon_lqr"]
 
 METHODS = ("riccati", "closed_form", "algorithm1", "algorithm1_numpy")
+#: The methods that iterate Algorithm 1 to its fixed point (they need mu < 1).
+ITERATIVE_METHODS = ("algorithm1", "algorithm1_numpy")
 
 
 class TrainingDiverged(DownholeError, FloatingPointError):
@@ -137,7 +143,10 @@ class DHPSettings:
         Start Algorithm 1 at step k from W_{k+1} (True) or from zero (False, the seed's "initial
         guess").
     require_contraction : bool
-        Stop with :class:`TrainingDiverged` when mu = rho(g^T M g R^-1) >= 1 at some step.
+        For Algorithm 1 (``"algorithm1"``, ``"algorithm1_numpy"``): stop with
+        :class:`TrainingDiverged` when mu = rho(g^T M g R^-1) >= 1 at some step (the iteration
+        cannot contract there). Ignored by the non-iterative ``"closed_form"`` and
+        ``"riccati"``, which need no contraction.
     seed : int
         Random generator seed of the samples.
     record_steps : tuple of int
@@ -565,8 +574,9 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
     DownholeInputError
         Settings that do not fit the problem (too few samples for the basis, ...).
     TrainingDiverged
-        mu >= 1 at some step (with ``require_contraction``), non-finite or exploding weights, or
-        Algorithm 1's error growing instead of shrinking; the message names the step and time.
+        mu >= 1 at some step of Algorithm 1 (with ``require_contraction``), non-finite or
+        exploding weights, or Algorithm 1's error growing instead of shrinking; the message names
+        the method (for mu), the step and the time.
 
     Examples
     --------
@@ -613,8 +623,9 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
     rec_steps = sorted({(s if s >= 0 else n_steps + s) for s in settings.record_steps
                         if -n_steps <= s < n_steps})
     history: dict[int, np.ndarray] = {}
-    mu_ok = 1.0 if settings.require_contraction else np.inf
     method = settings.method
+    # only Algorithm 1 iterates to the fixed point; the other methods solve it directly
+    mu_ok = 1.0 if settings.require_contraction and method in ITERATIVE_METHODS else np.inf
     t0 = time.perf_counter()
     bar = _progress(n_steps, progress, f"DHP {method}")
     from threadpoolctl import threadpool_limits
@@ -631,7 +642,7 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
                        w_count=w_count)
             status, kf = train_riccati(problem, settings, ns, radius, out, mu_ok, bar)
             if status == 1:
-                raise TrainingDiverged(int(kf), model.dt, _mu_reason(mu[kf]))
+                raise TrainingDiverged(int(kf), model.dt, _mu_reason(mu[kf], method))
             if status == 2:
                 raise TrainingDiverged(int(kf), model.dt,
                                        f"weights became non-finite or exceeded max_weight = "
@@ -669,7 +680,7 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
                     if rec >= 0:
                         history[rec] = rec_out[:rec_n[0]].copy()
                 if status == 1:
-                    raise TrainingDiverged(int(kf), model.dt, _mu_reason(mu[kf]))
+                    raise TrainingDiverged(int(kf), model.dt, _mu_reason(mu[kf], method))
                 if status == 2:
                     raise TrainingDiverged(int(kf), model.dt,
                                            f"weights became non-finite or exceeded max_weight = "
@@ -688,10 +699,12 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
                        method=method)
 
 
-def _mu_reason(mu):
-    return (f"the Algorithm 1 iteration cannot converge: mu = rho(g^T M g R^-1) = {mu:.4g} >= 1 "
-            "(M = S at the last step, Q + A^T W_z^T before). Increase R, decrease Q/S, or scale "
-            "the inputs (input_scale) so that g^T M g is small against R")
+def _mu_reason(mu, method):
+    return (f"the Algorithm 1 iteration (method {method!r}) cannot converge: mu = "
+            f"rho(g^T M g R^-1) = {mu:.4g} >= 1 (M = S at the last step, Q + A^T W_z^T before). "
+            "Use method='riccati' or 'closed_form' (no iteration, no contraction needed), or "
+            "increase R, decrease Q/S, or scale the inputs (input_scale) so that g^T M g is "
+            "small against R")
 
 
 def _nonlinear_samples(model: ControlAffineModel, Z):
@@ -731,7 +744,7 @@ def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, er
             Mk = S if last else Q + A.T @ W_next[1:].T
             mu[k] = float(np.max(np.abs(np.linalg.eigvals(g.T @ Mk @ g @ Rinv))))
             if mu[k] >= mu_ok:
-                raise TrainingDiverged(k, model.dt, _mu_reason(mu[k]))
+                raise TrainingDiverged(k, model.dt, _mu_reason(mu[k], settings.method))
         if settings.warm_start and W_next is not None:
             W = W_next.copy()
         else:
