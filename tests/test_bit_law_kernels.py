@@ -105,8 +105,9 @@ def test_fem_run_by_scenario_with_the_aarsnes_law():
     from downhole.scenario import run_scenario
 
     def run(name):
-        data = {"title": "bit law", "model": {"type": "fem", "preset": "table_5_1",
-                                              "elements": 20, "bit": {"law": name}},
+        data = {"title": "bit law", "model": {"fidelity": "fem", "preset": "table_5_1",
+                                              "fem": {"elements": 20}},
+                "bit": {"law": name},
                 "simulation": {"duration": "1 s", "dt": "1 ms", "depth_of_cut": "delayed",
                                "record_dt": "10 ms"}}
         return run_scenario(data)
@@ -126,10 +127,9 @@ def test_lumped_run_by_scenario_with_the_aarsnes_law():
     from downhole.scenario import run_scenario
 
     def run(name):
-        data = {"title": "bit law", "model": {"type": "lumped4", "preset": "table_2_1",
-                                              "bit": {"law": name}},
-                "surface": {"mode": "velocity", "axial_velocity": "10 mm/s",
-                            "angular_velocity": "10 rad/s"},
+        data = {"title": "bit law", "model": {"fidelity": "lumped4", "preset": "table_2_1"},
+                "bit": {"law": name},
+                "operation": {"mode": "velocity", "rop": "10 mm/s", "surface_speed": "10 rad/s"},
                 "simulation": {"duration": "150 s", "dt": "0.5 ms", "record_dt": "10 ms",
                                "depth_of_cut": "approximate", "integrator": "euler"}}
         return run_scenario(data)
