@@ -71,8 +71,14 @@ OLD_KEYS = {
 }
 
 #: Older keys of the other dialects (SIL: [plant], [runtime], controller.kind and
-#: [controller.dhp]; SIL / DHP: the short [reference] names), tested with those commands.
-OTHER_DIALECTS = ("plant", "runtime", "reference.", "controller.kind", "controller.dhp.")
+#: [controller.dhp]; SIL / DHP: the short [reference] names; DHP: [model] kind ..., [weights],
+#: [training], [plan], simulation.plant; DP: the top-level problem tables), tested with those
+#: commands (tests/test_sil_runtime.py, test_dhp_scenario_schema.py, test_dp_problem.py).
+OTHER_DIALECTS = ("plant", "runtime", "reference.", "controller.kind", "controller.dhp.",
+                  "weights", "training", "plan", "model.kind", "model.n_elements", "model.dt",
+                  "model.input_limits", "model.epsilon", "simulation.plant", "dp", "horizon",
+                  "step", "x1_regions", "x3_regions", "x2", "x4", "targets", "bounds", "robust",
+                  "standard")
 
 
 def _is_other(key: str) -> bool:
