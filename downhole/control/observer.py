@@ -1,0 +1,709 @@
+"""Output feedback: state observers from surface measurements, and the controller wrapper that
+lets a full-state controller (EID, DHP) run on them.
+
+A rig measures the surface at a high rate - top-drive speed and torque, hook load, block position
+and velocity - and the downhole only at a low rate, late, if at all. EID needs the bit velocities
+and DHP the whole 24-state FEM state. This module estimates them from the surface signals with
+Kalman filters designed on the controllers' own linear design models, with the bit forces (WOB,
+TOB) as random-walk disturbance states:
+
+:class:`KalmanObserver`
+    The steady-state (stationary-gain) discrete Kalman filter of ``x+ = A x + B u + w``,
+    ``y = C x + v``, predictor-corrector form; the gain from the discrete algebraic Riccati
+    equation. The estimation error obeys ``e+ = (I - K C) A e`` (noise aside):
+    :meth:`KalmanObserver.error_matrix` and :meth:`KalmanObserver.spectral_radius`.
+:func:`fem_surface_observer`
+    That filter on the ZOH-discretized directional FEM (the DHP design model,
+    :meth:`~downhole.string.fem.DirectionalModel.linear_model` and
+    :meth:`~downhole.string.fem.DirectionalModel.nodal_force_map`, both through
+    :func:`downhole.string.zoh.zoh`) augmented with WOB and TOB, measuring the block position,
+    the top-drive angle and the two top-drive velocities.
+:class:`NeutralSurfaceObserver`
+    The neutral-type string of seed Ch. 3 (the EID design model, Eq. 3.13) is a lossless
+    delay line between the massless top and the bit: the surface sees the bit a one-way delay
+    ``tau`` late. Inverting the top boundary gives the upward wave arriving at the top, hence
+    the bit velocity at ``t - tau`` (d'Alembert); a 2-state Kalman filter (bit velocity, bit
+    force as a random walk) runs on that delayed time axis and the bit model, driven by the
+    downward waves already on their way (known from the past surface signals), predicts the
+    estimate forward to ``t``. For a linear model with a measurement delay this delayed filter
+    plus open-loop prediction is the optimal (Kalman) estimate: no measurement says anything
+    about the process noise of the last ``tau``.
+:class:`SurfaceFeedback`
+    A :class:`~downhole.control.base.Controller` that declares only surface signals in
+    ``needs``, runs an observer on them and feeds the estimates to an inner full-state
+    controller (:func:`eid_from_surface`, :func:`dhp_from_surface`).
+:class:`MeasurementNoise`
+    Adds seeded white noise to named observation signals before a controller sees them (the
+    sensors of the experiments).
+
+The EID/DHP claims measured with these observers are in docs/observer.md
+(``downhole reproduce observer-surface``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+import numpy as np
+from numba import njit
+
+from downhole.control.base import Controller
+from downhole.errors import DownholeInputError
+from downhole.string.zoh import zoh
+
+__all__ = ["KalmanObserver", "steady_state_gain", "fem_surface_observer",
+           "NeutralSurfaceObserver", "SurfaceFeedback", "MeasurementNoise", "eid_from_surface",
+           "dhp_from_surface", "FEM_MEASUREMENTS", "NEUTRAL_MEASUREMENTS",
+           "DEFAULT_SURFACE_NOISE"]
+
+#: Surface signals the FEM observer reads (the block position is integrated from the block
+#: velocity inside :class:`SurfaceFeedback` when the plant does not report it).
+FEM_MEASUREMENTS = ("top_drive_axial_velocity", "top_drive_angular_velocity", "top_drive_angle")
+#: Surface signals the neutral-string observer reads.
+NEUTRAL_MEASUREMENTS = ("top_drive_axial_velocity", "top_drive_angular_velocity", "hook_load",
+                        "surface_torque")
+
+#: White sensor noise (standard deviation per 1 kHz sample) used by the experiments: block
+#: velocity 1 mm/s, top-drive speed 0.1 rad/s (~1 rpm), hook load 10 kN (~1 % of the string
+#: weight), surface torque 200 N m, top-drive angle 1 mrad (encoder).
+DEFAULT_SURFACE_NOISE = {"top_drive_axial_velocity": 1e-3, "top_drive_angular_velocity": 0.1,
+                         "hook_load": 1e4, "surface_torque": 200.0, "top_drive_angle": 1e-3}
+
+
+def _matrix(name, value, shape=None):
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 1 and shape is not None and len(shape) == 2 and shape[1] == 1:
+        a = a[:, None]
+    if shape is not None:
+        if a.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, a.shape)):
+            raise DownholeInputError(f"observer: {name} must have shape "
+                                     f"{tuple('n' if s is None else s for s in shape)}, got "
+                                     f"{a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise DownholeInputError(f"observer: {name} has non-finite entries")
+    return a
+
+
+def _positive(name, value) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise DownholeInputError(f"observer: {name} must be a number, got {value!r}") from None
+    if not (math.isfinite(x) and x > 0):
+        raise DownholeInputError(f"observer: {name} must be a positive finite number, got "
+                                 f"{value!r}")
+    return x
+
+
+def steady_state_gain(A, C, Q, R):
+    """Stationary Kalman filter gain of ``x+ = A x + w``, ``y = C x + v``.
+
+    Parameters
+    ----------
+    A : array_like (n, n)
+    C : array_like (p, n)
+    Q : array_like (n, n)
+        Process noise covariance (symmetric, >= 0).
+    R : array_like (p, p)
+        Measurement noise covariance (symmetric, > 0).
+
+    Returns
+    -------
+    K : ndarray (n, p)
+        Measurement-update gain: ``x = x^- + K (y - C x^-)``.
+    P : ndarray (n, n)
+        Stationary a-priori error covariance (the DARE solution).
+
+    Raises
+    ------
+    DownholeInputError
+        Shapes that do not match, non-finite entries, R not positive definite, or no stabilizing
+        solution ((A, C) not detectable: a mode the measurements cannot see).
+    """
+    from scipy.linalg import solve_discrete_are
+
+    A = _matrix("A", A)
+    n = A.shape[0]
+    if A.ndim != 2 or A.shape != (n, n):
+        raise DownholeInputError(f"observer: A must be square, got {A.shape}")
+    C = _matrix("C", C, (None, n))
+    p = C.shape[0]
+    Q = _matrix("Q", Q, (n, n))
+    R = _matrix("R", R, (p, p))
+    if np.linalg.eigvalsh(0.5 * (R + R.T)).min() <= 0:
+        raise DownholeInputError("observer: the measurement noise covariance R must be positive "
+                                 "definite (every measurement needs a noise level > 0)")
+    try:
+        P = solve_discrete_are(A.T, C.T, Q, R)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise DownholeInputError(f"observer: no stationary Kalman filter ({exc}); is every mode "
+                                 "of the model seen by the measurements (detectable)?") from None
+    S = C @ P @ C.T + R
+    K = np.linalg.solve(S.T, (P @ C.T).T).T
+    return K, P
+
+
+class KalmanObserver:
+    """Stationary-gain discrete Kalman filter ``x+ = A x + B u + w``, ``y = C x + v``.
+
+    Each :meth:`update` takes the input held over the last step and the measurement now:
+    ``x^- = A x + B u`` (predict), then ``x = x^- + K (y - C x^-)`` (correct).
+
+    Parameters
+    ----------
+    A, B, C : array_like
+        (n, n), (n, m), (p, n).
+    Q, R : array_like
+        Process (n, n) and measurement (p, p) noise covariances.
+    state_names, output_names : sequence of str, optional
+        Labels (for the wrapper and messages).
+
+    Raises
+    ------
+    DownholeInputError
+        See :func:`steady_state_gain`.
+    """
+
+    def __init__(self, A, B, C, Q, R, state_names=None, output_names=None):
+        self.A = _matrix("A", A)
+        n = self.A.shape[0]
+        self.B = _matrix("B", B, (n, None))
+        self.C = _matrix("C", C, (None, n))
+        self.K, self.P = steady_state_gain(self.A, self.C, Q, R)
+        self.Q = np.asarray(Q, float)
+        self.R = np.asarray(R, float)
+        self.state_names = tuple(state_names or (f"x{i}" for i in range(n)))
+        self.output_names = tuple(output_names or (f"y{i}" for i in range(self.C.shape[0])))
+        if len(self.state_names) != n or len(self.output_names) != self.C.shape[0]:
+            raise DownholeInputError("observer: state_names / output_names do not match the "
+                                     "model's sizes")
+        # one matrix per update: x = (I - K C) (A x + B u) + K y
+        IKC = np.eye(n) - self.K @ self.C
+        self._F = IKC @ self.A
+        self._G = IKC @ self.B
+        self.reset()
+
+    @property
+    def n_states(self) -> int:
+        return self.A.shape[0]
+
+    def error_matrix(self) -> np.ndarray:
+        """``(I - K C) A``: the estimation error's transition matrix (noise-free)."""
+        return self._F.copy()
+
+    def spectral_radius(self) -> float:
+        """Largest |eigenvalue| of :meth:`error_matrix` (< 1: the error converges)."""
+        return float(np.max(np.abs(np.linalg.eigvals(self._F))))
+
+    def reset(self, x0=None) -> None:
+        """Start from ``x0`` (default zeros)."""
+        self.x = (np.zeros(self.n_states) if x0 is None
+                  else _matrix("x0", x0, (self.n_states,)).copy())
+
+    def update(self, y, u) -> np.ndarray:
+        """Predict with the input ``u`` held over the last step, correct with ``y``; returns the
+        estimate (a view, do not modify)."""
+        self.x = self._F @ self.x + self._G @ u + self.K @ y
+        return self.x
+
+    def predict(self, u) -> np.ndarray:
+        """Predict only (no measurement this step)."""
+        self.x = self.A @ self.x + self.B @ u
+        return self.x
+
+
+# ------------------------------------------------------------------------------------- FEM
+def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None = None,
+                         wob_rate: float = 2e5, tob_rate: float = 2e4,
+                         state_noise: float = 1e-3, top_drive_inertia: float | None = None,
+                         block_position_noise: float = 1e-3) -> KalmanObserver:
+    """Kalman filter on the DHP design FEM with the bit forces as random-walk states.
+
+    State: the FEM's (``x_i, alpha_i`` then ``v_i, omega_i``, deviations from the hanging
+    equilibrium, :meth:`~downhole.string.fem.DirectionalModel.continuous_linear_model`) plus
+    ``wob`` (N) and ``tob`` (N m), which act on the bit node as ``-wob``, ``-tob`` through the
+    ZOH nodal force map. Inputs: ``slack_off_force`` (N), ``surface_torque`` (N m). Outputs:
+    the top node's axial position (block position), angle (top-drive angle), axial velocity and
+    angular velocity. Wellbore friction is not modelled: the filter lumps it into the bit
+    forces (what that costs is measured in docs/observer.md).
+
+    Parameters
+    ----------
+    dmodel : DirectionalModel
+        The FEM (a hybrid: its ``design_model()``).
+    dt : float
+        Step, s.
+    noise : mapping, optional
+        Measurement noise standard deviations per sample: keys of
+        :data:`DEFAULT_SURFACE_NOISE` (``top_drive_axial_velocity``,
+        ``top_drive_angular_velocity``, ``top_drive_angle``); defaults from there.
+    wob_rate, tob_rate : float
+        Random-walk intensities of WOB (N/sqrt(s)) and TOB (N m/sqrt(s)): how fast the filter
+        lets the bit forces move.
+    state_noise : float
+        Process noise on the velocities (m/s or rad/s per sqrt(s)), unmodelled forces.
+    top_drive_inertia : float, optional
+        kg m^2 (default the rig default, as the DHP design model).
+    block_position_noise : float
+        Noise of the block position, m.
+
+    Returns
+    -------
+    KalmanObserver
+        ``state_names`` = the FEM's + ``("wob", "tob")``, ``output_names`` =
+        ``("block_position", "top_drive_angle", "top_drive_axial_velocity",
+        "top_drive_angular_velocity")``.
+    """
+    from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
+
+    dt = _positive("dt", dt)
+    J = DEFAULT_TOP_DRIVE_INERTIA if top_drive_inertia is None else top_drive_inertia
+    m = dmodel.design_model()
+    n = m.n_nodes
+    A_d, B_d = dmodel.linear_model(dt, J)
+    Gam = dmodel.nodal_force_map(dt, J)
+    _, _, names, _ = dmodel.continuous_linear_model(J)
+    ns = A_d.shape[0]
+    ib = n - 1
+    Gbit = -Gam[:, [2 * ib, 2 * ib + 1]]
+    A = np.block([[A_d, Gbit], [np.zeros((2, ns)), np.eye(2)]])
+    B = np.vstack([B_d, np.zeros((2, 2))])
+    C = np.zeros((4, ns + 2))
+    C[0, 0] = 1.0                 # x_1: block position
+    C[1, 1] = 1.0                 # alpha_1: top-drive angle
+    C[2, 2 * n] = 1.0             # v_1
+    C[3, 2 * n + 1] = 1.0         # omega_1
+    sig = dict(DEFAULT_SURFACE_NOISE)
+    for k, v in dict(noise or {}).items():
+        if k not in sig:
+            raise DownholeInputError(f"fem_surface_observer: unknown noise key {k!r}; expected "
+                                     f"{sorted(sig)}")
+        sig[k] = _positive(f"noise.{k}", v)
+    R = np.diag([_positive("block_position_noise", block_position_noise),
+                 sig["top_drive_angle"], sig["top_drive_axial_velocity"],
+                 sig["top_drive_angular_velocity"]]) ** 2
+    q = np.zeros(ns + 2)
+    q[2 * n:ns] = _positive("state_noise", state_noise) ** 2 * dt
+    q[ns] = _positive("wob_rate", wob_rate) ** 2 * dt
+    q[ns + 1] = _positive("tob_rate", tob_rate) ** 2 * dt
+    return KalmanObserver(A, B, C, np.diag(q), R, state_names=(*names, "wob", "tob"),
+                          output_names=("block_position", "top_drive_angle",
+                                        "top_drive_axial_velocity",
+                                        "top_drive_angular_velocity"))
+
+
+# --------------------------------------------------------------------------------- neutral
+def _line(a0, bd, g1):
+    """Line impedance Z (Gamma2 = Z/m = -a0, 1/m = bd) and top damper alpha (Gamma1 = g1 =
+    (alpha - Z)/(alpha + Z)) of one field of the design model."""
+    Z = -a0 / bd
+    return Z, Z * (1.0 + g1) / (1.0 - g1)
+
+
+class _Channel:
+    """One field of the neutral observer (see :class:`NeutralSurfaceObserver`)."""
+
+    def __init__(self, a0, bd, g1, tau, dt, c_top, r_meas, q_v, q_f):
+        self.Z, self.alpha = _line(a0, bd, g1)
+        self.g1 = g1
+        self.c_top = c_top
+        self.dt = dt
+        # bit: v' = a0 (v - 2 a_in) + bd F, F random walk (F = gravity - WOB, or -TOB)
+        Ac = np.array([[a0, bd], [0.0, 0.0]])
+        Bc = np.array([[-2.0 * a0], [0.0]])
+        self.Phi, self.Gam = zoh(Ac, Bc, dt)
+        D = tau / dt
+        self.n1 = int(math.floor(D))
+        self.f1 = D - self.n1
+        self.Phi_f, self.Gam_f = zoh(Ac, Bc, self.f1 * dt) if self.f1 > 1e-12 else (
+            np.eye(2), np.zeros((2, 1)))
+        # prediction over tau: s(t) = P s(t - tau) + W @ a_seq (+ fractional step)
+        N = self.n1
+        W = np.empty((2, N))
+        M = self.Gam[:, 0].copy()
+        Pn = np.eye(2)
+        for j in range(N - 1, -1, -1):      # a_seq[j] enters with Phi^(N-1-j)
+            W[:, j] = M
+            M = self.Phi @ M
+        for _ in range(N):
+            Pn = self.Phi @ Pn
+        self.PN, self.W = Pn, W
+        Q = np.diag([q_v * dt, q_f * dt])
+        self.kf = KalmanObserver(self.Phi, self.Gam, np.array([[1.0, 0.0]]), Q,
+                                 np.array([[r_meas]]), state_names=("v", "F"),
+                                 output_names=("v_delayed",))
+        # ring buffer of the downward waves leaving the top
+        self.cap = int(math.ceil(2 * D)) + 8
+        self.D = D
+
+    def reset(self, a_top0, v0, f0):
+        self.buf = np.full(self.cap, a_top0)
+        self.k = 0
+        self.kf.reset([v0, f0])
+
+    def step(self, v_top, u_rel):
+        """One sample: the top velocity (fused measurement) and the command that produced it.
+        Returns (v_bit(t), F(t))."""
+        self.k += 1
+        return _channel_step(self.buf, self.k, self.kf.x, self.kf._F, self.kf._G[:, 0],
+                             self.kf.K[:, 0], self.PN, self.W, self.Phi_f, self.Gam_f[:, 0],
+                             self.Z, self.alpha, self.c_top, self.D, self.f1, v_top, u_rel)
+
+
+@njit(cache=True)
+def _wave_at(buf, k, lag):
+    """The sample ``lag`` steps (fractional: linear interpolation) before sample ``k``."""
+    cap = buf.shape[0]
+    i = int(math.floor(lag))
+    fr = lag - i
+    j = (k - i) % cap
+    return (1.0 - fr) * buf[j] + fr * buf[(j - 1) % cap]
+
+
+@njit(cache=True)
+def _channel_step(buf, k, x, F, G, K, PN, W, Phi_f, Gam_f, Z, alpha, c_top, D, f1, v_top,
+                  u_rel):
+    """One sample of one field of :class:`NeutralSurfaceObserver` (sample ``k``): store the
+    downward wave leaving the top, update the delayed filter state ``x`` (in place) and return
+    the prediction ``(v, F)`` at the current time."""
+    cap = buf.shape[0]
+    b_in = ((Z + alpha) * v_top - alpha * u_rel + c_top) / (2.0 * Z)
+    buf[k % cap] = v_top - b_in
+    # delayed filter at t - tau: input a_in_bit over the last step (trapezoid), measurement
+    # v(t - tau) = b_in(t) + a_in_bit(t - tau) = b_in(t) + a_top(t - 2 tau)
+    a_now = _wave_at(buf, k, 2.0 * D)
+    a_prev = _wave_at(buf, k, 2.0 * D + 1.0)
+    u = 0.5 * (a_now + a_prev)
+    y = b_in + a_now
+    x0 = F[0, 0] * x[0] + F[0, 1] * x[1] + G[0] * u + K[0] * y
+    x1 = F[1, 0] * x[0] + F[1, 1] * x[1] + G[1] * u + K[1] * y
+    x[0] = x0
+    x[1] = x1
+    # prediction over [t - tau, t]: a_in_bit there = a_top over [t - 2 tau, t - tau]
+    n1 = W.shape[1]
+    p0 = PN[0, 0] * x0 + PN[0, 1] * x1
+    p1 = PN[1, 0] * x0 + PN[1, 1] * x1
+    prev = a_now
+    for j in range(n1):
+        cur = _wave_at(buf, k, 2.0 * D - j - 1.0)
+        a = 0.5 * (prev + cur)
+        p0 += W[0, j] * a
+        p1 += W[1, j] * a
+        prev = cur
+    if f1 > 1e-12:
+        q0 = Phi_f[0, 0] * p0 + Phi_f[0, 1] * p1 + Gam_f[0] * prev
+        q1 = Phi_f[1, 0] * p0 + Phi_f[1, 1] * p1 + Gam_f[1] * prev
+        p0, p1 = q0, q1
+    return p0, p1
+
+
+class NeutralSurfaceObserver:
+    """Bit velocities and forces of the neutral-type string from the surface signals.
+
+    Built from the EID design model (:meth:`~downhole.string.neutral.NeutralModel.ndde`,
+    Eq. 3.13): per field, ``a0 = -Z/m``, ``g1 = (alpha - Z)/(alpha + Z)`` and ``bd = 1/m`` give
+    the line impedance ``Z``, the top damper ``alpha`` and the bit mass; the surface-force
+    offsets (string and bit weight) come from the model's parameters. Per sample, each field:
+
+    1. fuse the two surface measurements of the top node's velocity (the top-drive velocity,
+       and the one implied by the hook load or the surface torque through the top damper,
+       weighted by their noise variances);
+    2. invert the top boundary for the upward wave arriving at the top, ``b_in(t)``, and the
+       downward wave leaving it, ``a_top(t)`` (:mod:`downhole.sim.wave` conventions);
+    3. a 2-state Kalman filter (bit velocity; bit force ``F`` = bit weight - WOB, or -TOB, a
+       random walk) at time ``t - tau`` measures ``v(t - tau) = b_in(t) + a_top(t - 2 tau)``
+       with the line's downward wave ``a_top(t - 2 tau)`` as its input;
+    4. predict to ``t`` with the bit model driven by ``a_top`` over ``[t - 2 tau, t - tau]``
+       (the waves on their way down, already measured).
+
+    Parameters
+    ----------
+    model : NeutralModel
+    dt : float
+        Sample time, s (<= the axial delay).
+    noise : mapping, optional
+        Sensor standard deviations per sample (keys of :data:`DEFAULT_SURFACE_NOISE`).
+    force_rate : (float, float)
+        Random-walk intensities of the bit forces (N/sqrt(s), N m/sqrt(s)).
+    velocity_rate : (float, float)
+        Process noise on the bit velocities (m/s, rad/s per sqrt(s)).
+    """
+
+    signals = ("bit_axial_velocity", "bit_angular_velocity", "wob", "tob")
+
+    def __init__(self, model, dt: float, *, noise: Mapping[str, float] | None = None,
+                 force_rate=(2e5, 2e3), velocity_rate=(1e-3, 0.1)):
+        self.model = model
+        self.dt = _positive("dt", dt)
+        if self.dt > model.tau1:
+            raise DownholeInputError(f"NeutralSurfaceObserver: dt = {dt} s exceeds the axial "
+                                     f"wave delay {model.tau1:.6g} s")
+        sig = dict(DEFAULT_SURFACE_NOISE)
+        for k, v in dict(noise or {}).items():
+            if k not in sig:
+                raise DownholeInputError(f"NeutralSurfaceObserver: unknown noise key {k!r}; "
+                                         f"expected {sorted(sig)}")
+            sig[k] = _positive(f"noise.{k}", v)
+        self.noise = sig
+        nd = model.ndde()
+        p = model.params
+        self.weights = []
+        self.channels = []
+        alphas = (p.alpha_axial, p.alpha_torsional)
+        vel_keys = ("top_drive_axial_velocity", "top_drive_angular_velocity")
+        force_keys = ("hook_load", "surface_torque")
+        c_tops = (p.bit_mass * p.g, 0.0)
+        for i in range(2):
+            ch = nd.channel(i)
+            bd = float(nd.Bd[i, i])
+            # fused top-velocity measurement: inverse-variance weights
+            var_v = sig[vel_keys[i]] ** 2
+            var_f = (sig[force_keys[i]] / alphas[i]) ** 2
+            wv = var_f / (var_v + var_f)
+            var = var_v * var_f / (var_v + var_f)
+            self.weights.append(wv)
+            # noise of the delayed bit-velocity measurement b_in(t) + a_top(t - 2 tau)
+            Z, alpha = _line(ch["a0"], bd, ch["g1"])
+            gain = (Z + alpha) / (2.0 * Z)
+            r = var * gain ** 2 * (1.0 + ch["g1"] ** 2)
+            c = _Channel(ch["a0"], bd, ch["g1"], ch["tau"], self.dt, c_tops[i], r,
+                         _positive("velocity_rate", velocity_rate[i]) ** 2,
+                         _positive("force_rate", force_rate[i]) ** 2)
+            self.channels.append(c)
+        self._p = p
+        self.reset()
+
+    def reset(self) -> None:
+        """Start from the hanging rest of :class:`~downhole.string.neutral.NeutralPlant`: bit
+        at rest touching the rock (zero WOB), the line carrying the bit weight (v_top = 0,
+        b_in = M_B g / (2 Z), a_top = -b_in)."""
+        p = self._p
+        for i, c in enumerate(self.channels):
+            c.reset(-c.c_top / (2.0 * c.Z), 0.0, p.bit_mass * p.g if i == 0 else 0.0)
+
+    def update(self, observation: Mapping[str, float], command) -> dict:
+        """Estimates at the time of ``observation`` (which holds :data:`NEUTRAL_MEASUREMENTS`),
+        ``command`` = the plant command held over the last step, ``(top_drive_axial_velocity
+        (relative to the hanging equilibrium), top_drive_angular_velocity)``."""
+        p = self._p
+        u_a, u_t = float(command[0]), float(command[1])
+        va = observation["top_drive_axial_velocity"]
+        wa = observation["top_drive_angular_velocity"]
+        # hook load = alpha_A (v_top - u_rel) + (M_S + M_B) g; torque = alpha_T (U_T - w_top)
+        va_f = u_a + (observation["hook_load"] - (p.string_mass + p.bit_mass) * p.g) \
+            / p.alpha_axial
+        wa_f = u_t - observation["surface_torque"] / p.alpha_torsional
+        w0, w1 = self.weights
+        v, fa = self.channels[0].step(w0 * va + (1.0 - w0) * va_f, u_a)
+        w, ft = self.channels[1].step(w1 * wa + (1.0 - w1) * wa_f, u_t)
+        return {"bit_axial_velocity": v, "bit_angular_velocity": w,
+                "wob": p.bit_mass * p.g - fa, "tob": -ft}
+
+    def spectral_radius(self) -> float:
+        """Largest |eigenvalue| of the delayed filters' error matrices."""
+        return max(c.kf.spectral_radius() for c in self.channels)
+
+
+# ---------------------------------------------------------------------------------- wrapper
+class _FEMEstimator:
+    """The FEM Kalman filter as an estimator of :class:`SurfaceFeedback`."""
+
+    def __init__(self, kf: KalmanObserver, n_states: int, dt: float):
+        self.kf, self.n, self.dt = kf, n_states, dt
+
+    def reset(self):
+        self.kf.reset()
+        self._pos = 0.0
+        self._v_prev = None
+
+    def update(self, observation, command):
+        v = float(observation["top_drive_axial_velocity"])
+        if self._v_prev is not None:
+            self._pos += 0.5 * self.dt * (v + self._v_prev)
+        self._v_prev = v
+        y = np.array([self._pos, observation["top_drive_angle"], v,
+                      observation["top_drive_angular_velocity"]], float)
+        x = self.kf.update(y, np.asarray(command, float))
+        return {"state": x[:self.n], "wob": float(x[self.n]), "tob": float(x[self.n + 1])}
+
+
+class SurfaceFeedback(Controller):
+    """A full-state controller run on the estimates of a surface observer.
+
+    ``needs`` lists surface signals only; :meth:`command` reads them, updates the estimator
+    with the command it gave the step before, and asks ``inner`` for the command on the
+    estimated observation (the estimator's signals, e.g. the bit velocities or ``"state"``).
+
+    Parameters
+    ----------
+    inner : Controller
+        Full-state controller (``reset()``, ``command(t, obs, ref)``, ``commands``).
+    estimator : object
+        ``reset()`` and ``update(observation, last_command) -> dict`` (e.g.
+        :class:`NeutralSurfaceObserver`).
+    needs : tuple of str
+        The surface signals the estimator reads.
+    commands : tuple of str, optional
+        Default ``inner.commands``.
+    initial_command : sequence of float, optional
+        The command held before t = 0 (default zeros: the hanging rest of the plants here).
+    """
+
+    label = "surface-feedback"
+
+    def __init__(self, inner, estimator, needs, commands=None, initial_command=None):
+        if not (hasattr(inner, "command") and hasattr(inner, "reset")):
+            raise DownholeInputError(f"SurfaceFeedback: inner must be a controller with reset() "
+                                     f"and command(); got {type(inner).__name__}")
+        self.inner = inner
+        self.estimator = estimator
+        self.needs = tuple(needs)
+        self.commands = tuple(commands if commands is not None else inner.commands)
+        if not self.commands:
+            raise DownholeInputError("SurfaceFeedback: the inner controller declares no "
+                                     "commands; pass commands=")
+        self._u0 = np.zeros(len(self.commands)) if initial_command is None else \
+            _matrix("initial_command", initial_command, (len(self.commands),))
+        self.label = f"{getattr(inner, 'label', type(inner).__name__)}+observer"
+        self.dt = getattr(inner, "dt", None)
+        self.estimate: dict = {}
+
+    def reset(self) -> None:
+        """Reset the estimator and the inner controller (which gets this wrapper's ``dt``)."""
+        if self.dt is not None and hasattr(self.inner, "dt"):
+            self.inner.dt = self.dt
+        est_dt = getattr(self.estimator, "dt", None)
+        if est_dt is not None and self.dt is not None and abs(est_dt - self.dt) > 1e-12:
+            raise DownholeInputError(f"SurfaceFeedback: the observer was designed for a "
+                                     f"sample time of {est_dt} s but runs every {self.dt} s")
+        self.estimator.reset()
+        self.inner.reset()
+        self._u = self._u0.copy()
+        self.estimate = {}
+
+    def command(self, t: float, observation: Mapping[str, float], reference=None) -> dict:
+        """The inner controller's command on the estimate from ``observation`` (surface
+        signals)."""
+        if not hasattr(self, "_u"):
+            self.reset()
+        for name in self.needs:
+            if name not in observation:
+                raise DownholeInputError(f"SurfaceFeedback: observation lacks {name!r}; it needs "
+                                         f"{self.needs}")
+            if not math.isfinite(float(observation[name])):
+                raise DownholeInputError(f"SurfaceFeedback: observation {name!r} is not finite "
+                                         f"({observation[name]!r})")
+        est = self.estimator.update(observation, self._u)
+        self.estimate = est
+        cmd = self.inner.command(t, est, reference)
+        self._u = np.array([float(cmd[c]) for c in self.commands])
+        return {c: float(cmd[c]) for c in self.commands}
+
+
+class MeasurementNoise(Controller):
+    """Adds seeded white noise (standard deviation per call) to named observation signals
+    before ``inner`` sees them; everything else passes through.
+
+    Parameters
+    ----------
+    inner : Controller
+    sigmas : mapping of str to float
+        Signal name -> standard deviation (its SI unit), >= 0.
+    seed : int
+    """
+
+    def __init__(self, inner, sigmas: Mapping[str, float], seed: int = 0):
+        self.inner = inner
+        self.sigmas = {}
+        for k, v in dict(sigmas).items():
+            try:
+                s = float(v)
+            except (TypeError, ValueError):
+                raise DownholeInputError(f"MeasurementNoise: sigma of {k!r} must be a number, "
+                                         f"got {v!r}") from None
+            if not (math.isfinite(s) and s >= 0):
+                raise DownholeInputError(f"MeasurementNoise: sigma of {k!r} must be >= 0 and "
+                                         f"finite, got {v!r}")
+            self.sigmas[k] = s
+        self.seed = int(seed)
+        self.needs = tuple(getattr(inner, "needs", ()))
+        self.commands = tuple(getattr(inner, "commands", ()))
+        self.label = getattr(inner, "label", type(inner).__name__)
+        self.dt = getattr(inner, "dt", None)
+
+    def reset(self) -> None:
+        if self.dt is not None and hasattr(self.inner, "dt"):
+            self.inner.dt = self.dt
+        self._rng = np.random.default_rng(self.seed)
+        self._names = list(self.sigmas)
+        self._s = np.array([self.sigmas[n] for n in self._names])
+        self.inner.reset()
+
+    def command(self, t, observation, reference=None) -> dict:
+        if not hasattr(self, "_rng"):
+            self.reset()
+        obs = dict(observation)
+        e = self._rng.standard_normal(len(self._names)) * self._s
+        for name, x in zip(self._names, e):
+            if name in obs:
+                obs[name] = float(obs[name]) + float(x)
+        return self.inner.command(t, obs, reference)
+
+
+# --------------------------------------------------------------------------- constructors
+def eid_from_surface(eid, model, dt: float = 1e-3, **observer_options) -> SurfaceFeedback:
+    """The EID controller on the neutral string, from surface measurements only.
+
+    Parameters
+    ----------
+    eid : EIDController
+    model : NeutralModel
+        The plant's design model (the one ``eid`` was designed on).
+    dt : float
+        Sample time of observer and EID, s.
+    **observer_options
+        Passed to :class:`NeutralSurfaceObserver` (``noise``, ``force_rate``, ...).
+    """
+    eid.dt = float(dt)
+    obs = NeutralSurfaceObserver(model, dt, **observer_options)
+    return SurfaceFeedback(eid, obs, NEUTRAL_MEASUREMENTS,
+                           commands=("top_drive_axial_velocity", "top_drive_angular_velocity"))
+
+
+class _DHPState:
+    """Adapter: a DHP controller's ``commands`` and reference for :class:`SurfaceFeedback`."""
+
+    def __init__(self, dhp):
+        self.dhp = dhp
+        self.commands = tuple(dhp.input_names)
+        self.dt = dhp.dt
+        self.label = "dhp"
+
+    def reset(self):
+        self.dhp.reset()
+
+    def command(self, t, observation, reference=None):
+        return self.dhp.command(t, {"state": observation["state"]}, reference)
+
+
+def dhp_from_surface(dhp, dmodel, **observer_options) -> SurfaceFeedback:
+    """A DHP controller on the directional FEM, from surface measurements only.
+
+    Parameters
+    ----------
+    dhp : DHPController
+        Trained on the design model of ``dmodel`` (24-state FEM of Ch. 4).
+    dmodel : DirectionalModel
+        The design FEM (its linear model is the observer's).
+    **observer_options
+        Passed to :func:`fem_surface_observer`.
+    """
+    kf = fem_surface_observer(dmodel, dhp.dt, **observer_options)
+    n = dmodel.design_model().n_states
+    if n != int((dhp._integral or {}).get("n_base", dhp.n_states)):
+        raise DownholeInputError(f"dhp_from_surface: the controller has {dhp.n_states} states, "
+                                 f"the FEM {n}")
+    est = _FEMEstimator(kf, n, dhp.dt)
+    est.dt = dhp.dt
+    return SurfaceFeedback(_DHPState(dhp), est, FEM_MEASUREMENTS)
