@@ -52,7 +52,7 @@ from downhole.control.base import Controller
 from downhole.errors import DownholeInputError
 from downhole.string.zoh import zoh
 
-__all__ = ["KalmanObserver", "steady_state_gain", "fem_surface_observer",
+__all__ = ["KalmanObserver", "steady_state_gain", "bit_law_jacobian", "fem_surface_observer",
            "NeutralSurfaceObserver", "SurfaceFeedback", "MeasurementNoise", "eid_from_surface",
            "dhp_from_surface", "FEM_MEASUREMENTS", "NEUTRAL_MEASUREMENTS",
            "DEFAULT_SURFACE_NOISE"]
@@ -94,6 +94,31 @@ def _positive(name, value) -> float:
         raise DownholeInputError(f"observer: {name} must be a positive finite number, got "
                                  f"{value!r}")
     return x
+
+
+def bit_law_jacobian(bit, v: float, omega: float) -> np.ndarray:
+    """Jacobian ``[[dWOB/dv, dWOB/domega], [dTOB/dv, dTOB/domega]]`` of the bit law with the
+    approximated depth of cut (d = 2 pi v / omega) at ``(v, omega)`` (central differences).
+
+    The surface observers put it into their models as a linear damper at the bit: the bit
+    forces react within milliseconds to the bit velocities (``dWOB/dv`` is ~5 times the
+    axial line impedance), which a random walk cannot follow; the random-walk states then
+    carry only the rest (``WOB - J v``)."""
+    from downhole.bit.law import approx_depth_of_cut, bit_forces
+
+    v, omega = float(v), float(omega)
+    if not (math.isfinite(v) and math.isfinite(omega) and v > 0 and omega > 0):
+        raise DownholeInputError(f"observer: the operating point must have a positive bit "
+                                 f"velocity and angular velocity, got v = {v!r} m/s, omega = "
+                                 f"{omega!r} rad/s")
+    p = bit.to_array()
+
+    def f(vv, ww):
+        return np.array(bit_forces(approx_depth_of_cut(vv, ww, p), vv, ww, p))
+
+    hv, hw = 1e-4 * v, 1e-4 * omega
+    return np.column_stack([(f(v + hv, omega) - f(v - hv, omega)) / (2 * hv),
+                            (f(v, omega + hw) - f(v, omega - hw)) / (2 * hw)])
 
 
 def steady_state_gain(A, C, Q, R):
@@ -216,14 +241,16 @@ class KalmanObserver:
 # ------------------------------------------------------------------------------------- FEM
 def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None = None,
                          wob_rate: float = 2e5, tob_rate: float = 2e4,
-                         state_noise: float = 1e-3, top_drive_inertia: float | None = None,
-                         block_position_noise: float = 1e-3) -> KalmanObserver:
+                         state_noise: float = 0.1, top_drive_inertia: float | None = None,
+                         block_position_noise: float = 1e-3,
+                         operating_point=(0.01, 20.0)) -> KalmanObserver:
     """Kalman filter on the DHP design FEM with the bit forces as random-walk states.
 
     State: the FEM's (``x_i, alpha_i`` then ``v_i, omega_i``, deviations from the hanging
     equilibrium, :meth:`~downhole.string.fem.DirectionalModel.continuous_linear_model`) plus
-    ``wob`` (N) and ``tob`` (N m), which act on the bit node as ``-wob``, ``-tob`` through the
-    ZOH nodal force map. Inputs: ``slack_off_force`` (N), ``surface_torque`` (N m). Outputs:
+    the bit forces' random-walk parts ``wob - J v_bit`` (N) and ``tob - J omega_bit`` (N m),
+    which act on the bit node through the ZOH nodal force map, where ``J`` is
+    :func:`bit_law_jacobian` at ``operating_point`` (a damper at the bit in the model). Inputs: ``slack_off_force`` (N), ``surface_torque`` (N m). Outputs:
     the top node's axial position (block position), angle (top-drive angle), axial velocity and
     angular velocity. Wellbore friction is not modelled: the filter lumps it into the bit
     forces (what that costs is measured in docs/observer.md).
@@ -247,11 +274,15 @@ def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None
         kg m^2 (default the rig default, as the DHP design model).
     block_position_noise : float
         Noise of the block position, m.
+    operating_point : (float, float) or None
+        Bit velocities (m/s, rad/s) where the bit law is linearized; None: no bit damper (the
+        random walks carry the whole bit forces).
 
     Returns
     -------
     KalmanObserver
-        ``state_names`` = the FEM's + ``("wob", "tob")``, ``output_names`` =
+        ``state_names`` = the FEM's + ``("wob_rest", "tob_rest")``; the attribute
+        ``bit_jacobian`` (2, 2) gives the bit forces back: ``[wob, tob] = rest + J [v, omega]``; ``output_names`` =
         ``("block_position", "top_drive_angle", "top_drive_axial_velocity",
         "top_drive_angular_velocity")``.
     """
@@ -261,12 +292,22 @@ def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None
     J = DEFAULT_TOP_DRIVE_INERTIA if top_drive_inertia is None else top_drive_inertia
     m = dmodel.design_model()
     n = m.n_nodes
-    A_d, B_d = dmodel.linear_model(dt, J)
-    Gam = dmodel.nodal_force_map(dt, J)
-    _, _, names, _ = dmodel.continuous_linear_model(J)
-    ns = A_d.shape[0]
+    Ac, Bc, names, Minv = dmodel.continuous_linear_model(J)
+    ns = Ac.shape[0]
     ib = n - 1
-    Gbit = -Gam[:, [2 * ib, 2 * ib + 1]]
+    jb = [2 * ib, 2 * ib + 1]
+    Jb = np.zeros((2, 2))
+    if operating_point is not None:
+        # the axial damper only: the torsional slope of the approximated law is negative
+        # (-TOB/omega) and the cross terms couple the fields through a velocity-weakening
+        # bit; in the model they turn the error dynamics of the stick phase unstable
+        Jb[0, 0] = bit_law_jacobian(m.bit, *operating_point)[0, 0]
+    Ac = Ac.copy()
+    # bit forces -(rest + Jb [v_b, w_b]) on the bit DOFs: the damper part into A
+    Ac[2 * n:, [2 * n + j for j in jb]] -= Minv[:, jb] @ Jb
+    Mf = np.vstack([np.zeros((2 * n, 2)), Minv[:, jb]])
+    A_d, BG = zoh(Ac, np.hstack([Bc, Mf]), dt)
+    B_d, Gbit = BG[:, :2], -BG[:, 2:]
     A = np.block([[A_d, Gbit], [np.zeros((2, ns)), np.eye(2)]])
     B = np.vstack([B_d, np.zeros((2, 2))])
     C = np.zeros((4, ns + 2))
@@ -287,10 +328,12 @@ def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None
     q[2 * n:ns] = _positive("state_noise", state_noise) ** 2 * dt
     q[ns] = _positive("wob_rate", wob_rate) ** 2 * dt
     q[ns + 1] = _positive("tob_rate", tob_rate) ** 2 * dt
-    return KalmanObserver(A, B, C, np.diag(q), R, state_names=(*names, "wob", "tob"),
-                          output_names=("block_position", "top_drive_angle",
-                                        "top_drive_axial_velocity",
-                                        "top_drive_angular_velocity"))
+    kf = KalmanObserver(A, B, C, np.diag(q), R, state_names=(*names, "wob_rest", "tob_rest"),
+                        output_names=("block_position", "top_drive_angle",
+                                      "top_drive_axial_velocity", "top_drive_angular_velocity"))
+    kf.bit_jacobian = Jb
+    kf.bit_indices = (2 * n + jb[0], 2 * n + jb[1])
+    return kf
 
 
 # --------------------------------------------------------------------------------- neutral
@@ -304,13 +347,15 @@ def _line(a0, bd, g1):
 class _Channel:
     """One field of the neutral observer (see :class:`NeutralSurfaceObserver`)."""
 
-    def __init__(self, a0, bd, g1, tau, dt, c_top, r_meas, q_v, q_f):
+    def __init__(self, a0, bd, g1, tau, dt, c_top, r_meas, q_v, q_f, slope):
         self.Z, self.alpha = _line(a0, bd, g1)
         self.g1 = g1
         self.c_top = c_top
         self.dt = dt
-        # bit: v' = a0 (v - 2 a_in) + bd F, F random walk (F = gravity - WOB, or -TOB)
-        Ac = np.array([[a0, bd], [0.0, 0.0]])
+        self.slope = slope
+        # bit: v' = a0 (v - 2 a_in) - bd c v + bd F, F random walk (F = gravity - (WOB - c v),
+        # or -(TOB - c omega)), c the bit law's slope at the operating point
+        Ac = np.array([[a0 - bd * slope, bd], [0.0, 0.0]])
         Bc = np.array([[-2.0 * a0], [0.0]])
         self.Phi, self.Gam = zoh(Ac, Bc, dt)
         D = tau / dt
@@ -428,12 +473,16 @@ class NeutralSurfaceObserver:
         Random-walk intensities of the bit forces (N/sqrt(s), N m/sqrt(s)).
     velocity_rate : (float, float)
         Process noise on the bit velocities (m/s, rad/s per sqrt(s)).
+    operating_point : (float, float) or None
+        Bit velocities where the bit law's slopes ``dWOB/dv``, ``dTOB/domega``
+        (:func:`bit_law_jacobian`) are taken into the bit model as dampers (None: none).
     """
 
     signals = ("bit_axial_velocity", "bit_angular_velocity", "wob", "tob")
 
     def __init__(self, model, dt: float, *, noise: Mapping[str, float] | None = None,
-                 force_rate=(2e5, 2e3), velocity_rate=(1e-3, 0.1)):
+                 force_rate=(2e5, 2e3), velocity_rate=(1e-3, 0.1),
+                 operating_point=(0.01, 20.0)):
         self.model = model
         self.dt = _positive("dt", dt)
         if self.dt > model.tau1:
@@ -454,6 +503,8 @@ class NeutralSurfaceObserver:
         vel_keys = ("top_drive_axial_velocity", "top_drive_angular_velocity")
         force_keys = ("hook_load", "surface_torque")
         c_tops = (p.bit_mass * p.g, 0.0)
+        Jb = (np.zeros((2, 2)) if operating_point is None
+              else bit_law_jacobian(model.bit, *operating_point))
         for i in range(2):
             ch = nd.channel(i)
             bd = float(nd.Bd[i, i])
@@ -469,7 +520,7 @@ class NeutralSurfaceObserver:
             r = var * gain ** 2 * (1.0 + ch["g1"] ** 2)
             c = _Channel(ch["a0"], bd, ch["g1"], ch["tau"], self.dt, c_tops[i], r,
                          _positive("velocity_rate", velocity_rate[i]) ** 2,
-                         _positive("force_rate", force_rate[i]) ** 2)
+                         _positive("force_rate", force_rate[i]) ** 2, float(Jb[i, i]))
             self.channels.append(c)
         self._p = p
         self.reset()
@@ -497,8 +548,9 @@ class NeutralSurfaceObserver:
         w0, w1 = self.weights
         v, fa = self.channels[0].step(w0 * va + (1.0 - w0) * va_f, u_a)
         w, ft = self.channels[1].step(w1 * wa + (1.0 - w1) * wa_f, u_t)
+        ca, ct = self.channels[0].slope, self.channels[1].slope
         return {"bit_axial_velocity": v, "bit_angular_velocity": w,
-                "wob": p.bit_mass * p.g - fa, "tob": -ft}
+                "wob": p.bit_mass * p.g - fa + ca * v, "tob": -ft + ct * w}
 
     def spectral_radius(self) -> float:
         """Largest |eigenvalue| of the delayed filters' error matrices."""
@@ -525,7 +577,8 @@ class _FEMEstimator:
         y = np.array([self._pos, observation["top_drive_angle"], v,
                       observation["top_drive_angular_velocity"]], float)
         x = self.kf.update(y, np.asarray(command, float))
-        return {"state": x[:self.n], "wob": float(x[self.n]), "tob": float(x[self.n + 1])}
+        f = x[self.n:self.n + 2] + self.kf.bit_jacobian @ x[list(self.kf.bit_indices)]
+        return {"state": x[:self.n], "wob": float(f[0]), "tob": float(f[1])}
 
 
 class SurfaceFeedback(Controller):
