@@ -205,8 +205,11 @@ class KalmanObserver:
                                      "model's sizes")
         # one matrix per update: x = (I - K C) (A x + B u) + K y
         IKC = np.eye(n) - self.K @ self.C
+        self._IKC = IKC
         self._F = IKC @ self.A
         self._G = IKC @ self.B
+        #: optional known nonlinear increment h(x) added to the prediction (see :meth:`update`)
+        self.nonlinear = None
         self.reset()
 
     @property
@@ -228,22 +231,29 @@ class KalmanObserver:
 
     def update(self, y, u) -> np.ndarray:
         """Predict with the input ``u`` held over the last step, correct with ``y``; returns the
-        estimate (a view, do not modify)."""
-        self.x = self._F @ self.x + self._G @ u + self.K @ y
+        estimate (a view, do not modify). With :attr:`nonlinear` set, the prediction is
+        ``A x + B u + nonlinear(x)`` (the gain stays the linear model's)."""
+        x = self._F @ self.x + self._G @ u + self.K @ y
+        if self.nonlinear is not None:
+            x += self._IKC @ self.nonlinear(self.x)
+        self.x = x
         return self.x
 
     def predict(self, u) -> np.ndarray:
         """Predict only (no measurement this step)."""
-        self.x = self.A @ self.x + self.B @ u
+        x = self.A @ self.x + self.B @ u
+        if self.nonlinear is not None:
+            x += self.nonlinear(self.x)
+        self.x = x
         return self.x
 
 
 # ------------------------------------------------------------------------------------- FEM
 def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None = None,
-                         wob_rate: float = 2e5, tob_rate: float = 2e4,
+                         wob_rate: float = 2e4, tob_rate: float = 2e3,
                          state_noise: float = 0.1, top_drive_inertia: float | None = None,
                          block_position_noise: float = 1e-3,
-                         operating_point=(0.01, 20.0)) -> KalmanObserver:
+                         operating_point=(0.01, 20.0), design=None) -> KalmanObserver:
     """Kalman filter on the DHP design FEM with the bit forces as random-walk states.
 
     State: the FEM's (``x_i, alpha_i`` then ``v_i, omega_i``, deviations from the hanging
@@ -277,6 +287,9 @@ def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None
     operating_point : (float, float) or None
         Bit velocities (m/s, rad/s) where the bit law is linearized; None: no bit damper (the
         random walks carry the whole bit forces).
+    design : ControlAffineModel, optional
+        From :func:`~downhole.control.dhp.directional.directional_affine_model` of ``dmodel``:
+        its ``forces`` give the friction term of the prediction.
 
     Returns
     -------
@@ -305,9 +318,17 @@ def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None
     Ac = Ac.copy()
     # bit forces -(rest + Jb [v_b, w_b]) on the bit DOFs: the damper part into A
     Ac[2 * n:, [2 * n + j for j in jb]] -= Minv[:, jb] @ Jb
-    Mf = np.vstack([np.zeros((2 * n, 2)), Minv[:, jb]])
+    act = np.zeros(0, dtype=int)
+    if design is not None and getattr(design, "forces", None) is not None:
+        act = np.asarray(design.metadata.get("force_nodes", []), dtype=int)
+        if design.n_states != ns or ib not in act:
+            raise DownholeInputError(f"fem_surface_observer: design model {design.name!r} does "
+                                     f"not belong to this FEM ({design.n_states} states, "
+                                     f"expected {ns} with force nodes including the bit)")
+    cols = np.ravel(np.column_stack([2 * act, 2 * act + 1])).astype(int)
+    Mf = np.vstack([np.zeros((2 * n, 2 + cols.size)), Minv[:, jb + cols.tolist()]])
     A_d, BG = zoh(Ac, np.hstack([Bc, Mf]), dt)
-    B_d, Gbit = BG[:, :2], -BG[:, 2:]
+    B_d, Gbit, Gact = BG[:, :2], -BG[:, 2:4], BG[:, 4:]
     A = np.block([[A_d, Gbit], [np.zeros((2, ns)), np.eye(2)]])
     B = np.vstack([B_d, np.zeros((2, 2))])
     C = np.zeros((4, ns + 2))
@@ -333,7 +354,32 @@ def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None
                                       "top_drive_axial_velocity", "top_drive_angular_velocity"))
     kf.bit_jacobian = Jb
     kf.bit_indices = (2 * n + jb[0], 2 * n + jb[1])
+    if act.size:
+        kf.nonlinear = _friction_term(design, Gact, int(np.nonzero(act == ib)[0][0]), ns)
     return kf
+
+
+def _friction_term(design, Gact, slot, ns):
+    """``h(x)``: the ZOH increment of the design model's wellbore friction at the state ``x``
+    (its forces less its bit law, which the filter replaces by the bit-force states)."""
+    from downhole.bit.law import approx_depth_of_cut, bit_forces
+
+    P = np.asarray(design.state_scale, float)
+    bitp = design.bit.to_array()
+    iv, iw = 2 * (ns // 4) + 2 * (ns // 4 - 1), 2 * (ns // 4) + 2 * (ns // 4 - 1) + 1
+    out = np.zeros(ns + 2)
+
+    def h(x):
+        z = x[:ns]
+        f = np.asarray(design.forces((z / P)[None, :]), float)[0]
+        va, vt = z[iv], z[iw]
+        wob, tob = bit_forces(approx_depth_of_cut(va, vt, bitp), va, vt, bitp)
+        f[2 * slot] += wob           # the kernel's bit column is -wob - friction: keep friction
+        f[2 * slot + 1] += tob
+        out[:ns] = Gact @ f
+        return out
+
+    return h
 
 
 # --------------------------------------------------------------------------------- neutral
@@ -414,7 +460,6 @@ def _channel_step(buf, k, x, F, G, K, PN, W, Phi_f, Gam_f, Z, alpha, c_top, D, f
     the prediction ``(v, F)`` at the current time."""
     cap = buf.shape[0]
     b_in = ((Z + alpha) * v_top - alpha * u_rel + c_top) / (2.0 * Z)
-    buf[k % cap] = v_top - b_in
     # delayed filter at t - tau: input a_in_bit over the last step (trapezoid), measurement
     # v(t - tau) = b_in(t) + a_in_bit(t - tau) = b_in(t) + a_top(t - 2 tau)
     a_now = _wave_at(buf, k, 2.0 * D)
@@ -425,6 +470,11 @@ def _channel_step(buf, k, x, F, G, K, PN, W, Phi_f, Gam_f, Z, alpha, c_top, D, f
     x1 = F[1, 0] * x[0] + F[1, 1] * x[1] + G[1] * u + K[1] * y
     x[0] = x0
     x[1] = x1
+    # the downward wave leaving the top now, from the filtered upward wave b = v(t - tau) -
+    # a_in_bit(t - tau) and the known command through the top boundary (not the raw
+    # measurement: its noise would enter every prediction of the next 2 tau)
+    b_f = x0 - a_now
+    buf[k % cap] = (2.0 * Z * b_f + alpha * u_rel - c_top) / (Z + alpha) - b_f
     # prediction over [t - tau, t]: a_in_bit there = a_top over [t - 2 tau, t - tau]
     n1 = W.shape[1]
     p0 = PN[0, 0] * x0 + PN[0, 1] * x1
@@ -740,7 +790,7 @@ class _DHPState:
         return self.dhp.command(t, {"state": observation["state"]}, reference)
 
 
-def dhp_from_surface(dhp, dmodel, **observer_options) -> SurfaceFeedback:
+def dhp_from_surface(dhp, dmodel, design=None, **observer_options) -> SurfaceFeedback:
     """A DHP controller on the directional FEM, from surface measurements only.
 
     Parameters
@@ -749,10 +799,13 @@ def dhp_from_surface(dhp, dmodel, **observer_options) -> SurfaceFeedback:
         Trained on the design model of ``dmodel`` (24-state FEM of Ch. 4).
     dmodel : DirectionalModel
         The design FEM (its linear model is the observer's).
+    design : ControlAffineModel, optional
+        The DHP design model of ``dmodel``: its wellbore friction enters the observer's
+        prediction (see :func:`fem_surface_observer`).
     **observer_options
         Passed to :func:`fem_surface_observer`.
     """
-    kf = fem_surface_observer(dmodel, dhp.dt, **observer_options)
+    kf = fem_surface_observer(dmodel, dhp.dt, design=design, **observer_options)
     n = dmodel.design_model().n_states
     if n != int((dhp._integral or {}).get("n_base", dhp.n_states)):
         raise DownholeInputError(f"dhp_from_surface: the controller has {dhp.n_states} states, "
