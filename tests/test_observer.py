@@ -71,7 +71,7 @@ def test_fem_observer_error_converges_on_its_linear_model(fem24):
     kf.reset()
     e0 = np.linalg.norm(kf.x - x)
     steps = 20000
-    for k in range(steps):
+    for _ in range(steps):
         u = np.array([1e5, 1e4]) * (1.0 + 0.1 * rng.standard_normal(2))
         x = kf.A @ x + kf.B @ u
         kf.update(kf.C @ x, u)
@@ -95,6 +95,48 @@ def test_fem_observer_names_and_bit_damper(fem24):
         fem_surface_observer(fem24, 1e-3, noise={"hookload": 1.0})
     with pytest.raises(DownholeInputError, match="positive"):
         fem_surface_observer(fem24, 1e-3, wob_rate=-1.0)
+
+
+def test_fem_observer_friction_term_is_the_design_models_friction(fem24):
+    """With the DHP design model the prediction adds its wellbore friction: the design model's
+    forces less those of the same model without friction (its bit law), through the ZOH map."""
+    from downhole.control.dhp.directional import directional_affine_model
+
+    design = directional_affine_model(fem24)
+    bare = directional_affine_model(fem24, friction=False)
+    kf = fem_surface_observer(fem24, 1e-3, design=design)
+    assert kf.nonlinear is not None
+    assert fem_surface_observer(fem24, 1e-3).nonlinear is None
+    n = fem24.n_nodes
+    x = np.zeros(kf.n_states)
+    assert np.allclose(kf.nonlinear(x), 0.0)          # at rest: no friction
+    x[2 * n:4 * n:2] = 0.01                           # the whole string drilling at 10 mm/s,
+    x[2 * n + 1:4 * n:2] = 20.0                       # 20 rad/s
+    P = np.asarray(design.state_scale)
+    z = (x[:4 * n] / P)[None, :]
+    act = design.metadata["force_nodes"]
+    assert act[-1] == n - 1 and bare.metadata["force_nodes"] == [n - 1]
+    friction = np.asarray(design.forces(z), float)[0]
+    friction[-2:] -= np.asarray(bare.forces(z), float)[0]     # less the bit law
+    f_nodal = np.zeros(2 * n)
+    for j, a in enumerate(act):
+        f_nodal[2 * a:2 * a + 2] = friction[2 * j:2 * j + 2]
+    h = kf.nonlinear(x)[:4 * n]
+    assert np.any(f_nodal != 0.0)
+    # over one short step a held force changes the velocities by dt M^-1 f (first order)
+    _, _, _, Minv = fem24.continuous_linear_model()
+    expected = 1e-3 * Minv @ f_nodal
+    assert np.allclose(h[2 * n:], expected, rtol=0.05, atol=0.05 * np.abs(expected).max())
+    # friction opposes the motion: it slows the rotation and the axial motion of the string
+    assert h[2 * n + 1::2].sum() < 0 and h[2 * n::2].sum() < 0
+    with pytest.raises(DownholeInputError, match="does not belong"):
+        fem_surface_observer(hybrid_design_mismatch(), 1e-3, design=design)
+
+
+def hybrid_design_mismatch():
+    from downhole.string.hybrid import hybrid_model
+
+    return hybrid_model("hybrid68").design_model(n_bc=4)
 
 
 def test_bit_law_jacobian_against_the_law_and_refusals(neutral):
@@ -124,7 +166,7 @@ class _Recorder:
     dt = 1e-3
 
     def __init__(self, u):
-        self.u = dict(zip(self.commands, u))
+        self.u = dict(zip(self.commands, u, strict=True))
         self.seen = []
 
     def reset(self):

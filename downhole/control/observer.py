@@ -43,7 +43,7 @@ The EID/DHP claims measured with these observers are in docs/observer.md
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 from numba import njit
@@ -75,11 +75,11 @@ def _matrix(name, value, shape=None):
     a = np.asarray(value, dtype=float)
     if a.ndim == 1 and shape is not None and len(shape) == 2 and shape[1] == 1:
         a = a[:, None]
-    if shape is not None:
-        if a.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, a.shape)):
-            raise DownholeInputError(f"observer: {name} must have shape "
-                                     f"{tuple('n' if s is None else s for s in shape)}, got "
-                                     f"{a.shape}")
+    if shape is not None and (a.ndim != len(shape) or any(
+            s is not None and s != d for s, d in zip(shape, a.shape, strict=False))):
+        raise DownholeInputError(f"observer: {name} must have shape "
+                                 f"{tuple('n' if s is None else s for s in shape)}, got "
+                                 f"{a.shape}")
     if not np.all(np.isfinite(a)):
         raise DownholeInputError(f"observer: {name} has non-finite entries")
     return a
@@ -208,6 +208,8 @@ class KalmanObserver:
         self._IKC = IKC
         self._F = IKC @ self.A
         self._G = IKC @ self.B
+        self._M = np.hstack([self._F, self._G, self.K])   # one product per update
+        self._xuy = np.zeros(self._M.shape[1])
         #: optional known nonlinear increment h(x) added to the prediction (see :meth:`update`)
         self.nonlinear = None
         self.reset()
@@ -233,7 +235,12 @@ class KalmanObserver:
         """Predict with the input ``u`` held over the last step, correct with ``y``; returns the
         estimate (a view, do not modify). With :attr:`nonlinear` set, the prediction is
         ``A x + B u + nonlinear(x)`` (the gain stays the linear model's)."""
-        x = self._F @ self.x + self._G @ u + self.K @ y
+        n, m = self.n_states, self.B.shape[1]
+        v = self._xuy
+        v[:n] = self.x
+        v[n:n + m] = u
+        v[n + m:] = y
+        x = self._M @ v
         if self.nonlinear is not None:
             x += self._IKC @ self.nonlinear(self.x)
         self.x = x
@@ -260,10 +267,13 @@ def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None
     equilibrium, :meth:`~downhole.string.fem.DirectionalModel.continuous_linear_model`) plus
     the bit forces' random-walk parts ``wob - J v_bit`` (N) and ``tob - J omega_bit`` (N m),
     which act on the bit node through the ZOH nodal force map, where ``J`` is
-    :func:`bit_law_jacobian` at ``operating_point`` (a damper at the bit in the model). Inputs: ``slack_off_force`` (N), ``surface_torque`` (N m). Outputs:
-    the top node's axial position (block position), angle (top-drive angle), axial velocity and
-    angular velocity. Wellbore friction is not modelled: the filter lumps it into the bit
-    forces (what that costs is measured in docs/observer.md).
+    :func:`bit_law_jacobian` at ``operating_point`` (its axial slope only: a damper at the bit
+    in the model). Inputs: ``slack_off_force`` (N), ``surface_torque`` (N m). Outputs: the top
+    node's axial position (block position), angle (top-drive angle), axial velocity and
+    angular velocity. With ``design`` (the DHP design model of ``dmodel``), the prediction also
+    adds the wellbore friction forces of that model at the estimated state (its soft-string
+    friction with the design regularization); without it the filter lumps the friction into
+    the bit forces, which puts the string's twist in the wrong place (docs/observer.md).
 
     Parameters
     ----------
@@ -295,9 +305,9 @@ def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None
     -------
     KalmanObserver
         ``state_names`` = the FEM's + ``("wob_rest", "tob_rest")``; the attribute
-        ``bit_jacobian`` (2, 2) gives the bit forces back: ``[wob, tob] = rest + J [v, omega]``; ``output_names`` =
-        ``("block_position", "top_drive_angle", "top_drive_axial_velocity",
-        "top_drive_angular_velocity")``.
+        ``bit_jacobian`` (2, 2) gives the bit forces back, ``[wob, tob] = rest + J [v,
+        omega]``; ``output_names`` = ``("block_position", "top_drive_angle",
+        "top_drive_axial_velocity", "top_drive_angular_velocity")``.
     """
     from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
@@ -405,7 +415,7 @@ class _Channel:
         Bc = np.array([[-2.0 * a0], [0.0]])
         self.Phi, self.Gam = zoh(Ac, Bc, dt)
         D = tau / dt
-        self.n1 = int(math.floor(D))
+        self.n1 = math.floor(D)
         self.f1 = D - self.n1
         self.Phi_f, self.Gam_f = zoh(Ac, Bc, self.f1 * dt) if self.f1 > 1e-12 else (
             np.eye(2), np.zeros((2, 1)))
@@ -425,7 +435,7 @@ class _Channel:
                                  np.array([[r_meas]]), state_names=("v", "F"),
                                  output_names=("v_delayed",))
         # ring buffer of the downward waves leaving the top
-        self.cap = int(math.ceil(2 * D)) + 8
+        self.cap = math.ceil(2 * D) + 8
         self.D = D
 
     def reset(self, a_top0, v0, f0):
@@ -748,7 +758,7 @@ class MeasurementNoise(Controller):
             self.reset()
         obs = dict(observation)
         e = self._rng.standard_normal(len(self._names)) * self._s
-        for name, x in zip(self._names, e):
+        for name, x in zip(self._names, e, strict=True):
             if name in obs:
                 obs[name] = float(obs[name]) + float(x)
         return self.inner.command(t, obs, reference)
