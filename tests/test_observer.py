@@ -240,8 +240,10 @@ def test_wrapper_refuses_missing_or_non_finite_signals_and_a_wrong_rate(neutral)
     fb.command(0.0, ok)
     with pytest.raises(DownholeInputError, match="lacks 'hook_load'"):
         fb.command(0.001, {k: v for k, v in ok.items() if k != "hook_load"})
-    with pytest.raises(DownholeInputError, match="not finite"):
+    with pytest.raises(DownholeInputError, match="not a finite number"):
         fb.command(0.001, dict(ok, surface_torque=float("inf")))
+    with pytest.raises(DownholeInputError, match="not a finite number"):
+        fb.command(0.001, dict(ok, hook_load="heavy"))
     fb.dt = 2e-3                          # a runner stepping it at another rate
     with pytest.raises(DownholeInputError, match="sample time"):
         fb.reset()

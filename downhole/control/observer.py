@@ -704,9 +704,13 @@ class SurfaceFeedback(Controller):
             if name not in observation:
                 raise DownholeInputError(f"SurfaceFeedback: observation lacks {name!r}; it needs "
                                          f"{self.needs}")
-            if not math.isfinite(float(observation[name])):
-                raise DownholeInputError(f"SurfaceFeedback: observation {name!r} is not finite "
-                                         f"({observation[name]!r})")
+            try:
+                value = float(observation[name])
+            except (TypeError, ValueError):
+                value = math.nan
+            if not math.isfinite(value):
+                raise DownholeInputError(f"SurfaceFeedback: observation {name!r} is not a finite "
+                                         f"number ({observation[name]!r})")
         est = self.estimator.update(observation, self._u)
         self.estimate = est
         cmd = self.inner.command(t, est, reference)
