@@ -782,9 +782,12 @@ def eid_from_surface(eid, model, dt: float = 1e-3, **observer_options) -> Surfac
     **observer_options
         Passed to :class:`NeutralSurfaceObserver` (``noise``, ``force_rate``, ...).
     """
-    eid.dt = float(dt)
+    import copy
+
+    inner = copy.copy(eid)          # the caller's controller keeps its own sample time
+    inner.dt = float(dt)
     obs = NeutralSurfaceObserver(model, dt, **observer_options)
-    return SurfaceFeedback(eid, obs, NEUTRAL_MEASUREMENTS,
+    return SurfaceFeedback(inner, obs, NEUTRAL_MEASUREMENTS,
                            commands=("top_drive_axial_velocity", "top_drive_angular_velocity"))
 
 

@@ -104,9 +104,10 @@ def _plot(eid_res, dhp_runs, path):
     ax[0, 0].plot(t, 1e3 * eid_res["bit_axial_velocity"], lw=0.8)
     ax[1, 0].plot(t, eid_res["bit_angular_velocity"], lw=0.8)
     ax[0, 0].set_title("EID + neutral-string observer (fig3.4)")
-    for lab, r in dhp_runs.items():
-        ax[0, 1].plot(r["time"], 1e3 * r["bit_axial_velocity"], lw=0.8, label=lab)
-        ax[1, 1].plot(r["time"], r["bit_angular_velocity"], lw=0.8, label=lab)
+    for i, (lab, r) in enumerate(dhp_runs.items()):
+        style = dict(lw=0.8, label=lab, zorder=5 if i == 0 else 2, alpha=1.0 if i == 0 else 0.45)
+        ax[0, 1].plot(r["time"], 1e3 * r["bit_axial_velocity"], **style)
+        ax[1, 1].plot(r["time"], r["bit_angular_velocity"], **style)
     ax[0, 1].set_title("DHP + FEM observer (fig4.7 step)")
     ax[0, 1].legend(fontsize=7)
     for a in ax[:, 0]:
