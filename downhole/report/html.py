@@ -22,6 +22,7 @@ CHAPTERS = {
     4: "Directional FEM model and DHP (SNAC) control",
     5: "Hybrid FEM + transfer-matrix models",
     6: "Software-in-the-loop testbed",
+    7: "Beyond the dissertation: output feedback from surface measurements",
 }
 
 _CSS = """
