@@ -37,7 +37,7 @@ from downhole.system import FIDELITIES, DrillingSystem
 
 DURATION = 0.3  # s simulated per cell
 RUNNERS = ("offline", "sil", "udp", "fmu")
-CONTROLLERS = ("pi", "ztorque", "eid")
+CONTROLLERS = ("pi", "ztorque", "softspeed", "eid")
 
 #: Cells that cannot work, and why (the test checks that check_pair or the plant says so too,
 #: where the reason is a missing signal).
@@ -105,6 +105,10 @@ def _controller(name, plant, system, eid_design):
     if name == "ztorque":
         return ZTorque(torsional_impedance(system.string.segments[0].section), speed=10.0,
                        dt=plant.dt)
+    if name == "softspeed":  # the soft-torque drive, tuned (SPE-119660) from the description
+        from downhole.control import SoftSpeed
+
+        return SoftSpeed(system, speed=10.0, dt=plant.dt)
     # the drive's limits: a block velocity within +/- 0.5 m/s of the hanging command, 0-40 rad/s
     off = eid_design.model_coeffs[0]["offset"]
     ctrl = dataclasses.replace(eid_design, u_limits=((off - 0.5, off + 0.5), (0.0, 40.0)))
