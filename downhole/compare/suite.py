@@ -202,10 +202,11 @@ _STANDARD = (
        duration=20.0, region="smooth"),
 )
 
-# The smoke suite: one short stick-slip case on the short Ch. 3 string (seconds).
+# The smoke suite: one short stick-slip case on the short Ch. 3 string, with sensor noise and
+# the actuator delay (seconds to run).
 _SMOKE = (
-    _c(id="smoke-ch3-ss", system="ch3", speed=5.0, wob=60e3, start="stick_slip", pre_time=4.0,
-       duration=8.0, n_elements=20, region="stick-slip"),
+    _c(id="smoke-ch3-ss-noisy", system="ch3", speed=5.0, wob=60e3, start="stick_slip",
+       pre_time=4.0, duration=8.0, n_elements=20, region="stick-slip", seed=7, **_NOISY),
 )
 
 #: Suite name -> cases.
