@@ -1,4 +1,5 @@
-"""One cell of the benchmark: one controller on one case, through the Plant and Controller contracts.
+"""One cell of the benchmark: one controller on one case, through the Plant and Controller
+contracts.
 
 The case's plant is the directional FEM of its system with the delayed depth of cut
 (:class:`~downhole.string.fem.DirectionalPlant`), wrapped in :class:`MeasuredPlant`, which adds

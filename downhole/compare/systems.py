@@ -1,4 +1,5 @@
-"""The drilling systems of the controller benchmark, each one :class:`~downhole.system.DrillingSystem`.
+"""The drilling systems of the controller benchmark, each a
+:class:`~downhole.system.DrillingSystem`.
 
 Every system is described in full here (well sections or survey stations, string segments, bit
 preset, rig), so that a suite version fixes them; :func:`describe_system` turns one into the
