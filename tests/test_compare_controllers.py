@@ -275,3 +275,29 @@ def test_standard_suite_scores_every_builtin(tmp_path):
     for cid, c in cases.items():
         assert (scores["cells"][cid]["eid"]["status"] != "n/a") == (c["hook"] == "velocity"), cid
     assert (tmp_path / "std" / "index.html").is_file()
+
+
+def test_softspeed_and_autodriller_exposed_by_downhole_control_are_registered(monkeypatch):
+    import downhole.control as control_pkg
+    from downhole.compare import builtin
+    from downhole.control.ztorque import ZTorque
+
+    class SoftSpeedLike(ZTorque):
+        """A stand-in with the conventional keywords (impedance, speed, dt)."""
+
+        def __init__(self, impedance, *, speed=None, dt=1e-3):
+            super().__init__(impedance, speed=speed, dt=dt)
+
+    saved = dict(BUILTIN)
+    monkeypatch.setattr(control_pkg, "SoftSpeed", SoftSpeedLike, raising=False)
+    try:
+        BUILTIN.pop("softspeed", None)
+        builtin._auto_register()
+        assert BUILTIN["softspeed"].class_name == "SoftSpeedLike"
+        s = compare_controllers(["softspeed", "z-torque"], suite="smoke", traces=False)
+    finally:
+        BUILTIN.clear()
+        BUILTIN.update(saved)
+    cells = s["cells"][SMOKE.id]
+    # the stand-in is Z-torque under another name: the same scores
+    assert cells["softspeed"] == cells["z-torque"]

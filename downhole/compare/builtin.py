@@ -154,12 +154,15 @@ register("dhp", _dhp, "DHP (Ch. 4): full design-model state feedback, sets slack
 def _auto_factory(cls):
     """A factory for a controller class of :mod:`downhole.control`: ``cls.for_system(system,
     case)`` when the class offers it, else ``cls(...)`` with the keywords among ``system``,
-    ``speed``, ``wob``, ``rop``, ``impedance`` and ``dt`` that its constructor takes."""
+    ``speed``, ``wob``, ``rop``, ``impedance`` (top pipe's torsional impedance), ``weight``
+    (buoyed string weight, the hook load at zero WOB), ``inertia`` (top drive) and ``dt`` that
+    its constructor takes."""
     def factory(system, case):
         if hasattr(cls, "for_system"):
             return cls.for_system(system, case)
         offered = {"system": system, "speed": case.speed, "wob": case.wob,
                    "rop": case.reference_rop(), "impedance": _top_impedance(system),
+                   "weight": system.hanging_weight(), "inertia": system.rig.top_drive.inertia,
                    "dt": case.dt}
         params = inspect.signature(cls).parameters
         try:
