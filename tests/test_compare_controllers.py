@@ -257,6 +257,13 @@ def test_a_bad_out_path_exits_2_before_any_work(tmp_path, capsys):
 
 
 @pytest.mark.slow
+def test_cells_in_worker_processes_score_as_in_this_process():
+    one = compare_controllers(["stiff-pi", "z-torque"], suite="smoke", traces=False)
+    two = compare_controllers(["stiff-pi", "z-torque"], suite="smoke", traces=False, jobs=2)
+    assert one["cells"] == two["cells"]
+
+
+@pytest.mark.slow
 def test_standard_suite_scores_every_builtin(tmp_path):
     scores = compare_controllers(None, suite="standard", out=tmp_path / "std", jobs=2)
     cases = {c["id"]: c for c in scores["cases"]}

@@ -14,7 +14,7 @@ the same suite name and version are comparable.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 from downhole.errors import DownholeInputError
 
@@ -81,7 +81,6 @@ class Case:
     dt: float = 1e-3
     seed: int = 0
     region: str = ""
-    description: str = field(default="", compare=False)
 
     def __post_init__(self):
         from downhole.compare.systems import SYSTEMS
@@ -172,7 +171,7 @@ _STANDARD = (
     _c(id="ch2-smooth-steady", system="ch2", speed=15.0, wob=60e3, start="steady",
        duration=20.0, region="smooth"),
     # Ch. 3 vertical string, 1134 m; velocity-driven hook (ROP set-point) as in Ch. 3
-    _c(id="ch3-rop-ss-rest", system="ch3", speed=5.0, wob=50e3, hook="velocity", rop=5e-3,
+    _c(id="ch3-rop-ss-rest", system="ch3", speed=5.0, wob=50e3, hook="velocity", rop=8e-3,
        start="rest", duration=20.0, region="stick-slip"),
     _c(id="ch3-rop-smooth-steady-noisy", system="ch3", speed=20.0, wob=50e3, hook="velocity",
        rop=10e-3, start="steady", duration=20.0, region="smooth", seed=2, **_NOISY),
