@@ -192,6 +192,10 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
     """
     from downhole import __version__
 
+    if out is not None:
+        from downhole._atomic import check_output_path
+
+        check_output_path(out, kind="folder", option="out")  # before any work
     specs = resolve_controllers(controllers)
     all_cases = get_suite(suite)
     if cases:
