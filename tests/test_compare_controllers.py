@@ -308,3 +308,24 @@ def test_softspeed_and_autodriller_exposed_by_downhole_control_are_registered(mo
     cells = s["cells"][SMOKE.id]
     # the stand-in is Z-torque under another name: the same scores
     assert cells["softspeed"] == cells["z-torque"]
+
+
+def test_a_factory_or_a_controller_that_raises_fails_its_cell_only():
+    def broken_factory(system, case):
+        raise RuntimeError("no gains for this string")
+
+    class Raises(ZeroSpeed):
+        def command(self, t, observation, reference=None):
+            if t > 1.0:
+                raise ValueError("lost the sensor")
+            return super().command(t, observation, reference)
+
+    s = compare_controllers({"broken": broken_factory, "raises": Raises(), "pi": "stiff-pi"},
+                            suite="smoke", traces=False)
+    cells = s["cells"][SMOKE.id]
+    assert cells["broken"] == {"status": "failed", "reason": "building the controller: "
+                               "RuntimeError: no gains for this string"}
+    assert cells["raises"]["status"] == "failed"
+    assert "ValueError: lost the sensor" in cells["raises"]["reason"]
+    assert cells["pi"]["status"] == "ok"
+    assert s["summary"]["broken"]["failed"] == 1

@@ -64,7 +64,10 @@ class _Spec:
                 self._cache[key] = ctrl
             return ctrl
         if self.obj is not None:
-            return copy.deepcopy(self.obj)
+            try:
+                return copy.deepcopy(self.obj)  # no state carried from one case to the next
+            except Exception:  # noqa: BLE001 - not copyable: the same object, reset per run
+                return self.obj
         return self.factory(system, case)
 
 
@@ -135,6 +138,9 @@ def _prepare(spec: _Spec, case, system, plant):
         ctrl = spec.build(system, case)
     except NotApplicable as exc:
         return None, {"status": "n/a", "reason": str(exc)}
+    except Exception as exc:  # noqa: BLE001 - a factory that fails fails its cell only
+        return None, {"status": "failed", "reason": f"building the controller: "
+                                                    f"{type(exc).__name__}: {exc}"}
     why = check_pair(ctrl, plant.inner)
     if why:
         return None, {"status": "n/a", "reason": why}
