@@ -329,3 +329,23 @@ def test_a_factory_or_a_controller_that_raises_fails_its_cell_only():
     assert "ValueError: lost the sensor" in cells["raises"]["reason"]
     assert cells["pi"]["status"] == "ok"
     assert s["summary"]["broken"]["failed"] == 1
+
+
+def test_a_saved_dhp_is_scored_from_its_file_and_is_na_where_the_plant_lacks_its_state(
+        tmp_path):
+    from downhole.control.dhp import DHPController
+    from downhole.control.dhp.references import BitReference
+
+    ns, m, n = 10, 2, 4
+    dhp = DHPController(np.zeros((ns, m)), np.zeros((ns, m, n)), np.zeros((ns + 1, n)),
+                        np.zeros((ns, m)), np.ones(n), np.ones(m), 1e-3,
+                        [f"z{i}" for i in range(n)], ["position"] * n,
+                        ["slack_off_force", "surface_torque"], BitReference())
+    dhp.save(tmp_path / "my_dhp")
+    out = tmp_path / "o"
+    rc = main(["compare-controllers", "--suite", "smoke", "--no-builtin", "--out", str(out),
+               "--controller", str(tmp_path / "my_dhp.json")])
+    assert rc == 0
+    cell = json.loads((out / "scores.json").read_text())["cells"][SMOKE.id]["my_dhp"]
+    assert cell == {"status": "n/a", "reason": "DHPController needs ['state'], which "
+                    "DirectionalPlant does not observe"}
