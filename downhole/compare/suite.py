@@ -184,7 +184,7 @@ _STANDARD = (
        pre_time=20.0, duration=30.0, n_elements=107, region="stick-slip", seed=3, **_NOISY),
     _c(id="t51-ss-eps50", system="table_5_1", speed=10.0, wob=120e3, epsilon_scale=0.5,
        start="stick_slip", pre_time=20.0, duration=30.0, n_elements=107, region="stick-slip"),
-    _c(id="t51-ss-eps300", system="table_5_1", speed=10.0, wob=120e3, epsilon_scale=3.0,
+    _c(id="t51-ss-eps300", system="table_5_1", speed=10.0, wob=150e3, epsilon_scale=3.0,
        start="stick_slip", pre_time=20.0, duration=30.0, n_elements=107, region="stick-slip"),
     _c(id="t51-smooth-steady", system="table_5_1", speed=20.0, wob=60e3, start="steady",
        duration=20.0, n_elements=107, region="smooth"),
