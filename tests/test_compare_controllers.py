@@ -349,3 +349,22 @@ def test_a_saved_dhp_is_scored_from_its_file_and_is_na_where_the_plant_lacks_its
     cell = json.loads((out / "scores.json").read_text())["cells"][SMOKE.id]["my_dhp"]
     assert cell == {"status": "n/a", "reason": "DHPController needs ['state'], which "
                     "DirectionalPlant does not observe"}
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"system": "moon"}, "unknown system 'moon'"),
+    ({"hook": "crane"}, "hook must be"),
+    ({"hook": "velocity"}, "needs rop > 0"),
+    ({"start": "flying"}, "start must be"),
+    ({"start": "stick_slip", "pre_time": 0.0}, "needs pre_time > 0"),
+    ({"speed": float("nan")}, "speed must be > 0"),
+    ({"delay": -0.02}, "delay must be >= 0"),
+])
+def test_a_bad_case_definition_names_the_case_and_the_field(change, message):
+    from downhole.errors import DownholeInputError
+
+    kw = dict(id="bad", system="ch3", speed=5.0, wob=60e3)
+    kw.update(change)
+    with pytest.raises(DownholeInputError, match=message) as info:
+        Case(**kw)
+    assert str(info.value).startswith("case bad: ")

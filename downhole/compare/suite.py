@@ -99,8 +99,12 @@ class Case:
             raise DownholeInputError(f"case {self.id}: a stick_slip start needs pre_time > 0")
         for name in ("speed", "duration", "dt", "epsilon_scale"):
             v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise DownholeInputError(f"case {self.id}: {name} must be > 0, got {v!r}")
+        for name in ("delay", "pre_time", "wob"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise DownholeInputError(f"case {self.id}: {name} must be >= 0, got {v!r}")
 
     # ------------------------------------------------------------------ derived
     @property
