@@ -12,13 +12,12 @@ Adding a controller is one line::
 
     register("softspeed", lambda system, case: SoftSpeed(...), "SoftSpeed-tuned soft torque")
 
-Controllers that :mod:`downhole.control` exposes at import time as ``SoftSpeed`` and
-``AutoDriller`` are registered automatically (see :func:`_auto_register`).
+The industrial baselines of :mod:`downhole.control` (``SoftSpeed``, ``AutoDriller``) are
+registered here like the others.
 """
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import dataclass
 from typing import Callable
 
@@ -150,43 +149,25 @@ register("dhp", _dhp, "DHP (Ch. 4): full design-model state feedback, sets slack
          class_name="DHPController")
 
 
-# ------------------------------------------------------------------ controllers of other branches
-def _auto_factory(cls):
-    """A factory for a controller class of :mod:`downhole.control`: ``cls.for_system(system,
-    case)`` when the class offers it, else ``cls(...)`` with the keywords among ``system``,
-    ``speed``, ``wob``, ``rop``, ``impedance`` (top pipe's torsional impedance), ``weight``
-    (buoyed string weight, the hook load at zero WOB), ``inertia`` (top drive) and ``dt`` that
-    its constructor takes."""
-    def factory(system, case):
-        if hasattr(cls, "for_system"):
-            return cls.for_system(system, case)
-        offered = {"system": system, "speed": case.speed, "wob": case.wob,
-                   "rop": case.reference_rop(), "impedance": _top_impedance(system),
-                   "weight": system.hanging_weight(), "inertia": system.rig.top_drive.inertia,
-                   "dt": case.dt}
-        params = inspect.signature(cls).parameters
-        try:
-            return cls(**{k: v for k, v in offered.items() if k in params})
-        except TypeError as exc:
-            raise NotApplicable(f"{cls.__name__}: no factory registered and its constructor "
-                                f"needs more than the case offers ({exc})") from None
-    return factory
+# ------------------------------------------------------------------ industrial baselines
+def _softspeed(system, case):
+    from downhole.control import SoftSpeed
+
+    return SoftSpeed(system, speed=case.speed, dt=case.dt)
 
 
-def _auto_register() -> None:
-    try:
-        from downhole.control import SoftSpeed
-    except ImportError:
-        SoftSpeed = None
-    try:
-        from downhole.control import AutoDriller
-    except ImportError:
-        AutoDriller = None
-    for name, cls in (("softspeed", SoftSpeed), ("autodriller", AutoDriller)):
-        if cls is not None and name not in BUILTIN:
-            register(name, _auto_factory(cls), f"{cls.__name__} (downhole.control)",
-                     needs=getattr(cls, "needs", None), commands=getattr(cls, "commands", None),
-                     class_name=cls.__name__)
+def _autodriller(system, case):
+    from downhole.control import AutoDriller
+
+    if case.wob is None:
+        raise NotApplicable("the auto-driller holds a WOB set-point; this case gives none")
+    return AutoDriller(system, wob=case.wob, dt=case.dt)
 
 
-_auto_register()
+register("softspeed", _softspeed, "SoftSpeed-tuned soft torque (Kyllingstad & Nessjoen, "
+         "SPE-119660): PI speed control with P = the top pipe's torsional impedance and I "
+         "placing the drive's resonance at the first torsional frequency",
+         class_name="SoftSpeed")
+register("autodriller", _autodriller, "auto-driller: holds the case's WOB by the block "
+         "velocity from the hook load (rotation at the top drive's set-point)",
+         class_name="AutoDriller")
