@@ -22,6 +22,7 @@ from downhole._reader import (MAX_DEPTH, MAX_FILE_BYTES, MAX_INTEGER,  # noqa: F
                               MAX_LIST_LENGTH, MAX_NUMBER, MAX_STRING_LENGTH,
                               _check_numeric_string, check_values, parse_toml_text,
                               read_scenario_text, read_toml)
+from downhole._schema import raise_validation
 from downhole.errors import ScenarioError
 from downhole.params.quantity import Q
 from downhole.units import UnitError, to_si
@@ -139,25 +140,8 @@ class LumpedScenario(_Strict):
     simulation: SimulationSettings
 
 
-def _loc(loc) -> str:
-    return ".".join(str(p) for p in loc if not str(p).startswith("function-"))
-
-
-def _raise_validation(source: str, exc: ValidationError, prefix: str = ""):
-    err = exc.errors()[0]
-    field = prefix + _loc(err["loc"])
-    msg = err["msg"]
-    if err["type"] == "extra_forbidden":
-        msg = "unknown key (check spelling; see docs/scenarios.md)"
-    elif err["type"] == "missing":
-        msg = "required field is missing"
-    elif msg.startswith("Value error, "):
-        msg = msg[len("Value error, "):]
-    if "input" in err and err["type"] not in ("missing", "extra_forbidden") \
-            and not isinstance(err["input"], (dict, list)):
-        got = repr(err["input"])
-        msg += f" (got {got[:80] + '...' if len(got) > 80 else got})"
-    raise ScenarioError(source, field, msg) from None
+#: The one error formatter of every scenario runner (:func:`downhole._schema.raise_validation`).
+_raise_validation = raise_validation
 
 
 def preset_params(sc_model, source: str, kind: str, string_cls, example: str = "",

@@ -499,8 +499,8 @@ def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, Option
         ``bit.epsilon``, ...) and what was expected; a key of the older DP dialect (top-level
         ``horizon``, ``[x2]``, ``[dp]``, ``model.epsilon``, ...) gets the key to use instead.
     """
-    from downhole.scenario import _raise_validation
-    from downhole.scenario.schema import check_dialect
+    from downhole._schema import check_dialect
+    from downhole._schema import raise_validation as _raise_validation
 
     check_dialect(data, source)
     try:
@@ -538,7 +538,7 @@ def load_dp_scenario(path: str | Path) -> tuple[DPProblem, Optional[str]]:
         If the file is unreadable, is not valid TOML or fails validation (one line naming the
         file, the dotted field and what was expected).
     """
-    from downhole.scenario.schema import read_scenario
+    from downhole._schema import read_scenario
 
     data, source, _ = read_scenario(path)
     return dp_problem_of(data, source)
