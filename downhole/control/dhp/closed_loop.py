@@ -205,15 +205,22 @@ class DisplacementToVelocity:
 
     For plants driven by top-drive velocities (:class:`downhole.sim.LumpedPlant` in
     ``"velocity"`` mode): the commanded velocity moves the top to the commanded displacement by
-    the end of the step."""
+    the end of the step, within the drive's admissible velocities
+    (the ranges of :data:`downhole.signals.SIGNALS`): a displacement further than one step can reach
+    (the controller's first command winds the string up from the hanging position) is
+    approached at the drive's limit, never jumped to."""
 
     def __init__(self):
+        from downhole.signals import SIGNALS
+
         self.top = np.zeros(2)
+        self.limits = np.array([(SIGNALS[n].low, SIGNALS[n].high) for n in
+                                ("top_drive_axial_velocity", "top_drive_angular_velocity")])
 
     def __call__(self, cmd, obs, dt):
         u = np.array([cmd["top_drive_axial_displacement"], cmd["top_drive_angle"]])
-        vel = (u - self.top) / dt
-        self.top = u
+        vel = np.clip((u - self.top) / dt, self.limits[:, 0], self.limits[:, 1])
+        self.top = self.top + vel * dt
         return {"top_drive_axial_velocity": float(vel[0]),
                 "top_drive_angular_velocity": float(vel[1])}
 
