@@ -50,13 +50,14 @@ def cases():
         return simulate_neutral(m, duration=1.0, dt=2e-4, controller=design_eid(m))
 
     def fem():
-        return simulate_directional(fem_model(n_elements=60), duration=3.0, dt=1e-3, start="steady", speed=_STEP)
+        return simulate_directional(fem_model(n_elements=60), duration=3.0, dt=1e-3,
+                                    start="steady", speed=_STEP)
 
     def fem_soft():
-        return simulate_directional(fem_model(n_elements=40), duration=1.0, dt=1e-3,
+        return simulate_directional(fem_model(n_elements=40), duration=3.0, dt=1e-3,
                                     top_drive=TopDrive(mode="soft_torque"),
                                     hook=Hook(mode="velocity", velocity=0.005),
-                                    depth_of_cut="approximate", start="steady", speed=_STEP)
+                                    depth_of_cut="approximate")
 
     def hybrid():
         m = dataclasses.replace(hybrid_model("hybrid24"), bit=BitParams(law="aarsnes", gamma=0.5))

@@ -196,8 +196,8 @@ class DPProblem(BaseModel):
     def arrays(self, epsilon_scale: float = 1.0) -> "ModelArrays":
         """Plain arrays for the compiled kernels, with epsilon scaled by ``epsilon_scale``."""
         string, bit = self.params()
-        p = bit.to_array()
-        p[0] *= epsilon_scale
+        p = bit.kernel_params()
+        p = p._replace(epsilon=p.epsilon * epsilon_scale)
         return ModelArrays(mass=string.mass, inertia=string.inertia,
                            ka=string.axial_stiffness, ca=string.axial_damping,
                            kt=string.torsional_stiffness, ct=string.torsional_damping, bit=p)
