@@ -158,7 +158,8 @@ def bit_forces(d, v, omega, p):
 def approx_depth_of_cut(v, omega, p):
     """Approximated total depth of cut d = 2 pi v / max(omega, omega*) (Eqs. 2.11, 4.16), m."""
     w = omega
-    w = max(w, p.omega_floor)
+    if w < p.omega_floor:
+        w = p.omega_floor
     return 2.0 * math.pi * v / w
 
 
@@ -166,7 +167,8 @@ def approx_depth_of_cut(v, omega, p):
 def approx_depth_rate(omega, p):
     """dd/dv of the approximated depth of cut: 2 pi / max(omega, omega*), s."""
     w = omega
-    w = max(w, p.omega_floor)
+    if w < p.omega_floor:
+        w = p.omega_floor
     return 2.0 * math.pi / w
 
 

@@ -317,14 +317,15 @@ class DPProblem(BaseModel):
 
 
 class ModelArrays:
-    """Plain floats and the packed bit-parameter array handed to the compiled kernels."""
+    """Plain floats and the bit law's :class:`~downhole.params.bit.BitKernelParams` handed to the
+    compiled kernels."""
 
     __slots__ = ("mass", "inertia", "ka", "ca", "kt", "ct", "bit")
 
     def __init__(self, mass, inertia, ka, ca, kt, ct, bit):
         self.mass, self.inertia = float(mass), float(inertia)
         self.ka, self.ca, self.kt, self.ct = float(ka), float(ca), float(kt), float(ct)
-        self.bit = np.ascontiguousarray(bit, dtype=np.float64)
+        self.bit = bit  # a BitKernelParams
 
     def lumped(self) -> np.ndarray:
         """``[M, I, Ka, Ca, Kt, Ct]`` as a float64 array."""
