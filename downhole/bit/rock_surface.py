@@ -25,8 +25,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["RockSurfaceSpec", "RockSurfaceParams", "rock_init", "rock_init_helix", "rock_depth", "rock_advance",
-           "rock_depth_at", "rock_advance_to"]
+__all__ = ["RockSurfaceSpec", "RockSurfaceParams", "rock_init", "rock_init_helix", "rock_depth",
+           "rock_advance", "rock_depth_at", "rock_advance_to"]
 
 
 class RockSurfaceParams(NamedTuple):
