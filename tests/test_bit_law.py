@@ -89,7 +89,7 @@ def test_constant_friction_law():
 
 
 def test_approximated_depth_of_cut_floor():
-    p = BIT.to_array()
+    p = BIT.kernel_params()
     assert approx_depth_of_cut(0.01, 10.0, p) == pytest.approx(2 * math.pi * 0.001)
     floor = BIT.omega_floor
     assert approx_depth_of_cut(0.01, 0.0, p) == pytest.approx(2 * math.pi * 0.01 / floor)
@@ -243,22 +243,8 @@ def test_law_registry_and_selection():
     # every parameter a law reads exists in BitParams
     for law in LAWS.values():
         assert set(law.parameters) <= set(BitParams.model_fields)
-    p = BitParams(law="aarsnes").to_array()
+    p = BitParams(law="aarsnes").kernel_params()
     assert p[-3] == 1.0 and p[-2] == pytest.approx(45e6 * 3.6e-3 * 0.15)
-
-
-def test_tuple_and_array_forms_of_the_parameters_agree():
-    # kernels may hand the law a tuple built once (the FEM kernel does): same numbers, every slot
-    from downhole.bit.law import bit_forces_and_slopes, bit_params_tuple
-    from downhole.params.bit import BIT_ARRAY_LAYOUT
-
-    for bit in (BIT, AARSNES):
-        p = bit.to_array()
-        t = bit_params_tuple(p)
-        assert len(t) == len(BIT_ARRAY_LAYOUT) == p.size
-        assert tuple(t) == tuple(p)
-        for d, v, w in SMOOTH_POINTS:
-            assert bit_forces_and_slopes(d, v, w, t) == bit_forces_and_slopes(d, v, w, p)
 
 
 @pytest.mark.parametrize("bit", [BIT, AARSNES], ids=["detournay", "aarsnes"])
@@ -266,7 +252,7 @@ def test_torque_at_a_fixed_contact_force_is_the_law(bit):
     # the split the FEM's torsional solve uses: W_f(d, v) once, then TOB(d, W_f, omega)
     from downhole.bit.law import bit_contact_force, bit_torque_at_contact
 
-    p = bit.to_array()
+    p = bit.kernel_params()
     for d, v, w in SMOOTH_POINTS + [(-1e-3, 0.01, 3.0)]:
         r = bit_forces_and_slopes_py(d, v, w, bit)
         wf, dwf_dd, dwf_dv = bit_contact_force(d, v, p)

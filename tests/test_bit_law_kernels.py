@@ -82,7 +82,7 @@ def test_fem_kernel_uses_the_law(name):
 @pytest.mark.parametrize("field", [0, 1])
 def test_fem_implicit_bit_node_solve_satisfies_the_law(name, field):
     # the FEM kernel's exact implicit bit force: den x + h F(x) = r with F the law's force
-    p = _with_law(BIT_21, name).to_array()
+    p = _with_law(BIT_21, name).kernel_params()
     rng = np.random.default_rng(7 + field)
     h = 5e-4
     for _ in range(200):
@@ -152,7 +152,7 @@ def test_dp_kernels_use_the_law(name):
     from downhole.control.dp import kernels as dp
 
     bit = _with_law(BIT_21, name)
-    p = bit.to_array()
+    p = bit.kernel_params()
     g2 = np.linspace(0.0, 0.02, 7)
     g4 = np.linspace(0.0, 20.0, 9)
     wob, tob = dp.node_bit_loads(g2, g4, p)
@@ -213,9 +213,10 @@ def test_sil_rig_model_uses_the_law():
     from downhole.sil import hil
 
     for name in LAWS:
-        p = _with_law(BIT_21, name).to_array()
+        p = _with_law(BIT_21, name).kernel_params()
         st = np.array([0.0, 0.01, 0.0, 10.0, 0.0, 0.0])
-        par = np.array([1e3, 50.0, 0.0, 0.0, 0.0, 0.0])  # no coupling: only the bit acts
+        # no coupling: only the bit acts
+        par = hil.RigParams(mass=1e3, inertia=50.0, k_a=0.0, c_a=0.0, k_t=0.0, c_t=0.0)
         st1 = st.copy()
         hil._rig_step(st1, 0.0, 0.0, 1e-6, par, p)
         d = law.approx_depth_of_cut(0.01, 10.0, p)

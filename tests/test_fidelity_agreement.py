@@ -38,7 +38,7 @@ def test_steady_surface_torque_and_hook_load_agree_across_fidelities(steady_runs
     weight = system.hanging_weight()
     inertia = system.lumped_derivation().string_mass[1]
     damping_torque = system.rayleigh_alpha * inertia * W0  # mass-proportional damping, N m
-    bit = get_preset("table_5_1").bit.to_array()
+    bit = get_preset("table_5_1").bit.kernel_params()
     for fid, r in steady_runs.items():
         v = float(r["bit_axial_velocity"][0])
         wob, tob = bit_forces(2 * math.pi * v / W0, v, W0, bit)

@@ -78,10 +78,11 @@ def test_packed_and_unpacked_forms_are_the_same_function():
     j2 = int(i2[0])
     for k in range(1, th.size):
         d1 = rock_depth(s1, i1, rp, x[k], th[k])
-        d2 = rock_depth_at(s2, j2, rp[0], rp[1], int(rp[2]), int(rp[3]), rp[4], x[k], th[k])
+        d2 = rock_depth_at(s2, j2, rp.theta_ref, rp.h, rp.nb, rp.cap, rp.n_blades, x[k],
+                           th[k])
         assert d1 == d2
         rock_advance(s1, i1, rp, th[k - 1], x[k - 1], th[k], x[k])
-        j2 = rock_advance_to(s2, j2, rp[0], rp[1], int(rp[2]), int(rp[3]), True, th[k - 1],
+        j2 = rock_advance_to(s2, j2, rp.theta_ref, rp.h, rp.nb, rp.cap, True, th[k - 1],
                              x[k - 1], th[k], x[k])
     assert j2 == i1[0]
     assert np.array_equal(s1, s2)

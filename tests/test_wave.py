@@ -217,14 +217,14 @@ def test_read_weight_stays_exact_after_many_steps():
     seg = WaveSegment(1000.0, 5184.5, 1.0)
     dt = 1.3e-3
     hist, pos, wp = wave_state(seg, dt)
-    cap = int(wp[2])
+    cap = wp.cap
     for n in (1001, 10**6 + 7, 10**9 + 3):
         pos[0] = n
         for k in range(n - cap + 1, n):
             hist[0, k % cap] = k % 2      # parity of the absolute sample index
             hist[1, k % cap] = 1 - k % 2
         a, b = wave_incoming(hist, pos, wp)
-        q = Fraction(n) - Fraction(wp[1])
+        q = Fraction(n) - Fraction(wp.delay_steps)
         k0 = math.floor(q)
         f = float(q - k0)
         exact = (1 - f) * (k0 % 2) + f * ((k0 + 1) % 2)

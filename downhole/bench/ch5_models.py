@@ -28,7 +28,7 @@ def _ode_rhs(model, top_speed=10.0, wob=120e3, kp=1e4, ki=2e3, j_td=DEFAULT_TOP_
 
     m = model.design_model()
     n = m.n_nodes
-    bitp = m.bit.to_array()
+    bitp = m.bit.kernel_params()
     Ma, Mt = m.Ma.copy(), m.Mt.copy()
     Mt[0, 0] += j_td
 

@@ -22,7 +22,6 @@ from numba import njit
 
 from downhole.bit.detournay import (contact_speed_factor, cutting, friction_coefficient,
                                     friction_sign)
-from downhole.bit.layout import A, DCONT, FCONT
 
 __all__ = ["aarsnes_contact_force", "aarsnes_friction_factor", "aarsnes_wob", "aarsnes_torque",
            "aarsnes_forces_and_slopes"]
@@ -32,12 +31,12 @@ __all__ = ["aarsnes_contact_force", "aarsnes_friction_factor", "aarsnes_wob", "a
 def aarsnes_contact_force(d, v, p):
     """Contact force W_f and its slopes ``(W_f, dW_f/dd, dW_f/dv)`` for d > 0."""
     fv, dfv = contact_speed_factor(v, p)
-    r = d / p[DCONT]
-    dr = 1.0 / p[DCONT]
+    r = d / p.contact_depth
+    dr = 1.0 / p.contact_depth
     if r > 1.0:
         r = 1.0
         dr = 0.0
-    fc = p[FCONT]
+    fc = p.contact_force
     return fc * r * fv, fc * dr * fv, fc * r * dfv
 
 
@@ -56,7 +55,7 @@ def aarsnes_friction_factor(omega, p):
     """k_f = gamma mu a g(omega) of T_f = k_f W_f and dk_f/domega (no factor 1/2)."""
     mugam, dmugam = friction_coefficient(omega, p)
     g, dg = friction_sign(omega, p)
-    a = p[A]
+    a = p.radius
     return mugam * a * g, a * (dmugam * g + mugam * dg)
 
 

@@ -20,9 +20,6 @@ import math
 
 from numba import njit
 
-from downhole.bit.layout import (A, A1, A2, B1, B2, CONT, DSTAR, EPS, GAM, GAMB, KC, L, MUC,
-                                 MUGAM, MUS, OMREG, SIG, STRIB, VF, ZETA)
-
 __all__ = ["cutting", "contact_speed_factor", "friction_coefficient", "friction_sign",
            "friction_factor", "wear_flat_force", "detournay_wob", "detournay_torque",
            "detournay_forces_and_slopes"]
@@ -34,11 +31,11 @@ def cutting(d, omega, p):
 
     Returns ``(wob_c, tob_c, dwob_c/dd, dtob_c/dd, dtob_c/domega)`` for d > 0. The cutting torque
     is switched off for omega <= 0 by a linear ramp over [0, omega_reg]."""
-    eps = p[EPS]
-    a = p[A]
-    kw = p[ZETA] * eps * a
-    s = omega / p[OMREG]
-    ds = 1.0 / p[OMREG]
+    eps = p.epsilon
+    a = p.radius
+    kw = p.zeta * eps * a
+    s = omega / p.omega_reg
+    ds = 1.0 / p.omega_reg
     if s < 0.0:
         s = 0.0
         ds = 0.0
@@ -52,37 +49,37 @@ def cutting(d, omega, p):
 @njit(cache=True, inline="always")
 def contact_speed_factor(v, p):
     """f(v) = 1 / (1 + exp(a1 v + b1)) of Eq. 2.5 and df/dv (contact lost while the bit lifts)."""
-    arg = p[A1] * v + p[B1]
+    arg = p.a1 * v + p.b1
     if arg > 50.0:
         return 0.0, 0.0
     if arg < -40.0:
         return 1.0, 0.0  # 1 / (1 + e^arg) rounds to 1 exactly: skip the exp
     fv = 1.0 / (1.0 + math.exp(arg))
-    return fv, -p[A1] * fv * (1.0 - fv)
+    return fv, -p.a1 * fv * (1.0 - fv)
 
 
 @njit(cache=True, inline="always")
 def friction_coefficient(omega, p):
     """mu * gamma of the wear-flat friction and its omega-slope: Stribeck in |omega| (Eq. 2.8,
     correction, docs/seed-errata.md) or the constant ``mu_gamma``."""
-    if p[STRIB] > 0.5:
-        e = math.exp(-p[GAMB] / p[VF] * abs(omega))
-        mu = p[MUC] + (p[MUS] - p[MUC]) * e
+    if p.friction_stribeck > 0.5:
+        e = math.exp(-p.gamma_b / p.v_f * abs(omega))
+        mu = p.mu_c + (p.mu_s - p.mu_c) * e
         sgn = 1.0 if omega > 0.0 else -1.0
-        return mu * p[GAM], -(p[MUS] - p[MUC]) * p[GAM] * p[GAMB] / p[VF] * e * sgn
-    return p[MUGAM], 0.0
+        return mu * p.gamma, -(p.mu_s - p.mu_c) * p.gamma * p.gamma_b / p.v_f * e * sgn
+    return p.mu_gamma, 0.0
 
 
 @njit(cache=True, inline="always")
 def friction_sign(omega, p):
     """g(omega) = tanh(a2 omega + b2) of Eq. 2.6 and dg/domega."""
-    z = p[A2] * omega + p[B2]
+    z = p.a2 * omega + p.b2
     if z > 20.0:
         return 1.0, 0.0  # tanh rounds to +-1 exactly beyond |z| = 19.1: skip it
     if z < -20.0:
         return -1.0, 0.0
     g = math.tanh(z)
-    return g, p[A2] * (1.0 - g * g)
+    return g, p.a2 * (1.0 - g * g)
 
 
 @njit(cache=True, inline="always")
@@ -90,15 +87,15 @@ def wear_flat_force(d, v, p):
     """Wear-flat contact force W_f of Eq. 2.5 (continuous saturation at d* by default, or the
     printed piecewise form) and its slopes: ``(W_f, dW_f/dd, dW_f/dv)`` for d > 0."""
     fv, dfv = contact_speed_factor(v, p)
-    full = p[SIG] * p[L] * p[A]
-    if p[CONT] > 0.5:
-        r = d / p[DSTAR]
+    full = p.sigma * p.wear_length * p.radius
+    if p.wear_flat_continuous > 0.5:
+        r = d / p.d_star
         if r > 1.0:
             return full * fv, 0.0, full * dfv
-        return full * r * fv, full / p[DSTAR] * fv, full * r * dfv
-    if d > p[DSTAR]:
+        return full * r * fv, full / p.d_star * fv, full * r * dfv
+    if d > p.d_star:
         return full * fv, 0.0, full * dfv
-    return p[KC] * d, p[KC], 0.0
+    return p.contact_stiffness * d, p.contact_stiffness, 0.0
 
 
 @njit(cache=True, inline="always")
@@ -116,7 +113,7 @@ def friction_factor(omega, p):
     """k_f = 1/2 mu gamma a g(omega) of TOB_f = k_f W_f (Eq. 2.6) and dk_f/domega."""
     mugam, dmugam = friction_coefficient(omega, p)
     g, dg = friction_sign(omega, p)
-    a = p[A]
+    a = p.radius
     return 0.5 * mugam * a * g, 0.5 * a * (dmugam * g + mugam * dg)
 
 

@@ -2,10 +2,11 @@
 
 Every kernel (lumped chain, neutral, FEM/hybrid), the DP, the EID and the DHP design models call
 the bit/rock law only through this module. A law is chosen by name in the parameters
-(``BitParams.law``); :meth:`downhole.params.BitParams.to_array` packs its parameters and its
-integer id once into one float64 array that kernels pass through unopened. The dispatch is an
-``if`` on that id inside compiled functions inlined into the kernels; the branch is the same at
-every step, so it costs nothing measurable.
+(``BitParams.law``); :meth:`downhole.params.BitParams.kernel_params` builds its parameters and
+its integer id once, by name, into one :class:`~downhole.params.bit.BitKernelParams` (a
+``NamedTuple`` of floats, passed by value and read by attribute, ``p.epsilon``) that kernels
+pass through unopened. The dispatch is an ``if`` on ``p.law`` inside compiled functions inlined
+into the kernels; the branch is the same at every step, so it costs nothing measurable.
 
 Interface (all compiled, no allocation):
 
@@ -47,10 +48,9 @@ from downhole.bit.aarsnes import (aarsnes_contact_force, aarsnes_forces_and_slop
                                   aarsnes_torque, aarsnes_wob)
 from downhole.bit.detournay import (detournay_forces_and_slopes, detournay_torque,
                                     detournay_wob, wear_flat_force)
-from downhole.bit.layout import LAW, OMFLOOR
-from downhole.params.bit import LAW_IDS, BitParams
+from downhole.params.bit import LAW_IDS, BitKernelParams, BitParams
 
-__all__ = ["BitLaw", "LAWS", "law_id", "bit_params_tuple", "bit_forces", "bit_forces_and_slopes",
+__all__ = ["BitLaw", "LAWS", "law_id", "bit_forces", "bit_forces_and_slopes",
            "bit_wob", "bit_contact_force", "bit_torque_at_contact",
            "approx_depth_of_cut", "approx_depth_rate", "bit_force_slopes", "solve_bit_node",
            "bit_forces_py", "bit_forces_vec", "bit_forces_and_slopes_py"]
@@ -107,20 +107,9 @@ def law_id(name: str) -> int:
 
 
 @njit(cache=True, inline="always")
-def bit_params_tuple(p):
-    """The packed parameters as a tuple of floats, for kernels that build it once before their
-    time loop: the law's functions accept either form, and a tuple travels in registers (no
-    reloads of the array, which the compiler cannot hoist past the kernel's stores).
-
-    Its length is that of :data:`downhole.params.bit.BIT_ARRAY_LAYOUT` (checked by the tests)."""
-    return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
-            p[13], p[14], p[15], p[16], p[17], p[18], p[19], p[20], p[21], p[22], p[23], p[24])
-
-
-@njit(cache=True, inline="always")
 def bit_wob(d, v, p):
     """Weight on bit and its partial slopes ``(wob, dwob_dd, dwob_dv)`` of the selected law."""
-    if p[LAW] == _AARSNES:
+    if p.law == _AARSNES:
         return aarsnes_wob(d, v, p)
     return detournay_wob(d, v, p)
 
@@ -131,7 +120,7 @@ def bit_contact_force(d, v, p):
     zero for d <= 0."""
     if d <= 0.0:
         return 0.0, 0.0, 0.0
-    if p[LAW] == _AARSNES:
+    if p.law == _AARSNES:
         return aarsnes_contact_force(d, v, p)
     return wear_flat_force(d, v, p)
 
@@ -141,7 +130,7 @@ def bit_torque_at_contact(d, wf, omega, p):
     """TOB and dTOB/domega of the selected law at depth of cut ``d`` with the contact force
     ``wf`` (from :func:`bit_contact_force`) held fixed: the torsional implicit solve iterates on
     omega only, so the contact force is computed once per step."""
-    if p[LAW] == _AARSNES:
+    if p.law == _AARSNES:
         return aarsnes_torque(d, wf, omega, p)
     return detournay_torque(d, wf, omega, p)
 
@@ -152,7 +141,7 @@ def bit_forces_and_slopes(d, v, omega, p):
 
     Returns ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``; all zero for
     d <= 0 (bit off bottom)."""
-    if p[LAW] == _AARSNES:
+    if p.law == _AARSNES:
         return aarsnes_forces_and_slopes(d, v, omega, p)
     return detournay_forces_and_slopes(d, v, omega, p)
 
@@ -169,8 +158,8 @@ def bit_forces(d, v, omega, p):
 def approx_depth_of_cut(v, omega, p):
     """Approximated total depth of cut d = 2 pi v / max(omega, omega*) (Eqs. 2.11, 4.16), m."""
     w = omega
-    if w < p[OMFLOOR]:
-        w = p[OMFLOOR]
+    if w < p.omega_floor:
+        w = p.omega_floor
     return 2.0 * math.pi * v / w
 
 
@@ -178,8 +167,8 @@ def approx_depth_of_cut(v, omega, p):
 def approx_depth_rate(omega, p):
     """dd/dv of the approximated depth of cut: 2 pi / max(omega, omega*), s."""
     w = omega
-    if w < p[OMFLOOR]:
-        w = p[OMFLOOR]
+    if w < p.omega_floor:
+        w = p.omega_floor
     return 2.0 * math.pi / w
 
 
@@ -249,26 +238,30 @@ def solve_bit_node(field, den, r, h, x, c0, c1, p):
     return x
 
 
-def _as_array(bit) -> np.ndarray:
+def _kernel_params(bit) -> BitKernelParams:
+    """``bit`` (a :class:`BitParams` or already a :class:`BitKernelParams`) as the kernels take
+    it; anything else is a ``TypeError`` naming both."""
     if isinstance(bit, BitParams):
-        return bit.to_array()
-    return np.asarray(bit, dtype=np.float64)
+        return bit.kernel_params()
+    if isinstance(bit, BitKernelParams):
+        return bit
+    raise TypeError(f"expected BitParams or BitKernelParams, got {type(bit).__name__}")
 
 
 def bit_forces_py(d, v, omega, bit: BitParams) -> tuple[float, float]:
     """Convenience wrapper: ``(wob, tob)`` in N and N m for a :class:`BitParams`."""
-    return bit_forces(float(d), float(v), float(omega), _as_array(bit))
+    return bit_forces(float(d), float(v), float(omega), _kernel_params(bit))
 
 
 def bit_forces_and_slopes_py(d, v, omega, bit: BitParams) -> tuple[float, ...]:
     """Convenience wrapper of :func:`bit_forces_and_slopes` for a :class:`BitParams`."""
     return tuple(float(x) for x in
-                 bit_forces_and_slopes(float(d), float(v), float(omega), _as_array(bit)))
+                 bit_forces_and_slopes(float(d), float(v), float(omega), _kernel_params(bit)))
 
 
 def bit_forces_vec(d, v, omega, bit: BitParams):
     """Vectorised wrapper over NumPy arrays (for plots and analysis): ``(wob, tob)`` arrays."""
-    p = _as_array(bit)
+    p = _kernel_params(bit)
     d, v, omega = np.broadcast_arrays(np.asarray(d, float), np.asarray(v, float),
                                       np.asarray(omega, float))
     wob = np.empty(d.shape)

@@ -12,19 +12,48 @@ own surface.
 State lives in two arrays so that compiled kernels can own it: ``surf`` (ring buffer, m) and
 ``istate = [j_next]`` (index of the next grid angle not yet reached). This is the one depth-of-cut
 memory of the package: :func:`rock_depth_at` and :func:`rock_advance_to` take the grid layout
-unpacked (kernels unpack ``rp`` once, before their time loop, and keep ``j_next`` in a local);
-:func:`rock_depth` and :func:`rock_advance` are the same functions on the packed arrays.
+unpacked (kernels unpack ``rp``, a :class:`RockSurfaceParams`, once before their time loop and
+keep ``j_next`` in a local); :func:`rock_depth` and :func:`rock_advance` are the same functions
+on ``(surf, istate, rp)``.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-__all__ = ["RockSurfaceSpec", "rock_init", "rock_init_helix", "rock_depth", "rock_advance",
-           "rock_depth_at", "rock_advance_to"]
+__all__ = ["RockSurfaceSpec", "RockSurfaceParams", "rock_init", "rock_init_helix", "rock_depth",
+           "rock_advance", "rock_depth_at", "rock_advance_to"]
+
+
+class RockSurfaceParams(NamedTuple):
+    """The constant grid layout of one rock-surface memory as the kernels take it (``rp``).
+
+    Attributes
+    ----------
+    theta_ref : float
+        Bit angle of grid index 0, rad.
+    h : float
+        Grid step in angle, rad.
+    nb : int
+        Grid points per blade pitch.
+    cap : int
+        Ring capacity (a power of two).
+    n_blades : float
+        Number of blades (multiplies the per-blade depth of cut).
+    memory : bool
+        Hole-bottom memory (True) or the printed Eq. 2.9.
+    """
+
+    theta_ref: float
+    h: float
+    nb: int
+    cap: int
+    n_blades: float
+    memory: bool
 
 
 class RockSurfaceSpec:
@@ -52,10 +81,11 @@ class RockSurfaceSpec:
         self.h = 2.0 * math.pi / n_blades / self.nb
         self.memory = bool(memory)
 
-    def params(self, theta_ref: float) -> np.ndarray:
-        """Packed float array ``[theta_ref, h, nb, cap, n_blades, memory]`` for the kernels."""
-        return np.array([theta_ref, self.h, self.nb, self.cap, self.n_blades,
-                         1.0 if self.memory else 0.0])
+    def params(self, theta_ref: float) -> RockSurfaceParams:
+        """The grid layout for the kernels (:class:`RockSurfaceParams`)."""
+        return RockSurfaceParams(theta_ref=float(theta_ref), h=float(self.h), nb=int(self.nb),
+                                 cap=int(self.cap), n_blades=float(self.n_blades),
+                                 memory=bool(self.memory))
 
 
 def rock_init(spec: RockSurfaceSpec, x0: float, theta0: float):
@@ -136,14 +166,15 @@ def rock_advance_to(surf, j_next, theta_ref, h, nb, cap, memory, theta_prev, x_p
 @njit(cache=True, inline="always")
 def rock_depth(surf, istate, rp, x, theta):
     """:func:`rock_depth_at` on the packed layout ``rp`` and state ``istate = [j_next]``."""
-    return rock_depth_at(surf, istate[0], rp[0], rp[1], int(rp[2]), int(rp[3]), rp[4], x, theta)
+    return rock_depth_at(surf, istate[0], rp.theta_ref, rp.h, rp.nb, rp.cap, rp.n_blades, x,
+                         theta)
 
 
 @njit(cache=True)
 def rock_advance(surf, istate, rp, theta_prev, x_prev, theta_new, x_new):
     """:func:`rock_advance_to` on the packed layout ``rp`` and state ``istate = [j_next]``."""
-    istate[0] = rock_advance_to(surf, istate[0], rp[0], rp[1], int(rp[2]), int(rp[3]),
-                                rp[5] > 0.5, theta_prev, x_prev, theta_new, x_new)
+    istate[0] = rock_advance_to(surf, istate[0], rp.theta_ref, rp.h, rp.nb, rp.cap, rp.memory,
+                                theta_prev, x_prev, theta_new, x_new)
 
 
 def rock_init_helix(spec: RockSurfaceSpec, x0: float, theta0: float, depth_of_cut: float):

@@ -581,7 +581,7 @@ def from_directional(model, dt: float = 1e-3, *, state_scale=None, input_scale=(
     A, _, names, _ = model.continuous_linear_model(top_drive_inertia)
     ns = A.shape[0]
     Gam = model.nodal_force_map(dt, top_drive_inertia)
-    bitp = m.bit.to_array()
+    bitp = m.bit.kernel_params()
     ib = n - 1
     # hanging tension per element (zero WOB) for the friction normal force
     tension = hanging_tension(m)

@@ -2,32 +2,62 @@
 Aarsnes & van de Wouw 2019: contact force independent of the depth of cut).
 
 The law is chosen by name (``BitParams.law``); :data:`LAW_IDS` gives the integer id that the
-compiled dispatch in :mod:`downhole.bit.law` branches on. Everything is packed once into one
-float64 array (:data:`BIT_ARRAY_LAYOUT`, named slots resolved in :mod:`downhole.bit.layout`) that
-kernels pass through to the law without indexing it.
+compiled dispatch in :mod:`downhole.bit.law` branches on. :meth:`BitParams.kernel_params` builds,
+by name, the one structure the compiled kernels take: :class:`BitKernelParams`, a
+``typing.NamedTuple`` of floats that numba passes by value (in registers) and reads by attribute
+(``p.epsilon``). Kernels hand it through to the law unopened.
 """
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, NamedTuple
 
-import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from downhole.params.quantity import Q
 
-__all__ = ["BitParams", "BIT_ARRAY_LAYOUT", "LAW_IDS"]
-
-#: Order of the packed float array handed to the compiled bit kernels.
-BIT_ARRAY_LAYOUT = (
-    "epsilon", "sigma", "zeta", "radius", "n_blades", "wear_length", "d_star", "contact_stiffness",
-    "mu_c", "mu_s", "gamma", "gamma_b", "v_f", "mu_gamma", "a1", "b1", "a2", "b2",
-    "wear_flat_continuous", "friction_stribeck", "omega_reg", "omega_floor",
-    "law", "contact_force", "contact_depth",
-)
+__all__ = ["BitParams", "BitKernelParams", "LAW_IDS"]
 
 #: Integer id of each bit law in the compiled dispatch (:mod:`downhole.bit.law`).
 LAW_IDS = {"detournay": 0, "aarsnes": 1}
+
+
+class BitKernelParams(NamedTuple):
+    """The bit law's parameters as the compiled kernels take them (SI units, all float64).
+
+    Built only by :meth:`BitParams.kernel_params`. The fields are those of :class:`BitParams`
+    except three that the compiled dispatch needs as numbers: ``wear_flat_continuous`` (1.0 for
+    ``wear_flat_law="continuous"``, 0.0 for ``"printed"``), ``friction_stribeck`` (1.0 for
+    ``friction_law="stribeck"``, 0.0 for ``"constant"``) and ``law`` (the id of
+    :data:`LAW_IDS`); ``contact_force`` is resolved (sigma l a when ``BitParams.contact_force``
+    is None) and ``n_blades`` is a float.
+    """
+
+    epsilon: float
+    sigma: float
+    zeta: float
+    radius: float
+    n_blades: float
+    wear_length: float
+    d_star: float
+    contact_stiffness: float
+    mu_c: float
+    mu_s: float
+    gamma: float
+    gamma_b: float
+    v_f: float
+    mu_gamma: float
+    a1: float
+    b1: float
+    a2: float
+    b2: float
+    wear_flat_continuous: float
+    friction_stribeck: float
+    omega_reg: float
+    omega_floor: float
+    law: float
+    contact_force: float
+    contact_depth: float
 
 
 class BitParams(BaseModel):
@@ -110,19 +140,20 @@ class BitParams(BaseModel):
     contact_force: Q["force"] | None = Field(None, ge=0)
     contact_depth: Q["length"] = Field(1e-5, gt=0)
 
-    def to_array(self) -> np.ndarray:
-        """Pack into the float64 array layout :data:`BIT_ARRAY_LAYOUT` used by compiled kernels."""
-        vals = []
-        for name in BIT_ARRAY_LAYOUT:
-            if name == "wear_flat_continuous":
-                vals.append(1.0 if self.wear_flat_law == "continuous" else 0.0)
-            elif name == "friction_stribeck":
-                vals.append(1.0 if self.friction_law == "stribeck" else 0.0)
-            elif name == "law":
-                vals.append(float(LAW_IDS[self.law]))
-            elif name == "contact_force":
-                vals.append(self.sigma * self.wear_length * self.radius
-                            if self.contact_force is None else float(self.contact_force))
-            else:
-                vals.append(float(getattr(self, name)))
-        return np.array(vals, dtype=np.float64)
+    def kernel_params(self) -> BitKernelParams:
+        """The parameters as the compiled kernels take them (:class:`BitKernelParams`)."""
+        contact = (self.sigma * self.wear_length * self.radius
+                   if self.contact_force is None else self.contact_force)
+        return BitKernelParams(
+            epsilon=float(self.epsilon), sigma=float(self.sigma), zeta=float(self.zeta),
+            radius=float(self.radius), n_blades=float(self.n_blades),
+            wear_length=float(self.wear_length), d_star=float(self.d_star),
+            contact_stiffness=float(self.contact_stiffness), mu_c=float(self.mu_c),
+            mu_s=float(self.mu_s), gamma=float(self.gamma), gamma_b=float(self.gamma_b),
+            v_f=float(self.v_f), mu_gamma=float(self.mu_gamma), a1=float(self.a1),
+            b1=float(self.b1), a2=float(self.a2), b2=float(self.b2),
+            wear_flat_continuous=1.0 if self.wear_flat_law == "continuous" else 0.0,
+            friction_stribeck=1.0 if self.friction_law == "stribeck" else 0.0,
+            omega_reg=float(self.omega_reg), omega_floor=float(self.omega_floor),
+            law=float(LAW_IDS[self.law]), contact_force=float(contact),
+            contact_depth=float(self.contact_depth))

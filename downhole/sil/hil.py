@@ -18,6 +18,8 @@ the other end of the link, exactly where real hardware would be.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -112,12 +114,23 @@ class HILStringPlant:
         return self._obs(vb, wb)
 
 
+class RigParams(NamedTuple):
+    """The software rig's bit and coupling as its compiled step takes them (SI units)."""
+
+    mass: float
+    inertia: float
+    k_a: float
+    c_a: float
+    k_t: float
+    c_t: float
+
+
 @njit(cache=True)
 def _rig_step(st, vm, wm, dt, par, bitp):
     """Advance the rig's bit one step (implicit in the coupling dampers and bit slopes).
 
-    st = [x_B, v_B, a_B, w_B, x_M, a_M]; par = [m, J, k_a, c_a, k_t, c_t]."""
-    m, J, ka, ca, kt, ct = par[0], par[1], par[2], par[3], par[4], par[5]
+    st = [x_B, v_B, a_B, w_B, x_M, a_M]; par a :class:`RigParams`."""
+    m, J, ka, ca, kt, ct = par.mass, par.inertia, par.k_a, par.c_a, par.k_t, par.c_t
     xb, vb, ab, wb, xm, am = st[0], st[1], st[2], st[3], st[4], st[5]
     d = approx_depth_of_cut(vb, wb, bitp)
     w0, t0 = bit_forces(d, vb, wb, bitp)
@@ -154,9 +167,11 @@ class SoftwareRig:
 
     def __init__(self, bit, dt: float = 1e-3, mass: float = 500.0, inertia: float = 5.0,
                  coupling=COUPLING):
-        self.bitp = bit.to_array()
+        self.bitp = bit.kernel_params()
         self.dt = float(dt)
-        self.par = np.array([mass, inertia, *coupling], float)
+        k_a, c_a, k_t, c_t = (float(c) for c in coupling)
+        self.par = RigParams(mass=float(mass), inertia=float(inertia), k_a=k_a, c_a=c_a, k_t=k_t,
+                             c_t=c_t)
         self.reset()
 
     def reset(self) -> None:

@@ -16,25 +16,28 @@ k = dWOB/dx from the depth of cut), the top-drive PI (c = Kp, k = Ki), the hook 
 wave segment's end impedances (c = Z). All of these are dissipative or linear, so the step is
 stable at dt = 1e-3 with any regularization width.
 
-Everything here takes plain arrays; :mod:`downhole.string.fem` and :mod:`downhole.string.hybrid`
-build them.
+The kernel takes its constant settings as one :class:`DirectionalParams` (a ``NamedTuple``, passed
+by value), the bit law's as one :class:`~downhole.params.bit.BitKernelParams`, its clocks and
+references as one :data:`RUN_STATE_DTYPE` record (updated in place) and the rest as plain arrays;
+:mod:`downhole.string.fem` and :mod:`downhole.string.hybrid` build them.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from downhole.bit.law import (approx_depth_of_cut, approx_depth_rate, bit_forces,
-                              bit_params_tuple, bit_wob, solve_bit_node)
+from downhole.bit.law import (approx_depth_of_cut, approx_depth_rate, bit_forces, bit_wob,
+                              solve_bit_node)
 from downhole.bit.rock_surface import rock_advance_to, rock_depth_at
 from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
-from downhole.sim.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WP_Z, wave_read_at,
-                               wave_read_plan, wave_source_forces, wave_step_at)
+from downhole.sim.wave import wave_read_at, wave_read_plan, wave_source_forces, wave_step_at
 
-__all__ = ["CHANNELS", "TOP_LAYOUT", "MISC_LAYOUT", "run_directional", "thomas_solve"]
+__all__ = ["CHANNELS", "DirectionalParams", "RUN_STATE_DTYPE", "new_run_state",
+           "run_directional", "thomas_solve"]
 
 #: Recorded channels, in order.
 CHANNELS = (
@@ -44,16 +47,86 @@ CHANNELS = (
     "top_drive_angle", "reference_angular_velocity",
 )
 
-#: Layout of the ``top`` parameter array.
-TOP_LAYOUT = ("axial_mode", "hook_k", "hook_c", "hook_load0", "torsional_mode", "kp", "ki",
-              "soft_gain", "soft_tau", "mu", "v_eps", "approx_doc", "bit_node", "node_b",
-              "node_c", "hybrid", "dense", "n_lags_a", "lag_tau_a", "n_lags_t", "lag_tau_t",
-              "fb0", "fc0", "max_torque")
-_AXM, _HK, _HC, _H0, _TQM, _KP, _KI, _SG, _ST, _MU, _VEPS, _APPROX, _IBIT, _IB, _IC, _HYB, \
-    _DENSE, _NLA, _LTA, _NLT, _LTT, _FB0, _FC0, _TMAX = range(24)
 
-#: Layout of the ``misc`` state array.
-MISC_LAYOUT = ("time", "x_ref", "theta_ref", "soft_lowpass", "ubit0", "step")
+class DirectionalParams(NamedTuple):
+    """The constant settings of :func:`run_directional` (SI units), built by name in
+    :class:`downhole.string.fem._Packed`.
+
+    Attributes
+    ----------
+    velocity_hook : bool
+        True: velocity-servo hook (the block follows ``cmd[:, 0]`` in m/s through the spring
+        ``hook_k`` and damper ``hook_c``); False: ``cmd[:, 0]`` is the hook load, N.
+    hook_k, hook_c : float
+        Hook servo stiffness (N/m) and damping (N s/m).
+    hook_load0 : float
+        Hook load of the static state (buoyed weight - WOB), N.
+    torque_mode : bool
+        True: ``cmd[:, 1]`` is the top-drive torque (N m); False: a speed set-point for the PI.
+    kp, ki : float
+        Top-drive PI gains, N m s/rad and N m/rad.
+    soft_gain, soft_tau : float
+        Soft-torque gain (rad/s per N m; 0 switches it off) and low-pass time constant (s).
+    mu, v_eps : float
+        Wellbore friction coefficient and its velocity regularization (m/s).
+    approx_doc : bool
+        Approximated depth of cut (True) or the delayed one from the rock-surface memory.
+    node_b, node_c : int
+        Nodes B and C (the ends of the wave segment, or the reporting nodes of the FEM).
+    hybrid : bool
+        A wave segment joins B and C.
+    dense : bool
+        Dense L per field (modal damping) instead of the tridiagonal one.
+    n_lags_a, n_lags_t : int
+        Lag-cascade stages on the incoming waves (axial, torsional).
+    lag_tau_a, lag_tau_t : float
+        Time constant of each lag stage, s.
+    fb0, fc0 : float
+        Static preload forces of the wave segment on B and C, N.
+    """
+
+    velocity_hook: bool
+    hook_k: float
+    hook_c: float
+    hook_load0: float
+    torque_mode: bool
+    kp: float
+    ki: float
+    soft_gain: float
+    soft_tau: float
+    mu: float
+    v_eps: float
+    approx_doc: bool
+    node_b: int
+    node_c: int
+    hybrid: bool
+    dense: bool
+    n_lags_a: int
+    lag_tau_a: float
+    n_lags_t: int
+    lag_tau_t: float
+    fb0: float
+    fc0: float
+
+
+#: The clocks and references :func:`run_directional` carries from call to call, one record of
+#: shape (1,): simulated time (s), hook servo reference position (m), top-drive angle reference
+#: (rad), soft-torque low-pass state (N m), bit axial position of the start (m, subtracted from
+#: the recorded position) and the number of steps taken.
+RUN_STATE_DTYPE = np.dtype([("time", np.float64), ("x_ref", np.float64),
+                            ("theta_ref", np.float64), ("soft_lowpass", np.float64),
+                            ("ubit0", np.float64), ("step", np.float64)])
+
+
+def new_run_state(**values) -> np.ndarray:
+    """A fresh (1,) record of :data:`RUN_STATE_DTYPE`, fields zero unless given by name."""
+    rs = np.zeros(1, dtype=RUN_STATE_DTYPE)
+    for name, value in values.items():
+        if name not in RUN_STATE_DTYPE.names:
+            raise KeyError(f"unknown run-state field {name!r}: expected one of "
+                           f"{RUN_STATE_DTYPE.names}")
+        rs[name] = value
+    return rs
 
 
 @njit(cache=True)
@@ -137,30 +210,34 @@ def _mid_torque(Ko, th, i):
 
 
 @njit(cache=True)
-def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, istate, rp,
+def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                     wa_hist, wa_pos, wa_wp, wt_hist, wt_pos, wt_wp, lag, cmd, n_steps, dt,
                     rec, rec_every, rec_start):
     """Advance ``n_steps`` steps of ``dt``; record every ``rec_every`` steps into ``rec``.
 
-    Parameters (all plain arrays)
+    Parameters
     ----------
     mats : (18, n)
         Rows: M_a diag/off, K_a diag/off, L_a diag/off (L = M + dt/2 C + dt^2/4 K), then the
         same for the torsional field, then C_a diag/off and C_t diag/off (for reporting).
     Ldense : (2, n, n)
-        Dense L per field when ``top[dense]`` is 1 (modal damping), else ignored.
+        Dense L per field when ``top.dense`` (modal damping), else ignored.
     elem : (n, 8)
         Per element e (0..n-2): length, dt/ds (3), w g_perp (3), contact flag.
     node : (n, 2)
         Nodal gravity force (N, downward) and torque arm (m).
-    top : see :data:`TOP_LAYOUT`.
-    bitp : bit parameter array.
+    top : DirectionalParams
+        Hook, top drive, friction, depth-of-cut and wave-segment settings.
+    bt : BitKernelParams
+        The bit law's parameters.
     state : (6, n)
         u_a, v_a, a_a, theta, omega, alpha. Updated in place.
-    misc : see :data:`MISC_LAYOUT`. Updated in place.
-    surf, istate, rp : rock-surface memory.
-    wa_*, wt_* : wave-segment states (axial, torsional; :mod:`downhole.sim.wave` layout);
-        ignored unless hybrid.
+    run : (1,) record of :data:`RUN_STATE_DTYPE`
+        Clocks and references. Updated in place.
+    surf, istate, rp : rock-surface memory (``rp`` a
+        :class:`~downhole.bit.rock_surface.RockSurfaceParams`).
+    wa_*, wt_* : wave-segment states (axial, torsional): ring buffers, clocks and
+        :class:`~downhole.sim.wave.WaveParams`; ignored unless hybrid.
     lag : (4, m) lag-cascade states (rows: axial b_in, axial a_in, torsional b_in, a_in).
     cmd : (n_steps, 2)
         Per step: axial command (hook load N, or top axial velocity m/s) and torsional command
@@ -184,27 +261,26 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     """
     n = state.shape[1]
     ib = n - 1
-    iB = int(top[_IB])
-    iC = int(top[_IC])
-    hybrid = top[_HYB] > 0.5
-    dense = top[_DENSE] > 0.5
-    approx = top[_APPROX] > 0.5
-    vel_hook = top[_AXM] > 0.5
-    torque_mode = top[_TQM] > 0.5
-    soft = (not torque_mode) and top[_SG] > 0.0
-    hk, hc, h0 = top[_HK], top[_HC], top[_H0]
-    kp, ki, sg, stau = top[_KP], top[_KI], top[_SG], top[_ST]
-    mu = top[_MU]
-    v_eps = top[_VEPS]
-    fb0, fc0 = top[_FB0], top[_FC0]
-    bt = bit_params_tuple(bitp)  # the bit law's parameters, by value
+    iB = top.node_b
+    iC = top.node_c
+    hybrid = top.hybrid
+    dense = top.dense
+    approx = top.approx_doc
+    vel_hook = top.velocity_hook
+    torque_mode = top.torque_mode
+    soft = (not torque_mode) and top.soft_gain > 0.0
+    hk, hc, h0 = top.hook_k, top.hook_c, top.hook_load0
+    kp, ki, sg, stau = top.kp, top.ki, top.soft_gain, top.soft_tau
+    mu = top.mu
+    v_eps = top.v_eps
+    fb0, fc0 = top.fb0, top.fc0
     h = 0.5 * dt
     ih = 1.0 / h
     # rock surface (downhole.bit.rock_surface layout), unpacked
-    r_ref, r_h, r_nb, r_cap, r_nbl = rp[0], rp[1], int(rp[2]), int(rp[3]), rp[4]
-    r_mem = rp[5] > 0.5
+    r_ref, r_h, r_nb, r_cap, r_nbl = rp.theta_ref, rp.h, rp.nb, rp.cap, rp.n_blades
+    r_mem = rp.memory
     j_next = istate[0]
-    drate_rock = rp[4] * h  # delayed depth of cut: d(v1) = d0 + n h (v0 + v1)
+    drate_rock = rp.n_blades * h  # delayed depth of cut: d(v1) = d0 + n h (v0 + v1)
     # ---- contact elements / nodes (skip elements whose normal force is identically zero:
     # straight and vertical, no curvature and no lateral weight)
     ce = contact_elements(elem) if mu > 0.0 else np.empty(0, np.int64)
@@ -237,8 +313,8 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         Cst[1, 0] += kp
         Kx[1, 0] = ki
     if hybrid:
-        za0 = wa_wp[0]
-        zt0 = wt_wp[0]
+        za0 = wa_wp.impedance
+        zt0 = wt_wp.impedance
         Fst[0, iB] += fb0
         Fst[0, iC] += fc0
         Cst[0, iB] += za0
@@ -269,24 +345,26 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
     nrm = np.zeros(n)
     Aw = np.empty((n, n)) if dense else np.empty((1, 1))
     # ---- wave segments (downhole.sim.wave): clocks, capacities and read plans in locals
-    za = wa_wp[WP_Z]
-    zt = wt_wp[WP_Z]
+    za = wa_wp.impedance
+    zt = wt_wp.impedance
     pos_a = wa_pos[0]
     pos_t = wt_pos[0]
-    cap_a = int(wa_wp[WP_CAP])
-    cap_t = int(wt_wp[WP_CAP])
-    off_a, fr_a = wave_read_plan(wa_wp[WP_DELAY_STEPS])
-    off_t, fr_t = wave_read_plan(wt_wp[WP_DELAY_STEPS])
-    nla = int(top[_NLA])
-    nlt = int(top[_NLT])
-    al_a = 1.0 - math.exp(-dt / top[_LTA]) if nla > 0 else 0.0
-    al_t = 1.0 - math.exp(-dt / top[_LTT]) if nlt > 0 else 0.0
+    cap_a = wa_wp.cap
+    cap_t = wt_wp.cap
+    off_a, fr_a = wave_read_plan(wa_wp.delay_steps)
+    off_t, fr_t = wave_read_plan(wt_wp.delay_steps)
+    nla = top.n_lags_a
+    nlt = top.n_lags_t
+    al_a = 1.0 - math.exp(-dt / top.lag_tau_a) if nla > 0 else 0.0
+    al_t = 1.0 - math.exp(-dt / top.lag_tau_t) if nlt > 0 else 0.0
     # ---- clocks and references in locals
-    t_now = misc[0]
-    x_ref = misc[1]
-    th_ref = misc[2]
-    lowp = misc[3]
-    n_done = misc[5]
+    rs = run[0]
+    t_now = rs.time
+    x_ref = rs.x_ref
+    th_ref = rs.theta_ref
+    lowp = rs.soft_lowpass
+    ubit0 = rs.ubit0
+    n_done = rs.step
     fb_line = 0.0
     tb_line = 0.0
     fc_line = 0.0
@@ -351,10 +429,10 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
         ta_in = 0.0
         tb_in = 0.0
         if hybrid:
-            a_in, b_in = wave_read_at(wa_hist, pos_a, off_a, fr_a, cap_a, wa_wp[WP_A0],
-                                      wa_wp[WP_B0])
-            ta_in, tb_in = wave_read_at(wt_hist, pos_t, off_t, fr_t, cap_t, wt_wp[WP_A0],
-                                        wt_wp[WP_B0])
+            a_in, b_in = wave_read_at(wa_hist, pos_a, off_a, fr_a, cap_a, wa_wp.a_init,
+                                      wa_wp.b_init)
+            ta_in, tb_in = wave_read_at(wt_hist, pos_t, off_t, fr_t, cap_t, wt_wp.a_init,
+                                        wt_wp.b_init)
             if nla > 0:
                 b_in = _lag_cascade(lag, 0, nla, al_a, b_in)
                 a_in = _lag_cascade(lag, 1, nla, al_a, a_in)
@@ -524,7 +602,7 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
                 dn = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, state[0, ib],
                                      state[3, ib])
             wn, tn = bit_forces(dn, vab, vtb, bt)
-            rec[row, 0] = state[0, ib] - misc[4]
+            rec[row, 0] = state[0, ib] - ubit0
             rec[row, 1] = vab
             rec[row, 2] = state[3, ib]
             rec[row, 3] = vtb
@@ -551,11 +629,11 @@ def run_directional(mats, Ldense, elem, node, top, bitp, state, misc, surf, ista
             rec[row, 15] = state[3, 0]
             rec[row, 16] = omega_ref
             row += 1
-    misc[0] = t_now
-    misc[1] = x_ref
-    misc[2] = th_ref
-    misc[3] = lowp
-    misc[5] = n_done
+    rs.time = t_now
+    rs.x_ref = x_ref
+    rs.theta_ref = th_ref
+    rs.soft_lowpass = lowp
+    rs.step = n_done
     istate[0] = j_next
     wa_pos[0] = pos_a
     wt_pos[0] = pos_t

@@ -30,7 +30,7 @@ def simulate_lumped4_numpy(model: ChainModel, v0: float, w0: float, duration: fl
     if model.n != 1:
         raise ValueError("the NumPy reference covers the 4th-order model only")
     law = bit_forces.py_func  # the one law (its outer function interpreted)
-    p = model.bit.to_array()
+    p = model.bit.kernel_params()
     n_bl = model.bit.n_blades
     pitch = 2 * math.pi / n_bl
     m, inertia = model.axial.mass[0], model.torsional.mass[0]

@@ -121,7 +121,7 @@ def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration
     out = np.empty((nrec, len(CHANNELS)))
     arrays = model.packed()
     status, kfail, cfail = run_chain(
-        *arrays, model.bit.to_array(), state[0], state[1], inputs.mode == "force", pos, vel,
+        *arrays, model.bit.kernel_params(), state[0], state[1], inputs.mode == "force", pos, vel,
         model.weight, 0, nsteps, float(dt), 0 if integrator == "euler" else 1,
         depth_of_cut == "approximate", surf, istate, rp, every, out, 0)
     if status != 0:
@@ -163,7 +163,7 @@ def _start_state(model: ChainModel, start: str, mode: str, v0: float, w0: float,
     wob = tob = 0.0
     d0 = steady_depth_of_cut(v0, w0) if start == "steady" else 0.0
     if start == "steady":
-        wob, tob = bit_forces(d0, v0, w0, model.bit.to_array())
+        wob, tob = bit_forces(d0, v0, w0, model.bit.kernel_params())
     for f, (field, vel, load) in enumerate(((model.axial, v0, wob), (model.torsional, w0, tob))):
         rhs = np.asarray(field.gravity, float) - np.asarray(field.c_abs, float) * vel
         rhs[-1] -= load
@@ -211,7 +211,7 @@ class LumpedPlant(Plant):
         self.model, self.dt, self.mode = model, float(dt), mode
         self.depth_of_cut, self.integrator = depth_of_cut, integrator
         self._arrays = model.packed()
-        self._bitp = model.bit.to_array()
+        self._bitp = model.bit.kernel_params()
         self._out = np.empty((2, len(CHANNELS)))
         self.reset()
 

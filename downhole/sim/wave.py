@@ -38,7 +38,8 @@ Compiled state
   ``dt`` -- row 0 the downward waves leaving B (``a_out``), row 1 the upward waves leaving C
   (``b_out``); sample ``k`` is at time ``t0 + k dt``;
 * ``pos`` (1,) int64: the number ``n`` of samples pushed; the *current* time is ``t_n``;
-* ``wp`` (5,) float64: ``[Z, delay/dt, cap, a_init, b_init]``; before ``t0`` the outgoing waves
+* ``wp`` a :class:`WaveParams` (``impedance`` Z, ``delay_steps`` delay/dt, ``cap``, ``a_init``,
+  ``b_init``; a ``NamedTuple`` the kernels take by value); before ``t0`` the outgoing waves
   equal their initial values (a line in a steady state).
 
 Per step: ``a_in, b_in = wave_incoming(hist, pos, wp)`` gives the incoming waves at ``t_n``
@@ -63,6 +64,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -72,10 +74,29 @@ from downhole.errors import DownholeInputError
 __all__ = ["WaveSegment", "segments_from_pipe", "wave_state", "wave_incoming", "wave_push",
            "wave_step", "wave_step_at", "wave_read", "wave_read_plan", "wave_read_at",
            "wave_outgoing", "wave_end_forces", "wave_source_forces", "static_end_forces",
-           "line_preload", "initial_waves", "WP_Z", "WP_DELAY_STEPS", "WP_CAP"]
+           "line_preload", "initial_waves", "WaveParams"]
 
-#: Indices into the ``wp`` parameter array.
-WP_Z, WP_DELAY_STEPS, WP_CAP, WP_A0, WP_B0 = 0, 1, 2, 3, 4
+
+class WaveParams(NamedTuple):
+    """The constant part of a wave segment's compiled state (built by :func:`wave_state`).
+
+    Attributes
+    ----------
+    impedance : float
+        Characteristic impedance Z (N s/m, or N m s/rad).
+    delay_steps : float
+        One-way delay in simulation steps, delay / dt (>= 1).
+    cap : int
+        Length of the ring buffers.
+    a_init, b_init : float
+        Outgoing waves before the first sample (the line's initial steady state).
+    """
+
+    impedance: float
+    delay_steps: float
+    cap: int
+    a_init: float
+    b_init: float
 
 
 def _positive(name: str, value) -> float:
@@ -183,7 +204,7 @@ def wave_state(segment: WaveSegment, dt: float, velocity: float = 0.0, tension: 
     -------
     hist : ndarray (2, cap)
     pos : ndarray (1,) int64
-    wp : ndarray (5,)
+    wp : WaveParams
         See the module docstring.
     """
     d = segment.delay_steps(dt)
@@ -193,7 +214,8 @@ def wave_state(segment: WaveSegment, dt: float, velocity: float = 0.0, tension: 
     hist[0, :] = a0
     hist[1, :] = b0
     pos = np.zeros(1, dtype=np.int64)
-    wp = np.array([segment.impedance, d, float(cap), a0, b0])
+    wp = WaveParams(impedance=float(segment.impedance), delay_steps=float(d), cap=cap,
+                    a_init=float(a0), b_init=float(b0))
     return hist, pos, wp
 
 
@@ -234,19 +256,19 @@ def wave_read(hist, pos, wp, lag_steps):
     """Outgoing waves ``(a_out_B, b_out_C)`` at time ``t_n - lag_steps * dt`` (linear
     interpolation; ``lag_steps`` >= 1 and <= cap - 2)."""
     off, frac = wave_read_plan(lag_steps)
-    return wave_read_at(hist, pos[0], off, frac, int(wp[WP_CAP]), wp[WP_A0], wp[WP_B0])
+    return wave_read_at(hist, pos[0], off, frac, wp.cap, wp.a_init, wp.b_init)
 
 
 @njit(cache=True)
 def wave_incoming(hist, pos, wp):
     """Incoming waves at the current time ``t_n``: ``(a_in at C, b_in at B)``."""
-    return wave_read(hist, pos, wp, wp[WP_DELAY_STEPS])
+    return wave_read(hist, pos, wp, wp.delay_steps)
 
 
 @njit(cache=True)
 def wave_push(hist, pos, wp, a_out_b, b_out_c):
     """Store the outgoing waves of the current time ``t_n`` and advance to ``t_{n+1}``."""
-    cap = int(wp[WP_CAP])
+    cap = wp.cap
     k = pos[0] % cap
     hist[0, k] = a_out_b
     hist[1, k] = b_out_c
@@ -269,7 +291,7 @@ def wave_step(hist, pos, wp, v_b, v_c, a_in, b_in):
     """End of one step at ``t_n``: push the outgoing waves ``(v_B - b_in, v_C - a_in)``,
     advance to ``t_{n+1}`` and return the forces of the line on its ends at ``t_n``,
     ``(F_B, F_C)`` as :func:`wave_end_forces` (``a_in, b_in`` from :func:`wave_incoming`)."""
-    f = wave_step_at(hist, pos[0], int(wp[WP_CAP]), wp[WP_Z], v_b, v_c, a_in, b_in)
+    f = wave_step_at(hist, pos[0], wp.cap, wp.impedance, v_b, v_c, a_in, b_in)
     pos[0] += 1
     return f
 

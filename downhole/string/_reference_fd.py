@@ -131,7 +131,7 @@ def simulate_fd(model, n_elements: int, duration: float, u_axial: float, u_angul
     rec = _run_fd(n, pipe.young_modulus * pipe.area / dz, pipe.shear_modulus * pipe.polar_moment
                   / dz, m_node, i_node, p.bit_mass, p.bit_inertia, p.alpha_axial,
                   p.alpha_torsional, (p.string_mass + p.bit_mass) * g, p.bit_mass * g,
-                  p.bit_mass * g, model.bit.to_array(), depth_of_cut == "approximate", ua, ut,
+                  p.bit_mass * g, model.bit.kernel_params(), depth_of_cut == "approximate", ua, ut,
                   surf, istate, rp, nsteps, dt, every, out)
     out = out[:rec]
     return {"time": out[:, 0], "bit_axial_velocity": out[:, 1], "bit_angular_velocity": out[:, 2],

@@ -28,9 +28,10 @@ from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, DirectionalWellParams
 from downhole.params.presets import get_preset
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA, Hook, TopDrive
-from downhole.sim.fem_kernels import CHANNELS, TOP_LAYOUT, run_directional
+from downhole.sim.fem_kernels import CHANNELS, DirectionalParams, new_run_state, run_directional
 from downhole.sim.plant import Plant
 from downhole.sim.result import Result
+from downhole.sim.wave import WaveParams
 from downhole.string.drillstring import DrillString
 from downhole.string.zoh import zoh
 from downhole.well import WellPath
@@ -526,7 +527,7 @@ def _wob_depth(bit: BitParams, wob: float) -> float:
 
     if wob <= 0:
         return 0.0
-    p = bit.to_array()
+    p = bit.kernel_params()
     lo, hi = 0.0, 1e-3
     while bit_forces(hi, 0.0, 0.0, p)[0] < wob:
         hi *= 2.0
@@ -691,14 +692,14 @@ def _directional_start(pk: "_Packed", start: str, ax_cmd: float, tq_cmd: float,
     state = np.zeros((6, n))
     state[0], state[1], state[3], state[4] = u, v, th, w
     st["state"] = state
-    misc = st["misc"]
-    misc[4] = u[-1]
+    run = st["run"]
+    run["ubit0"] = u[-1]
     if not force_hook:
-        misc[1] = u[0] + (pk.top[TOP_LAYOUT.index("hook_load0")] - hl) / hook.servo_stiffness
+        run["x_ref"] = u[0] + (pk.top.hook_load0 - hl) / hook.servo_stiffness
     if not torque_td:
-        misc[2] = th[0] + ts / td.ki
+        run["theta_ref"] = th[0] + ts / td.ki
     tq0 = m.Kt[1, 0] * (th[1] - th[0]) if n > 1 else 0.0
-    misc[3] = tq0
+    run["soft_lowpass"] = tq0
     spec = RockSurfaceSpec(m.bit.n_blades)
     d0 = depth(v, w) if steady else 0.0
     if steady:
@@ -714,8 +715,8 @@ def _directional_start(pk: "_Packed", start: str, ax_cmd: float, tq_cmd: float,
         segs = m.wave["segments"]
         n_c = float(m.gravity[iC:].sum() - da[iC:].sum()) - wob  # tension at C
         t_c = float(dt_[iC:].sum()) + tob  # torque the line delivers to C
-        fb0 = pk.top[TOP_LAYOUT.index("fb0")]
-        fc0 = pk.top[TOP_LAYOUT.index("fc0")]
+        fb0 = pk.top.fb0
+        fc0 = pk.top.fc0
         n_dyn = n_c + fc0  # fc0 = -(preload tension at C)
         wa = wave_state(segs[0], pk.dt, v, n_dyn)
         wt = wave_state(segs[1], pk.dt, w, -t_c)
@@ -769,6 +770,12 @@ def _steady_fields(m: DirectionalModel, fa, ft, iB, iC, hybrid):
 
 
 # ------------------------------------------------------------------------ kernel packing
+def _copy_wave(w):
+    """A fresh copy of a wave segment's compiled state ``(hist, pos, wp)`` (wp is immutable)."""
+    hist, pos, wp = w
+    return hist.copy(), pos.copy(), wp
+
+
 class _Packed:
     """Kernel arrays for one (model, dt, top drive, hook, depth-of-cut) combination."""
 
@@ -803,38 +810,28 @@ class _Packed:
             self.Ldense = np.zeros((2, 1, 1))
         self.node = np.column_stack([model.gravity, model.radius])
         self.elem = np.ascontiguousarray(model.elem)
-        self.bitp = model.bit.to_array()
-        top = np.zeros(len(TOP_LAYOUT))
-        T = {k: i for i, k in enumerate(TOP_LAYOUT)}
+        self.bitp = model.bit.kernel_params()
         self.hook_load0 = model.buoyed_weight - hook.wob
-        top[T["axial_mode"]] = 0.0 if hook.mode == "force" else 1.0
-        top[T["hook_k"]] = hook.servo_stiffness
-        top[T["hook_c"]] = hook.servo_damping
-        top[T["hook_load0"]] = self.hook_load0
-        top[T["torsional_mode"]] = 1.0 if top_drive.mode == "torque" else 0.0
-        top[T["kp"]] = top_drive.kp
-        top[T["ki"]] = top_drive.ki
-        top[T["soft_gain"]] = top_drive.soft_gain if top_drive.mode == "soft_torque" else 0.0
-        top[T["soft_tau"]] = top_drive.soft_tau
-        top[T["mu"]] = model.mu
-        top[T["v_eps"]] = model.v_eps
-        top[T["approx_doc"]] = 1.0 if self.approx else 0.0
-        top[T["bit_node"]] = n - 1
-        top[T["node_b"]] = model.node_b
-        top[T["node_c"]] = model.node_c
-        top[T["dense"]] = 1.0 if model.Cdense is not None else 0.0
-        if model.wave is not None:
-            wv = model.wave
-            top[T["hybrid"]] = 1.0
-            top[T["n_lags_a"]] = wv["n_lags"]
-            top[T["lag_tau_a"]] = wv["lag_tau"][0]
-            top[T["n_lags_t"]] = wv["n_lags"]
-            top[T["lag_tau_t"]] = wv["lag_tau"][1]
+        wv = model.wave
+        fb0 = fc0 = 0.0
+        if wv is not None:
             fb0, fc0, _ = _line_preload(model, hook.wob)
-            top[T["fb0"]] = fb0
-            top[T["fc0"]] = fc0
             for seg in wv["segments"]:
                 seg.delay_steps(dt)  # raises if the line is shorter than one step
+        top = DirectionalParams(
+            velocity_hook=hook.mode != "force", hook_k=float(hook.servo_stiffness),
+            hook_c=float(hook.servo_damping), hook_load0=float(self.hook_load0),
+            torque_mode=top_drive.mode == "torque", kp=float(top_drive.kp),
+            ki=float(top_drive.ki),
+            soft_gain=float(top_drive.soft_gain) if top_drive.mode == "soft_torque" else 0.0,
+            soft_tau=float(top_drive.soft_tau), mu=float(model.mu), v_eps=float(model.v_eps),
+            approx_doc=self.approx, node_b=int(model.node_b), node_c=int(model.node_c),
+            hybrid=wv is not None, dense=model.Cdense is not None,
+            n_lags_a=int(wv["n_lags"]) if wv is not None else 0,
+            lag_tau_a=float(wv["lag_tau"][0]) if wv is not None else 0.0,
+            n_lags_t=int(wv["n_lags"]) if wv is not None else 0,
+            lag_tau_t=float(wv["lag_tau"][1]) if wv is not None else 0.0,
+            fb0=float(fb0), fc0=float(fc0))
         self.top = top
         self._template = None
         self.record0 = None
@@ -845,9 +842,9 @@ class _Packed:
         if self._template is None:
             self._template = self._initial_state()
         t = self._template
-        return dict(state=t["state"].copy(), misc=t["misc"].copy(), surf=t["surf"].copy(),
-                    istate=t["istate"].copy(), rp=t["rp"].copy(),
-                    wa=tuple(a.copy() for a in t["wa"]), wt=tuple(a.copy() for a in t["wt"]),
+        return dict(state=t["state"].copy(), run=t["run"].copy(), surf=t["surf"].copy(),
+                    istate=t["istate"].copy(), rp=t["rp"],
+                    wa=_copy_wave(t["wa"]), wt=_copy_wave(t["wt"]),
                     lag=t["lag"].copy())
 
     def _initial_state(self):
@@ -857,9 +854,8 @@ class _Packed:
         n = model.n_nodes
         state = np.zeros((6, n))
         state[0] = _static_axial(model, self.hook.wob)
-        misc = np.zeros(6)
-        misc[1] = state[0, 0]  # hook servo reference position
-        misc[4] = state[0, -1]
+        run = new_run_state(x_ref=state[0, 0],  # hook servo reference position
+                            ubit0=state[0, -1])
         spec = RockSurfaceSpec(model.bit.n_blades)
         d0 = 0.0 if self.approx else _wob_depth(model.bit, self.hook.wob)
         surf, istate, rp = rock_init(spec, state[0, -1] - d0 / model.bit.n_blades, 0.0)
@@ -871,16 +867,17 @@ class _Packed:
             wave_push(*wa, 0.0, 0.0)
             wave_push(*wt, 0.0, 0.0)
         else:
-            wa = (np.zeros((2, 4)), np.zeros(1, np.int64), np.array([0.0, 1.0, 4.0, 0.0, 0.0]))
+            wa = (np.zeros((2, 4)), np.zeros(1, np.int64),
+                  WaveParams(impedance=0.0, delay_steps=1.0, cap=4, a_init=0.0, b_init=0.0))
             wt = wa
-        lag = np.zeros((4, max(1, int(self.top[TOP_LAYOUT.index("n_lags_a")]))))
-        return dict(state=state, misc=misc, surf=surf, istate=istate, rp=rp, wa=wa, wt=wt,
+        lag = np.zeros((4, max(1, self.top.n_lags_a)))
+        return dict(state=state, run=run, surf=surf, istate=istate, rp=rp, wa=wa, wt=wt,
                     lag=lag)
 
     def run(self, st, cmd, rec, rec_every, rec_start=0):
         wa, wt = st["wa"], st["wt"]
         return run_directional(self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
-                               st["state"], st["misc"], st["surf"], st["istate"], st["rp"],
+                               st["state"], st["run"], st["surf"], st["istate"], st["rp"],
                                wa[0], wa[1], wa[2], wt[0], wt[1], wt[2], st["lag"], cmd,
                                cmd.shape[0], self.dt, rec, rec_every, rec_start)
 
@@ -1007,7 +1004,7 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
     else:
         status, rows = pk.run(st, cmd, rec, every, 1)
     if status != 0:
-        raise SimulationDiverged(float(st["misc"][0]), "bit_angular_velocity")
+        raise SimulationDiverged(float(st["run"]["time"][0]), "bit_angular_velocity")
     time = np.concatenate([[0.0], (np.arange(1, rows + 1)) * every * dt])
     channels = {name: rec[:rows + 1, i] for i, name in enumerate(CHANNELS)}
     sp0 = (top_drive.command(np.array([0.0]))[0] if speed is None
@@ -1135,7 +1132,7 @@ class DirectionalPlant(Plant):
 
     @property
     def time(self) -> float:
-        return float(self._st["misc"][0])
+        return float(self._st["run"]["time"][0])
 
     def node_fields(self) -> dict[str, np.ndarray]:
         """The nodal state now (copies, one value per node of ``model.node_md``):

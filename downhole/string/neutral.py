@@ -33,8 +33,7 @@ from downhole.params import BitParams, NeutralStringParams, get_preset
 from downhole.sim.plant import Plant, check_start, steady_depth_of_cut
 from downhole.sim.references import as_reference
 from downhole.sim.result import Result
-from downhole.sim.wave import (WP_A0, WP_B0, WP_CAP, WP_DELAY_STEPS, WaveSegment,
-                               segments_from_pipe, wave_read_at, wave_read_plan,
+from downhole.sim.wave import (WaveSegment, segments_from_pipe, wave_read_at, wave_read_plan,
                                wave_source_forces, wave_state, wave_step_at)
 
 __all__ = ["NeutralModel", "NDDEMatrices", "NeutralPlant", "neutral_model", "simulate_neutral",
@@ -138,7 +137,7 @@ class NeutralModel:
         depth of cut d = 2 pi v/omega (fixed point of v = U_A - (W + M_S g)/alpha_A,
         omega = U_T - T/alpha_T)."""
         p = self.params
-        bp = self.bit.to_array()
+        bp = self.bit.kernel_params()
         v, w = u_axial - self.hang_command, u_angular
         for _ in range(iterations):
             d = approx_depth_of_cut(max(v, 0.0), max(w, 1e-9), bp)
@@ -229,12 +228,12 @@ def neutral_wave_start(ha, pa, wpa, ht, pt, wpt):
     not inlined by numba.)"""
     na = pa[0]
     nt = pt[0]
-    cap_a = int(wpa[WP_CAP])
-    cap_t = int(wpt[WP_CAP])
-    off_a, fr_a = wave_read_plan(wpa[WP_DELAY_STEPS])
-    off_t, fr_t = wave_read_plan(wpt[WP_DELAY_STEPS])
-    a_in, b_in = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa[WP_A0], wpa[WP_B0])
-    a_in_t, b_in_t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt[WP_A0], wpt[WP_B0])
+    cap_a = wpa.cap
+    cap_t = wpt.cap
+    off_a, fr_a = wave_read_plan(wpa.delay_steps)
+    off_t, fr_t = wave_read_plan(wpt.delay_steps)
+    a_in, b_in = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa.a_init, wpa.b_init)
+    a_in_t, b_in_t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt.a_init, wpt.b_init)
     return na, nt, (cap_a, cap_t, off_a, fr_a, off_t, fr_t), a_in, b_in, a_in_t, b_in_t
 
 
@@ -298,8 +297,8 @@ def neutral_advance(za, zt, m_b, i_b, grav, bitp, approx, ha, wpa, ht, wpt, surf
     _, ft_line = wave_step_at(ht, nt, cap_t, zt, wtop, w, a_in_t, b_in_t)
     na += 1
     nt += 1
-    a1, b1 = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa[WP_A0], wpa[WP_B0])
-    a1t, b1t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt[WP_A0], wpt[WP_B0])
+    a1, b1 = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa.a_init, wpa.b_init)
+    a1t, b1t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt.a_init, wpt.b_init)
     _, sa1 = wave_source_forces(za, a1, b1)
     _, st1 = wave_source_forces(zt, a1t, b1t)
     ca, ct = bit_force_slopes(d, v, w, bitp, approx)
@@ -384,7 +383,7 @@ def _neutral_steady(model: NeutralModel, u_rel: float, u_t: float):
     from scipy.optimize import fsolve
 
     p = model.params
-    bp = model.bit.to_array()
+    bp = model.bit.kernel_params()
     if not (u_t > 0):
         raise DownholeInputError(f"a steady drilling start needs a positive angular set-point, "
                                  f"got top_drive_angular_velocity = {u_t!r} rad/s")
@@ -510,7 +509,7 @@ class NeutralPlant(Plant):
         self._consts = (model.axial.impedance, model.torsional.impedance, p.bit_mass,
                         p.bit_inertia, p.alpha_axial, p.alpha_torsional,
                         (p.string_mass + p.bit_mass) * p.g, p.string_mass * p.g,
-                        p.bit_mass * p.g, model.bit.to_array(), depth_of_cut == "approximate")
+                        p.bit_mass * p.g, model.bit.kernel_params(), depth_of_cut == "approximate")
         self._out = np.empty((2, len(NEUTRAL_CHANNELS)))
         self.reset()
 
@@ -749,7 +748,7 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
     out = np.empty((nrec, len(NEUTRAL_CHANNELS)))
     plant_args = (model.axial.impedance, model.torsional.impedance, p.bit_mass, p.bit_inertia,
                   p.alpha_axial, p.alpha_torsional, (p.string_mass + p.bit_mass) * g,
-                  p.string_mass * g, p.bit_mass * g, model.bit.to_array(),
+                  p.string_mass * g, p.bit_mass * g, model.bit.kernel_params(),
                   depth_of_cut == "approximate", ha, pa, wpa, ht, pt, wpt, surf, istate, rp)
     if runner is None:
         status, kfail, cfail = _run_neutral(*plant_args, u_in, fnoise, nsteps, dt, every, out,

@@ -8,11 +8,9 @@ Defined in :mod:`downhole.sim.wave`, beside the compiled kernels that step it
 from downhole.sim.wave import (WaveSegment, segments_from_pipe, wave_state, wave_incoming,
                                wave_push, wave_step, wave_step_at, wave_read, wave_read_plan,
                                wave_read_at, wave_outgoing, wave_end_forces, wave_source_forces,
-                               static_end_forces, line_preload, initial_waves, WP_Z,
-                               WP_DELAY_STEPS, WP_CAP, WP_A0, WP_B0)
+                               static_end_forces, line_preload, initial_waves, WaveParams)
 
 __all__ = ["WaveSegment", "segments_from_pipe", "wave_state", "wave_incoming", "wave_push",
            "wave_step", "wave_step_at", "wave_read", "wave_read_plan", "wave_read_at",
            "wave_outgoing", "wave_end_forces", "wave_source_forces", "static_end_forces",
-           "line_preload", "initial_waves", "WP_Z", "WP_DELAY_STEPS", "WP_CAP", "WP_A0",
-           "WP_B0"]
+           "line_preload", "initial_waves", "WaveParams"]

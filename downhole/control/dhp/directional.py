@@ -189,7 +189,7 @@ def directional_affine_model(dmodel, dt: float = 1e-3, *, state_scale=None,
     Gam = dmodel.nodal_force_map(dt, top_drive_inertia)
     kinds, nodes, state_scale = directional_state_layout(n, state_scale)
     P = np.ascontiguousarray(np.broadcast_to(np.asarray(state_scale, float), (ns,)))
-    bitp = m.bit.to_array()
+    bitp = m.bit.kernel_params()
     tension = np.ascontiguousarray(hanging_tension(m), dtype=float)
     koff = np.ascontiguousarray(m.Ka[1, :n - 1], dtype=float)
     elem = np.ascontiguousarray(m.elem, dtype=float)

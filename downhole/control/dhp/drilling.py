@@ -24,7 +24,7 @@ from numba import njit
 from downhole.bit.law import approx_depth_of_cut, bit_forces
 from downhole.control.affine import ControlAffineModel
 from downhole.errors import DownholeInputError
-from downhole.params.bit import BitParams
+from downhole.params.bit import BitKernelParams, BitParams
 from downhole.params.lumped import LumpedParams
 from downhole.string.zoh import zoh
 
@@ -43,11 +43,11 @@ def _bit_batch(v, w, p, out):
         out[i, 2] = d
 
 
-def bit_forces_batch(v, omega, bit: BitParams | np.ndarray) -> np.ndarray:
+def bit_forces_batch(v, omega, bit: BitParams | BitKernelParams) -> np.ndarray:
     """WOB, TOB (N, N m) and approximated depth of cut (m) for arrays of bit velocities.
 
     Returns an array (N, 3). The depth of cut is d = 2 pi v / max(omega, omega*) (Eq. 4.16)."""
-    p = bit.to_array() if isinstance(bit, BitParams) else np.asarray(bit, float)
+    p = bit.kernel_params() if isinstance(bit, BitParams) else bit
     v = np.ascontiguousarray(np.asarray(v, float).ravel())
     w = np.ascontiguousarray(np.asarray(omega, float).ravel())
     out = np.empty((v.size, 3))
@@ -117,7 +117,7 @@ def lumped_affine_model(string: str | LumpedParams = "table_2_1", bit: BitParams
     P = np.array([1.0, 0.02, 1000.0, 40.0]) if state_scale is None else state_scale
     U = np.array([0.1, 10.0]) if input_scale is None else input_scale
     P = np.asarray(P, dtype=float)
-    bitp = bit.to_array()
+    bitp = bit.kernel_params()
     Pv, Pw = float(P[1]), float(P[3])
 
     def forces(zb, _p=bitp, _Pv=Pv, _Pw=Pw):

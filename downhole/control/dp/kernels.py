@@ -366,7 +366,7 @@ def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens,
     best predecessor. Returns the new (cost, states, alive, parent) arrays.
     """
     nn = cost.size
-    ne = p_ens.shape[0]
+    ne = len(p_ens)
     mass, inertia, ka, ca, kt, ct = lumped[0], lumped[1], lumped[2], lumped[3], lumped[4], lumped[5]
     n4 = g4.size
     h = dt / nsub

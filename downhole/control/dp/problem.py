@@ -220,8 +220,8 @@ class DPProblem(BaseModel):
     def arrays(self, epsilon_scale: float = 1.0) -> "ModelArrays":
         """Plain arrays for the compiled kernels, with epsilon scaled by ``epsilon_scale``."""
         string, bit = self.params()
-        p = bit.to_array()
-        p[0] *= epsilon_scale
+        p = bit.kernel_params()
+        p = p._replace(epsilon=p.epsilon * epsilon_scale)
         return ModelArrays(mass=string.mass, inertia=string.inertia,
                            ka=string.axial_stiffness, ca=string.axial_damping,
                            kt=string.torsional_stiffness, ct=string.torsional_damping, bit=p)
@@ -361,14 +361,15 @@ class DPProblem(BaseModel):
 
 
 class ModelArrays:
-    """Plain floats and the packed bit-parameter array handed to the compiled kernels."""
+    """Plain floats and the bit law's :class:`~downhole.params.bit.BitKernelParams` handed to the
+    compiled kernels."""
 
     __slots__ = ("mass", "inertia", "ka", "ca", "kt", "ct", "bit")
 
     def __init__(self, mass, inertia, ka, ca, kt, ct, bit):
         self.mass, self.inertia = float(mass), float(inertia)
         self.ka, self.ca, self.kt, self.ct = float(ka), float(ca), float(kt), float(ct)
-        self.bit = np.ascontiguousarray(bit, dtype=np.float64)
+        self.bit = bit  # a BitKernelParams
 
     def lumped(self) -> np.ndarray:
         """``[M, I, Ka, Ca, Kt, Ct]`` as a float64 array."""

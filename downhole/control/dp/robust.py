@@ -57,7 +57,7 @@ def solve_robust(problem: DPProblem, *, epsilon_scales=None, progress: bool = Fa
     g2, g4 = problem.grid2(), problem.grid4()
     a = problem.arrays()
     lumped = a.lumped()
-    p_ens = np.stack([problem.arrays(s).bit for s in scales])
+    p_ens = tuple(problem.arrays(s).bit for s in scales)  # one BitKernelParams per member
     nominal = np.array([abs(s - 1.0) < 1e-12 for s in scales])
     weights = np.full(len(scales), 1.0 / len(scales))
     w, t = problem.weights, problem.targets

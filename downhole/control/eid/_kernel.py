@@ -5,7 +5,9 @@ the Python :class:`~downhole.control.eid.controller.EIDController`.
 Per channel ``i`` (0 axial, 1 torsional) the design model is the scalar NDDE of seed Eq. 3.13,
 ``x' = a0 x + a1 x(t-h) + g1 x'(t-h) + b (u(t - tau) + d_e)`` with h = 2 tau. Arrays:
 
-* ``cp`` (2, NP): parameters, layout :data:`CP_LAYOUT`;
+* ``cp``: parameters, a pair ``(axial, torsional)`` of :class:`EIDChannelParams` (built by name
+  in :meth:`EIDController.compiled_params
+  <downhole.control.eid.controller.EIDController.compiled_params>`);
 * ``cs`` (2, 4): states ``[xhat, z, x_R, x_F]``;
 * ``ch`` (2, 6, cap): histories at the step dt of ``[xhat, xhat', z, z', u_f, d_tilde]``;
 * ``cpos`` (1,) int64: number of stored samples (the current time is ``t_n``, n = cpos[0]).
@@ -28,13 +30,55 @@ Eq. 3.15 corrected). States advance by explicit Euler.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-CP_LAYOUT = ("a0", "a1", "g1", "b", "l", "kp", "kr", "br", "af", "bf", "h_steps", "tau_steps",
-             "offset", "predictor", "observer_delay", "u_min", "u_max")
-NP = len(CP_LAYOUT)
+
+class EIDChannelParams(NamedTuple):
+    """The compiled EID step's parameters of one channel (symbols of the module docstring).
+
+    Attributes
+    ----------
+    a0, a1, g1, b : float
+        Design-model coefficients (seed Eq. 3.13).
+    l : float
+        Observer gain.
+    kp, kr, br : float
+        State-feedback gain, internal-model gain and internal-model input gain.
+    af, bf : float
+        Filter F(s) = bf / (s - af).
+    h_steps, tau_steps : float
+        Delays h and tau in steps of dt.
+    offset : float
+        Added to the command sent to the plant (plant units).
+    predictor : bool
+        Smith-type predictor on.
+    observer_delay : bool
+        Delayed-input observer (``tau_o = tau``) rather than the printed structure.
+    u_min, u_max : float
+        Command limits (plant units).
+    """
+
+    a0: float
+    a1: float
+    g1: float
+    b: float
+    l: float  # noqa: E741 (the seed's symbol)
+    kp: float
+    kr: float
+    br: float
+    af: float
+    bf: float
+    h_steps: float
+    tau_steps: float
+    offset: float
+    predictor: bool
+    observer_delay: bool
+    u_min: float
+    u_max: float
+
 NSIG = 4  # recorded per channel: u (plant units, incl. offset), d_tilde, x_p, x_R
 
 
@@ -55,23 +99,24 @@ def eid_step(cp, cs, ch, cpos, y, r, dt, uout, sig):
     cap = ch.shape[2]
     n = cpos[0]
     for i in range(2):
-        a0 = cp[i, 0]
-        a1 = cp[i, 1]
-        g1 = cp[i, 2]
-        b = cp[i, 3]
-        l = cp[i, 4]
-        kp = cp[i, 5]
-        kr = cp[i, 6]
-        br = cp[i, 7]
-        af = cp[i, 8]
-        bf = cp[i, 9]
-        dh = cp[i, 10]
-        dtau = cp[i, 11]
+        c = cp[i]
+        a0 = c.a0
+        a1 = c.a1
+        g1 = c.g1
+        b = c.b
+        l = c.l  # noqa: E741
+        kp = c.kp
+        kr = c.kr
+        br = c.br
+        af = c.af
+        bf = c.bf
+        dh = c.h_steps
+        dtau = c.tau_steps
         xhat = cs[i, 0]
         z = cs[i, 1]
         xr = cs[i, 2]
         xf = cs[i, 3]
-        if cp[i, 13] > 0.5:
+        if c.predictor:
             xp = z + xhat - _hist(ch, i, 2, n, dtau, cap)
         else:
             xp = xhat
@@ -79,14 +124,14 @@ def eid_step(cp, cs, ch, cpos, y, r, dt, uout, sig):
         dtil = xf
         u = uf - dtil
         # saturation of the command (plant units) feeds back into the estimator via u
-        ucmd = u + cp[i, 12]
-        if ucmd < cp[i, 15]:
-            ucmd = cp[i, 15]
-        elif ucmd > cp[i, 16]:
-            ucmd = cp[i, 16]
-        u = ucmd - cp[i, 12]
+        ucmd = u + c.offset
+        if ucmd < c.u_min:
+            ucmd = c.u_min
+        elif ucmd > c.u_max:
+            ucmd = c.u_max
+        u = ucmd - c.offset
         dtil = uf - u
-        if cp[i, 14] > 0.5:
+        if c.observer_delay:
             uf_o = _hist(ch, i, 4, n, dtau, cap)
             dtil_o = _hist(ch, i, 5, n, dtau, cap)
         else:
@@ -118,7 +163,8 @@ def eid_step(cp, cs, ch, cpos, y, r, dt, uout, sig):
     cpos[0] = n + 1
 
 
-def eid_arrays(cp: np.ndarray):
+def eid_arrays(cp):
     """Fresh ``(cs, ch, cpos)`` for parameters ``cp`` (all states and histories zero)."""
-    cap = int(math.ceil(max(cp[0, 10], cp[1, 10], cp[0, 11], cp[1, 11]))) + 3
+    cap = int(math.ceil(max(cp[0].h_steps, cp[1].h_steps, cp[0].tau_steps,
+                            cp[1].tau_steps))) + 3
     return np.zeros((2, 4)), np.zeros((2, 6, cap)), np.zeros(1, dtype=np.int64)

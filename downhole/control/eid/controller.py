@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from downhole.control.eid._kernel import NP, NSIG, eid_arrays, eid_step
+from downhole.control.eid._kernel import NSIG, EIDChannelParams, eid_arrays, eid_step
 from downhole.control.eid.design import ChannelGains, LMIReport, synthesize_channel
 from downhole.control.eid.references import Reference, as_reference, constant_reference
 from downhole.errors import DownholeInputError
@@ -66,18 +66,22 @@ class EIDController:
     label = "eid"
 
     # --- compiled parameters ------------------------------------------------------------------
-    def compiled_params(self, dt: float) -> np.ndarray:
-        """Parameter array (2, NP) of the compiled step at step ``dt``."""
-        cp = np.zeros((2, NP))
+    def compiled_params(self, dt: float) -> tuple[EIDChannelParams, EIDChannelParams]:
+        """Parameters ``(axial, torsional)`` of the compiled step at step ``dt``."""
+        cp = []
         for i in range(2):
             g, c = self.gains[i], self.model_coeffs[i]
             if dt > c["tau"]:
                 raise DownholeInputError(f"dt = {dt} s exceeds the {CHANNELS[i]} delay "
                                          f"{c['tau']:.6g} s")
-            cp[i] = [c["a0"], c["a1"], c["g1"], c["b"], g.l, g.kp, g.kr, g.br, -g.bf, g.bf,
-                     c["h"] / dt, c["tau"] / dt, c["offset"], float(self.predictor),
-                     float(self.delayed_input_observer), self.u_limits[i][0], self.u_limits[i][1]]
-        return cp
+            cp.append(EIDChannelParams(
+                a0=float(c["a0"]), a1=float(c["a1"]), g1=float(c["g1"]), b=float(c["b"]),
+                l=float(g.l), kp=float(g.kp), kr=float(g.kr), br=float(g.br), af=-float(g.bf),
+                bf=float(g.bf), h_steps=c["h"] / dt, tau_steps=c["tau"] / dt,
+                offset=float(c["offset"]), predictor=bool(self.predictor),
+                observer_delay=bool(self.delayed_input_observer),
+                u_min=float(self.u_limits[i][0]), u_max=float(self.u_limits[i][1])))
+        return cp[0], cp[1]
 
     def neutral_runner(self, dt: float):
         """The compiled closed loop on the neutral-type string at step ``dt``: the fast-path hook

@@ -82,7 +82,7 @@ def run_neutral_eid(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp
     return 0, nsteps, 0
 
 
-def make_neutral_runner(cp: np.ndarray):
+def make_neutral_runner(cp):
     """A runner for ``simulate_neutral``'s compiled fast path with EID parameters ``cp`` (from
     :meth:`EIDController.compiled_params <downhole.control.eid.controller.EIDController.
     compiled_params>`); fresh controller states per call."""
