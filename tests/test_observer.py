@@ -142,7 +142,7 @@ def hybrid_design_mismatch():
 def test_bit_law_jacobian_against_the_law_and_refusals(neutral):
     from downhole.bit.law import approx_depth_of_cut, bit_forces
 
-    p = neutral.bit.to_array()
+    p = neutral.bit.kernel_params()
     J = bit_law_jacobian(neutral.bit, 0.01, 20.0)
     # the approximated law is homogeneous of degree 0 in (v, omega) along the depth of cut:
     # WOB(v, w) depends on v/w only in the cutting part, so v dW/dv + w dW/dw = W - W_contact;

@@ -111,7 +111,7 @@ def bit_law_jacobian(bit, v: float, omega: float) -> np.ndarray:
         raise DownholeInputError(f"observer: the operating point must have a positive bit "
                                  f"velocity and angular velocity, got v = {v!r} m/s, omega = "
                                  f"{omega!r} rad/s")
-    p = bit.to_array()
+    p = bit.kernel_params()
 
     def f(vv, ww):
         return np.array(bit_forces(approx_depth_of_cut(vv, ww, p), vv, ww, p))
@@ -375,7 +375,7 @@ def _friction_term(design, Gact, slot, ns):
     from downhole.bit.law import approx_depth_of_cut, bit_forces
 
     P = np.asarray(design.state_scale, float)
-    bitp = design.bit.to_array()
+    bitp = design.bit.kernel_params()
     iv, iw = 2 * (ns // 4) + 2 * (ns // 4 - 1), 2 * (ns // 4) + 2 * (ns // 4 - 1) + 1
     out = np.zeros(ns + 2)
 
