@@ -215,9 +215,10 @@ def test_simulate_routes_controller_type_dhp_to_the_dhp_runner():
     assert model_type({"controller": {"type": "dhp"}}, "<t>") == "dhp"
     assert model_type({"model": {"fidelity": "fem"}, "controller": {"type": "dhp", "dhp": {}}},
                       "<t>") == "dhp"
-    # a trained controller file without a design table runs on a described system instead
+    # a trained controller file without a design table runs on the FEM of the preset (or of a
+    # described well and string) with its top-drive controller: downhole.scenario.directional
     assert model_type({"model": {"fidelity": "fem"},
-                       "controller": {"type": "dhp", "file": "c"}}, "<t>") == "system"
+                       "controller": {"type": "dhp", "file": "c"}}, "<t>") == "fem"
 
 
 def test_the_migrated_examples_validate_through_simulate():
