@@ -119,11 +119,13 @@ def test_operating_point_reachability(model):
     assert op.depth_of_cut == pytest.approx(2 * math.pi * 0.015 / 12.0)
     p = model.params
     assert op.hook_load == pytest.approx((p.string_mass + p.bit_mass) * p.g - op.wob)
-    # the commands reproduce the steady state of the open-loop model (approximated depth of cut
-    # equals the delayed one at steady drilling)
-    v, w, wob, _ = model.steady_state(*op.commands)
-    assert v == pytest.approx(0.015, rel=1e-6) and w == pytest.approx(12.0, rel=1e-6)
-    assert wob == pytest.approx(op.wob, rel=1e-6)
+    # the commands hold that steady state in the open-loop plant (approximated depth of cut, which
+    # equals the delayed one at steady drilling): started there, it stays there
+    res = simulate_neutral(model, duration=2.0, dt=2e-4, inputs=op.commands,
+                           depth_of_cut="approximate", start="steady")
+    assert res["bit_axial_velocity"][-1] == pytest.approx(0.015, rel=1e-4)
+    assert res["bit_angular_velocity"][-1] == pytest.approx(12.0, rel=1e-5)
+    assert res["wob"][-1] == pytest.approx(op.wob, rel=1e-4)
     limited = operating_point(model, 0.015, 12.0, max_depth_of_cut=6e-3)
     assert not limited.reachable and "beyond the bit's limit" in limited.reason
     hard = model.with_bit(model.bit.model_copy(update={"epsilon": model.bit.epsilon * 40}))
@@ -153,7 +155,8 @@ def test_settle_metrics_on_a_synthetic_result():
             return self.d[k]
 
     t = R.time
-    ok = settle_metrics(R(0.015 + 1e-4 * np.sin(t), 16.0 + 0.1 * np.sin(t)), 0.015, 16.0)
+    ok = settle_metrics(R(0.015 + 1e-4 * np.sin(2 * np.pi * t), 16.0 + 0.1 * np.sin(t)), 0.015,
+                      16.0)
     assert ok["settled"] and ok["rms_axial"] == pytest.approx(1e-4 / 0.015 / 2 ** 0.5, rel=0.02)
     bounce = settle_metrics(R(0.015 + 0.02 * np.sin(40 * t), np.full(t.size, 16.0)), 0.015, 16.0)
     assert not bounce["settled"] and bounce["min_axial_velocity"] < 0

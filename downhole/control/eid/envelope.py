@@ -175,16 +175,17 @@ class EIDSchedule:
 
         if not self.candidates:
             raise DownholeInputError("EIDSchedule: at least one candidate tuning is needed")
+        for k, cand in enumerate(self.candidates):
+            unknown = set(cand) - {"br", "bf", "observer_gain", "gain_bound"}
+            if unknown:
+                raise DownholeInputError(f"EIDSchedule candidate {k}: unknown keys "
+                                         f"{sorted(unknown)}; expected br, bf, "
+                                         "observer_gain, gain_bound")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             base = design_eid(self.model)
             ch = base.model_coeffs[0]
-            for k, cand in enumerate(self.candidates):
-                unknown = set(cand) - {"br", "bf", "observer_gain", "gain_bound"}
-                if unknown:
-                    raise DownholeInputError(f"EIDSchedule candidate {k}: unknown keys "
-                                             f"{sorted(unknown)}; expected br, bf, "
-                                             "observer_gain, gain_bound")
+            for cand in self.candidates:
                 g, rep = synthesize_channel(ch, "axial", **cand)
                 self.controllers.append(replace(base, gains=(g, base.gains[1]),
                                                 reports=[rep, base.reports[1]]))
