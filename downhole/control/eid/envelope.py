@@ -37,14 +37,21 @@ __all__ = ["ENVELOPE_CANDIDATES", "OperatingPoint", "operating_point", "EIDSched
            "envelope_map"]
 
 #: Candidate tunings of the axial channel (the torsional channel keeps the default): keyword
-#: arguments of :func:`~downhole.control.eid.design.synthesize_channel`. Index 0 is the default of
-#: :func:`~downhole.control.eid.controller.design_eid`.
+#: arguments of :func:`~downhole.control.eid.design.synthesize_channel`, plus ``damping_gain``
+#: k_d > 0 for the predictive bit damper of :class:`~downhole.control.eid.predictor.PredictiveEID`
+#: on top of that EID. Index 0 is the default of :func:`~downhole.control.eid.controller.
+#: design_eid`.
 ENVELOPE_CANDIDATES = (
     {"br": 10.0, "bf": 20.0, "observer_gain": 20.0, "gain_bound": 5.0},
     {"br": 3.0, "bf": 5.0, "observer_gain": 20.0, "gain_bound": 2.0},
     {"br": 3.0, "bf": 60.0, "observer_gain": 5.0, "gain_bound": 2.0},
     {"br": 10.0, "bf": 20.0, "observer_gain": 20.0, "gain_bound": 20.0},
+    {"br": 10.0, "bf": 20.0, "observer_gain": 20.0, "gain_bound": 5.0, "damping_gain": 2.0},
+    {"br": 3.0, "bf": 5.0, "observer_gain": 20.0, "gain_bound": 2.0, "damping_gain": 2.0},
+    {"br": 10.0, "bf": 20.0, "observer_gain": 20.0, "gain_bound": 5.0, "damping_gain": 3.0},
+    {"br": 3.0, "bf": 5.0, "observer_gain": 20.0, "gain_bound": 2.0, "damping_gain": 3.0},
 )
+_CANDIDATE_KEYS = {"br", "bf", "observer_gain", "gain_bound", "damping_gain"}
 
 #: Settle criterion: over the last ``window`` seconds, RMS error of each bit velocity below this
 #: fraction of its reference, and the bit never leaves the rock (axial velocity > -tolerance x rop).
@@ -153,16 +160,18 @@ class EIDSchedule:
 
     Build with ``EIDSchedule(model)`` (solves one LMI per candidate); ``schedule.at(rop, omega)``
     returns the candidate whose closed loop with the linearized delayed depth of cut
-    (:func:`~downhole.control.eid.stability.regenerative_closed_loop`) has the most negative
-    spectral abscissa there, with that margin.
+    (:func:`~downhole.control.eid.stability.regenerative_closed_loop`, or
+    :func:`~downhole.control.eid.predictor.predictive_closed_loop` for a candidate with the
+    predictive bit damper) has the most negative spectral abscissa there, with that margin.
 
     Attributes
     ----------
     model : NeutralModel
     candidates : tuple of dict
         Axial-channel tunings (keyword arguments of ``synthesize_channel``).
-    controllers : list of EIDController
-        One per candidate (LMI-certified on the design model; ``reports`` hold the margins).
+    controllers : list of EIDController or PredictiveEID
+        One per candidate (the EID LMI-certified on the design model; ``reports`` hold the
+        margins).
     """
 
     model: object
@@ -175,27 +184,34 @@ class EIDSchedule:
 
         if not self.candidates:
             raise DownholeInputError("EIDSchedule: at least one candidate tuning is needed")
+        from downhole.control.eid.predictor import PredictiveEID
+
         for k, cand in enumerate(self.candidates):
-            unknown = set(cand) - {"br", "bf", "observer_gain", "gain_bound"}
+            unknown = set(cand) - _CANDIDATE_KEYS
             if unknown:
                 raise DownholeInputError(f"EIDSchedule candidate {k}: unknown keys "
-                                         f"{sorted(unknown)}; expected br, bf, "
-                                         "observer_gain, gain_bound")
+                                         f"{sorted(unknown)}; expected "
+                                         f"{', '.join(sorted(_CANDIDATE_KEYS))}")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             base = design_eid(self.model)
             ch = base.model_coeffs[0]
             for cand in self.candidates:
-                g, rep = synthesize_channel(ch, "axial", **cand)
-                self.controllers.append(replace(base, gains=(g, base.gains[1]),
-                                                reports=[rep, base.reports[1]]))
+                lmi = {k: v for k, v in cand.items() if k != "damping_gain"}
+                g, rep = synthesize_channel(ch, "axial", **lmi)
+                c = replace(base, gains=(g, base.gains[1]), reports=[rep, base.reports[1]])
+                kd = float(cand.get("damping_gain", 0.0))
+                self.controllers.append(PredictiveEID(c, self.model, kd) if kd > 0 else c)
 
     def margins(self, rop: float, omega: float) -> list:
         """:func:`regenerative_closed_loop` of every candidate at (rop, omega)."""
+        from downhole.control.eid.predictor import PredictiveEID, predictive_closed_loop
         from downhole.control.eid.stability import regenerative_closed_loop
 
         rop, omega = _check_point(rop, omega)
-        return [regenerative_closed_loop(c, self.model, rop, omega) for c in self.controllers]
+        return [predictive_closed_loop(c.eid, self.model, rop, omega, c.damping_gain)
+                if isinstance(c, PredictiveEID) else
+                regenerative_closed_loop(c, self.model, rop, omega) for c in self.controllers]
 
     def at(self, rop: float, omega: float):
         """(controller, candidate index, its regenerative_closed_loop dict) with the most
