@@ -13,8 +13,9 @@ import math
 import numpy as np
 import pytest
 
-from downhole.control.eid.envelope import (EIDSchedule, envelope_point, open_loop_abscissa,
-                                           operating_point, settle_metrics)
+from downhole.control.eid.envelope import (ENVELOPE_CANDIDATES, EIDSchedule, envelope_point,
+                                           open_loop_abscissa, operating_point, settle_metrics)
+from downhole.control.eid.predictor import PredictiveEID, predictive_closed_loop
 from downhole.control.eid.references import (constant_reference, envelope_tracking_reference,
                                              rotate_then_drill, seed_tracking_reference,
                                              startup_reference, startup_time)
@@ -35,7 +36,7 @@ def schedule(model):
 
 
 def _winding_count(controller, model, rop, omega, re_min=0.02, re_max=20.0, im_max=250.0,
-                   n=40000):
+                   n=24000):
     """Number of roots of the characteristic determinant of the EID loop with the linearized
     delayed depth of cut in the rectangle re_min < Re s < re_max, |Im s| < im_max, by the argument
     principle (winding number of det along the boundary): independent of the Newton root finder
@@ -162,34 +163,68 @@ def test_settle_metrics_on_a_synthetic_result():
     assert not bounce["settled"] and bounce["min_axial_velocity"] < 0
 
 
-def test_regenerative_mode_stable_in_the_scheduled_design(model, schedule):
+def test_regenerative_mode_stable_in_the_scheduled_design(model):
     """At 16 rad/s, 15 mm/s the default design's loop has the unstable bit/rock mode (the one
-    that bounces); the scheduled design's has none: Newton roots and an argument-principle count
-    agree."""
-    default = schedule.controllers[0]
+    that bounces); the best EID-only candidate of the schedule has none: Newton roots and an
+    argument-principle count agree."""
+    sched = EIDSchedule(model, candidates=ENVELOPE_CANDIDATES[:2])
+    default = sched.controllers[0]
     d = regenerative_closed_loop(default, model, 0.015, 16.0)
     assert d["spectral_abscissa"] > 0.3 and 30 < d["rightmost_oscillatory_root"][1] < 60
     assert _winding_count(default, model, 0.015, 16.0) >= 1
-    ctrl, k, m = schedule.at(0.015, 16.0)
-    assert k != 0 and m["spectral_abscissa"] < -0.1 and m["stable"]
+    ctrl, k, m = sched.at(0.015, 16.0)
+    assert k == 1 and m["spectral_abscissa"] < -0.1 and m["stable"]
     assert _winding_count(ctrl, model, 0.015, 16.0) == 0
     # open loop: stable there; the default EID destabilizes it, the schedule does not
     assert open_loop_abscissa(model, 0.015, 16.0)[0] < 0
 
 
+@pytest.mark.slow
 def test_issue_points(model, schedule):
-    """16 rad/s, 15 mm/s settles with the scheduled design (the default keeps bouncing, RMS
-    ~78 %); 12 rad/s, 15 mm/s does not settle with any candidate, and the map says why: the
-    open-loop bit/rock mode is unstable there and the linearized closed loop is too."""
-    p16 = envelope_point(model, schedule, 0.015, 16.0)
-    assert p16["settled"] and p16["reason"] == "settled", p16
-    assert p16["rms_axial"] < 0.02 and p16["min_axial_velocity"] > 0
-    res = simulate_neutral(model, duration=60.0, dt=2e-4, controller=schedule.controllers[0],
-                           reference=startup_reference(0.015, 16.0))
-    assert not settle_metrics(res, 0.015, 16.0)["settled"]
-    p12 = envelope_point(model, schedule, 0.015, 12.0)
-    assert not p12["settled"] and p12["closed_loop_abscissa"] > 0
-    assert p12["open_loop_abscissa"] > 0 and p12["reason"].startswith("open-loop bit/rock mode")
+    """Both operating points of issue 17 settle with the scheduled design, where the default EID
+    keeps bouncing: 16 rad/s, 15 mm/s (open loop stable, the default EID destabilizes it) and
+    12 rad/s, 15 mm/s (open-loop bit/rock mode unstable, +1.9 1/s: the predictive bit damper)."""
+    for omega, open_loop_unstable in ((16.0, False), (12.0, True)):
+        p = envelope_point(model, schedule, 0.015, omega)
+        assert p["settled"] and p["reason"] == "settled", p
+        assert p["rms_axial"] < 0.02 and p["min_axial_velocity"] > 0
+        assert (p["open_loop_abscissa"] > 0) == open_loop_unstable
+        assert p["closed_loop_abscissa"] < -0.2 and p["default_abscissa"] > 0.3
+        res = simulate_neutral(model, duration=60.0, dt=2e-4,
+                               controller=schedule.controllers[0],
+                               reference=startup_reference(0.015, omega))
+        assert not settle_metrics(res, 0.015, omega)["settled"]
+
+
+@pytest.mark.slow
+def test_predictive_damper_settles_where_the_open_loop_is_unstable(model):
+    """12 rad/s, 15 mm/s: the open-loop bit/rock mode grows (+1.9 1/s) and no EID tuning
+    stabilizes it; the EID with the predictive damper has the linear margin (exact prediction)
+    and its compiled run from rest settles; the compiled and Python loops agree."""
+    eid = EIDSchedule(model, candidates=(ENVELOPE_CANDIDATES[0],)).controllers[0]
+    assert open_loop_abscissa(model, 0.015, 12.0)[0] > 1.0
+    assert regenerative_closed_loop(eid, model, 0.015, 12.0)["spectral_abscissa"] > 1.0
+    # k_d = 0 is the EID's own characteristic equation
+    zero = predictive_closed_loop(eid, model, 0.015, 12.0, 0.0)["spectral_abscissa"]
+    assert zero == pytest.approx(
+        regenerative_closed_loop(eid, model, 0.015, 12.0)["spectral_abscissa"], abs=1e-6)
+    lin = predictive_closed_loop(eid, model, 0.015, 12.0, 2.0)
+    assert lin["stable"] and lin["spectral_abscissa"] < -0.2
+    c = PredictiveEID(eid, model, 2.0)
+    res = simulate_neutral(model, duration=40.0, dt=2e-4, controller=c,
+                           reference=startup_reference(0.015, 12.0))
+    s = settle_metrics(res, 0.015, 12.0)
+    assert s["settled"] and s["rms_axial"] < 1e-3, s
+    short = simulate_neutral(model, duration=3.0, dt=2e-4, controller=c,
+                             reference=startup_reference(0.015, 12.0, spin_up=1.0,
+                                                         ramp_time=1.0))
+    py = simulate_neutral(model, duration=3.0, dt=2e-4, controller=c, python_loop=True,
+                          reference=startup_reference(0.015, 12.0, spin_up=1.0, ramp_time=1.0))
+    np.testing.assert_allclose(py["bit_axial_velocity"], short["bit_axial_velocity"],
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(py["command_axial"], short["command_axial"], rtol=0, atol=1e-12)
+    with pytest.raises(DownholeInputError, match="damping_gain"):
+        PredictiveEID(eid, model, -1.0)
 
 
 def test_fig3_6_tracking_bound_quick():
