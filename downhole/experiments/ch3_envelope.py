@@ -36,7 +36,7 @@ def _plot(points, omegas, rops, path):
     ow = sorted({p["omega"] for p in points})
     orr = sorted({p["rop"] for p in points})
     for ax, key, title in ((axes[0], "open_loop_abscissa", "open loop (no control)"),
-                           (axes[1], "closed_loop_abscissa", "EID, scheduled design")):
+                           (axes[1], "closed_loop_abscissa", "EID (+ predictive damper), scheduled")):
         grid = np.full((len(orr), len(ow)), np.nan)
         for p in points:
             if key in p:
