@@ -35,8 +35,9 @@ def _plot(points, omegas, rops, path):
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
     ow = sorted({p["omega"] for p in points})
     orr = sorted({p["rop"] for p in points})
-    for ax, key, title in ((axes[0], "open_loop_abscissa", "open loop (no control)"),
-                           (axes[1], "closed_loop_abscissa", "EID (+ predictive damper), scheduled")):
+    panels = ((axes[0], "open_loop_abscissa", "open loop (no control)"),
+              (axes[1], "closed_loop_abscissa", "EID (+ predictive damper), scheduled"))
+    for ax, key, title in panels:
         grid = np.full((len(orr), len(ow)), np.nan)
         for p in points:
             if key in p:
@@ -98,7 +99,9 @@ def eid_envelope(out_dir, quick):
                              if p["closed_loop_abscissa"] > UNSTABLE_MARGIN)
     uncalled = [f"{p['omega']:g} rad/s, {1e3 * p['rop']:g} mm/s: abscissa "
                 f"{p['closed_loop_abscissa']:+.2f} 1/s, "
-                f"{'settled' if p['settled'] else 'not settled'}" for p in reach if -STABLE_MARGIN <= p["closed_loop_abscissa"] <= UNSTABLE_MARGIN]
+                f"{'settled' if p['settled'] else 'not settled'}"
+                for p in reach
+                if -STABLE_MARGIN <= p["closed_loop_abscissa"] <= UNSTABLE_MARGIN]
     ol_stable_settle = all(p["settled"] for p in reach
                            if p["open_loop_abscissa"] < -OPEN_LOOP_MARGIN)
     fail_ol_unstable = all(p["open_loop_abscissa"] > -OPEN_LOOP_MARGIN for p in reach
