@@ -1,0 +1,266 @@
+"""EID with a predictive bit damper: finite-spectrum-assignment style damping of the regenerative
+bit/rock mode through the axial wave delay.
+
+At low rotary speed the bit/rock mode with the delayed depth of cut is unstable in open loop
+(:func:`~downhole.control.eid.stability.bit_rock_open_loop_roots`) and no EID tuning stabilizes it:
+the top drive acts on the bit only after the axial wave delay tau1 (0.19 s with Table 3.1), which
+is 7-8 rad at the mode's 38-45 rad/s. The string delay is, however, a *known* dynamics: over the
+next tau1 the bit moves under the waves already travelling down the string (past commands) and the
+bit/rock law, so the bit velocity at t + tau1 can be predicted at t. The damper adds to the EID's
+axial command
+
+    du(t) = -k_d (vhat(t + tau1 | t) - r_a(t))
+
+which reaches the bit at t + tau1 as the force -M b k_d (v(t + tau1) - r_a): with an exact
+prediction a damper of M b k_d N s/m at the bit (b = Gamma3 of Eq. 3.9), i.e. the delay has
+gone from the loop (finite spectrum assignment). The prediction integrates the axial neutral
+equation of Eq. 3.9 with the bit law,
+
+    v' = a0 v + a1 v(t-h) + g1 v'(t-h) + b u(t - tau1) - (W(t) - g1 W(t-h)) / M_B,
+    W(t) = WOB(n (X(t) - X(t - 2 pi/(n omega))), v, omega)
+
+from the measured bit velocity (X its integral) over one tau1, with the stored histories of v, v'
+and W and of the commands u (the EID's plus the damper's). The EID itself is unaware of du (its
+estimator sees its effect as part of the disturbance and compensates only the part below its
+filter bandwidth).
+
+Linear check: :func:`predictive_closed_loop` is :func:`~downhole.control.eid.stability.
+regenerative_closed_loop` for this loop with an exact prediction (the plant row gains b k_d).
+The controller runs compiled in :func:`~downhole.string.neutral.simulate_neutral` (its
+``neutral_runner``) or from Python; both call :func:`damper_step`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from downhole.bit.law import bit_forces, bit_forces_and_slopes
+from downhole.errors import DownholeInputError
+
+__all__ = ["PredictiveEID", "predictive_closed_loop", "damper_step", "DP_LAYOUT"]
+
+
+@njit(cache=True)
+def _predict(vh, dvh, wh, xh, uh, n, cap, dt, nt, nh, ntn, a0, a1, g1, b, m_b, nbl, omega, bp,
+             xbuf, stride):
+    """Predicted bit axial velocity at t_n + nt dt from the histories (ring buffers of ``cap``
+    samples, index k % cap) of v, v', W, X and u, by Euler steps of ``stride`` samples (a
+    divisor of ``nt``) (implicit in
+    the velocity terms: the wear-flat force's velocity dependence is stiff near v = 0);
+    ``xbuf`` holds the predicted X at those steps."""
+    v = vh[n % cap]
+    x = xh[n % cap]
+    nsub = nt // stride
+    h = dt * stride
+    for i in range(nsub + 1):
+        xbuf[i] = x
+        if i == nsub:
+            break
+        k = n + i * stride
+        kh = k - nh
+        vd = vh[kh % cap] if kh >= 0 else 0.0
+        dvd = dvh[kh % cap] if kh >= 0 else 0.0
+        wd = wh[kh % cap] if kh >= 0 else 0.0
+        ku = k - nt
+        ud = uh[ku % cap] if ku >= 0 else 0.0
+        kb = k - ntn
+        if kb >= n:
+            q = (kb - n) / stride
+            i0 = int(q)
+            f = q - i0
+            xb = xbuf[i0] if i0 + 1 > i else (1.0 - f) * xbuf[i0] + f * xbuf[i0 + 1]
+        elif kb >= 0:
+            xb = xh[kb % cap]
+        else:
+            xb = 0.0
+        d = nbl * (x - xb)
+        if d < 0.0:
+            d = 0.0
+        sl = bit_forces_and_slopes(d, v, omega, bp)
+        dv = a0 * v + a1 * vd + g1 * dvd + b * ud - (sl[0] - g1 * wd) / m_b
+        x += h * v
+        # the velocity dependence of the wear-flat force is stiff near v = 0: implicit in v
+        v += h * dv / (1.0 + h * (max(sl[3], 0.0) / m_b - a0))
+    return v
+
+
+#: Layout of the damper parameters ``dp``.
+DP_LAYOUT = ("k_d", "tau_steps", "h_steps", "a0", "a1", "g1", "b", "bit_mass", "n_blades", "dt",
+             "stride")
+
+#: Target step of the prediction's Euler integration, s (the largest whole number of control
+#: steps up to it that divides the prediction horizon).
+PREDICTION_STEP = 1e-3
+
+
+@njit(cache=True)
+def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
+    """One step of the predictive damper at t_n (n = ds[1]) with measured bit velocities ``v``,
+    ``w``, axial reference ``r_a`` and the EID's axial command ``u_eid`` (relative to the hanging
+    equilibrium). Stores the histories ``dh`` (5, cap: v, v', W, X, u) and returns ``du``."""
+    cap = dh.shape[1]
+    n = int(ds[1])
+    dt = dp[9]
+    nbl = dp[8]
+    x = ds[0]
+    k = n % cap
+    dh[0, k] = v
+    dh[3, k] = x
+    if n > 0:
+        dh[1, (n - 1) % cap] = (v - dh[0, (n - 1) % cap]) / dt
+    om = abs(w)
+    if om < 0.5:
+        om = 0.5
+    ntn = int(round(2.0 * math.pi / (nbl * om) / dt))
+    if ntn < 1:
+        ntn = 1
+    du = 0.0
+    if ntn < cap:
+        xb = dh[3, (n - ntn) % cap] if n - ntn >= 0 else 0.0
+        d = nbl * (x - xb)
+        if d < 0.0:
+            d = 0.0
+        wob, _ = bit_forces(d, v, om, bp)
+        dh[2, k] = wob
+        if dp[0] > 0.0:
+            vp = _predict(dh[0], dh[1], dh[2], dh[3], dh[4], n, cap, dt, int(dp[1]), int(dp[2]),
+                          ntn, dp[3], dp[4], dp[5], dp[6], dp[7], nbl, om, bp, xbuf, int(dp[10]))
+            du = -dp[0] * (vp - r_a)
+    else:
+        dh[2, k] = 0.0
+    dh[4, k] = u_eid + du
+    ds[0] = x + dt * v
+    ds[1] = n + 1
+    return du
+
+
+def _stride(nt: int, target: float) -> int:
+    """Largest divisor of ``nt`` not above ``target`` (the prediction's Euler steps then end
+    exactly at t + tau)."""
+    return max(k for k in range(1, max(1, int(round(target))) + 1) if nt % k == 0)
+
+
+class PredictiveEID:
+    """An :class:`~downhole.control.eid.controller.EIDController` plus the predictive bit damper
+    on the axial channel (module docstring). Same controller contract (``reset``, ``command``,
+    ``dt``, ``needs``, ``commands``); runs compiled in ``simulate_neutral`` through
+    :meth:`neutral_runner` (:mod:`downhole.control.eid.predictive_runner`), or from Python.
+
+    Parameters
+    ----------
+    eid : EIDController
+    model : NeutralModel
+        The plant model the prediction uses (string coefficients, bit mass, bit law).
+    damping_gain : float
+        k_d (the bit sees M_B b k_d N s/m; 2.0 gives about 8.8e5 N s/m = 2.5 Z with Table 3.1).
+    """
+
+    needs = ("bit_axial_velocity", "bit_angular_velocity")
+    commands = ("top_drive_axial_velocity", "top_drive_angular_velocity")
+    label = "eid+predictive-damper"
+
+    def __init__(self, eid, model, damping_gain: float = 2.0):
+        k = float(damping_gain)
+        if not (math.isfinite(k) and k >= 0):
+            raise DownholeInputError(f"PredictiveEID: damping_gain must be >= 0 and finite, "
+                                     f"got {damping_gain!r}")
+        self.eid, self.model, self.damping_gain = eid, model, k
+        self.reference = eid.reference
+        self.dt = eid.dt
+
+    def damper_params(self, dt: float) -> np.ndarray:
+        """Parameter array ``dp`` (:data:`DP_LAYOUT`) at step ``dt``."""
+        ch = self.eid.model_coeffs[0]
+        return np.array([self.damping_gain, max(1, int(round(ch["tau"] / dt))),
+                         max(1, int(round(ch["h"] / dt))), ch["a0"], ch["a1"], ch["g1"], ch["b"],
+                         self.model.params.bit_mass, float(self.model.bit.n_blades), dt,
+                         _stride(max(1, int(round(ch["tau"] / dt))), PREDICTION_STEP / dt)])
+
+    @staticmethod
+    def damper_arrays(dp: np.ndarray):
+        """Fresh ``(dh, ds, xbuf)`` for parameters ``dp``."""
+        cap = int(dp[1] + dp[2]) + 8
+        return np.zeros((5, cap)), np.zeros(2), np.zeros(int(dp[1]) // int(dp[10]) + 2)
+
+    def neutral_runner(self, dt: float):
+        """Compiled closed loop on the neutral string (see :mod:`downhole.control.eid.
+        predictive_runner`)."""
+        from downhole.control.eid.predictive_runner import make_predictive_runner
+
+        return make_predictive_runner(self.eid.compiled_params(dt), self.damper_params(dt),
+                                      self.model.bit.to_array())
+
+    def reset(self) -> None:
+        """Zero the EID and the damper's histories (steps of :attr:`dt`)."""
+        self.eid.dt = self.dt
+        self.eid.reset()
+        self._dp = self.damper_params(float(self.dt))
+        self._dh, self._ds, self._xbuf = self.damper_arrays(self._dp)
+        self._bp = self.model.bit.to_array()
+
+    def command(self, t: float, observation: dict, reference=None) -> dict:
+        """One step: the EID's commands with ``du`` added to the axial one."""
+        if not hasattr(self, "_dh"):
+            self.reset()
+        out = self.eid.command(t, observation, reference)
+        if reference is None:
+            r = self.reference.sample(np.array([t]))[:, 0]
+        elif hasattr(reference, "keys"):
+            r = (reference["reference_axial_velocity"], reference["reference_angular_velocity"])
+        else:
+            r = np.asarray(reference, float).reshape(2)
+        u = out["top_drive_axial_velocity"]
+        du = damper_step(self._dp, self._dh, self._ds, self._xbuf, self._bp,
+                         float(observation["bit_axial_velocity"]),
+                         float(observation["bit_angular_velocity"]), float(r[0]), u)
+        return {"top_drive_axial_velocity": float(u + du),
+                "top_drive_angular_velocity": out["top_drive_angular_velocity"]}
+
+
+def predictive_closed_loop(controller, model, rop: float, omega: float,
+                           damping_gain: float = 2.0, im_max: float = 200.0) -> dict:
+    """Spectral abscissa of the EID loop with an exact predictive damper (plant row + b k_d) and
+    the linearized delayed depth of cut: :func:`regenerative_closed_loop`'s characteristic matrix
+    with that one term added. Returns the same keys."""
+    from downhole.control.eid.stability import (_bit_rock_gains, _newton_roots,
+                                                channel_loop_matrices)
+
+    mats = [channel_loop_matrices(controller.model_coeffs[i], controller.gains[i],
+                                  predictor=controller.predictor,
+                                  delayed_input_observer=controller.delayed_input_observer)
+            for i in range(2)]
+    kw, kt, c, tn = _bit_rock_gains(model, rop, omega)
+    p = model.params
+    g1, u1 = model.gammas[0], model.upsilons[0]
+    b = controller.model_coeffs[0]["b"]
+    n = 5
+
+    def char(s):
+        s = np.atleast_1d(s).astype(complex)
+        M = np.zeros((s.size, 2 * n, 2 * n), complex)
+        for i, (A0, A1, A2, G, tau) in enumerate(mats):
+            q = np.exp(-s * tau)[:, None, None]
+            M[:, i * n:(i + 1) * n, i * n:(i + 1) * n] = (s[:, None, None] * (np.eye(n) - G * q * q)
+                                                          - A0 - A1 * q - A2 * q * q)
+        small = np.abs(s) < 1e-12
+        e = np.where(small, tn, (1 - np.exp(-s * tn)) / np.where(small, 1.0, s))
+        fa = (1 - g1 * np.exp(-2 * s * model.tau1)) / p.bit_mass * e
+        ft = (1 - u1 * np.exp(-2 * s * model.tau2)) / p.bit_inertia * e
+        M[:, 0, 0] += fa * kw + b * damping_gain
+        M[:, 0, n] += -fa * kw * c
+        M[:, n, 0] += ft * kt
+        M[:, n, n] += -ft * kt * c
+        return np.linalg.det(M)
+
+    roots = _newton_roots(char, im_max=im_max, n_re=3, d_im=3.0, iters=40)
+    chain = max(math.log(abs(g1)) / (2 * model.tau1), math.log(abs(u1)) / (2 * model.tau2))
+    sa = float(max(roots.real.max() if roots.size else -math.inf, chain))
+    dom = roots[0] if roots.size else complex(chain, 0)
+    osc = [r for r in roots if r.imag > 10.0]
+    osc = osc[0] if osc else complex(-math.inf, 0.0)
+    return {"spectral_abscissa": sa, "dominant_root": [float(dom.real), float(dom.imag)],
+            "rightmost_oscillatory_root": [float(osc.real), float(osc.imag)],
+            "roots": [[float(r.real), float(r.imag)] for r in roots[:6]], "stable": sa < 0}
