@@ -34,7 +34,7 @@ def run_neutral_predictive(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, gra
     r = np.zeros(2)
     sig = np.zeros((2, 4))
     rec = 0
-    off = cp[0, 12]
+    off = cp[0].offset
     for k in range(nsteps + 1):
         y[0] = v + noise[0, k]
         y[1] = w + noise[1, k]
@@ -72,7 +72,7 @@ def run_neutral_predictive(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, gra
     return 0, nsteps, 0
 
 
-def make_predictive_runner(cp: np.ndarray, dp: np.ndarray, bpc: np.ndarray):
+def make_predictive_runner(cp, dp, bpc):
     """A runner for ``simulate_neutral``'s compiled fast path (fresh states per call)."""
 
     def runner(plant_args, ref, mnoise, fnoise, nsteps, dt, every, out):

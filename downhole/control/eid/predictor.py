@@ -34,13 +34,15 @@ from __future__ import annotations
 
 import math
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from downhole.bit.law import bit_forces, bit_forces_and_slopes
 from downhole.errors import DownholeInputError
 
-__all__ = ["PredictiveEID", "predictive_closed_loop", "damper_step", "DP_LAYOUT"]
+__all__ = ["PredictiveEID", "predictive_closed_loop", "damper_step", "DamperParams"]
 
 
 @njit(cache=True)
@@ -87,9 +89,38 @@ def _predict(vh, dvh, wh, xh, uh, n, cap, dt, nt, nh, ntn, a0, a1, g1, b, m_b, n
     return v
 
 
-#: Layout of the damper parameters ``dp``.
-DP_LAYOUT = ("k_d", "tau_steps", "h_steps", "a0", "a1", "g1", "b", "bit_mass", "n_blades", "dt",
-             "stride")
+class DamperParams(NamedTuple):
+    """The compiled damper's parameters (built by :meth:`PredictiveEID.damper_params`).
+
+    Attributes
+    ----------
+    k_d : float
+        Damping gain on the predicted bit-velocity error, N s/m (0: off).
+    tau_steps, h_steps : int
+        The axial channel's delays tau and h in steps of ``dt``.
+    a0, a1, g1, b : float
+        The axial design-model coefficients (seed Eq. 3.13).
+    bit_mass : float
+        Bit (BHA) mass, kg.
+    n_blades : float
+        Blades of the bit (depth of cut per revolution).
+    dt : float
+        Control step, s.
+    stride : int
+        Control steps per Euler step of the prediction.
+    """
+
+    k_d: float
+    tau_steps: int
+    h_steps: int
+    a0: float
+    a1: float
+    g1: float
+    b: float
+    bit_mass: float
+    n_blades: float
+    dt: float
+    stride: int
 
 #: Target step of the prediction's Euler integration, s (the largest whole number of control
 #: steps up to it that divides the prediction horizon).
@@ -103,8 +134,8 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
     equilibrium). Stores the histories ``dh`` (5, cap: v, v', W, X, u) and returns ``du``."""
     cap = dh.shape[1]
     n = int(ds[1])
-    dt = dp[9]
-    nbl = dp[8]
+    dt = dp.dt
+    nbl = dp.n_blades
     x = ds[0]
     k = n % cap
     dh[0, k] = v
@@ -125,10 +156,11 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
             d = 0.0
         wob, _ = bit_forces(d, v, om, bp)
         dh[2, k] = wob
-        if dp[0] > 0.0:
-            vp = _predict(dh[0], dh[1], dh[2], dh[3], dh[4], n, cap, dt, int(dp[1]), int(dp[2]),
-                          ntn, dp[3], dp[4], dp[5], dp[6], dp[7], nbl, om, bp, xbuf, int(dp[10]))
-            du = -dp[0] * (vp - r_a)
+        if dp.k_d > 0.0:
+            vp = _predict(dh[0], dh[1], dh[2], dh[3], dh[4], n, cap, dt, dp.tau_steps,
+                          dp.h_steps, ntn, dp.a0, dp.a1, dp.g1, dp.b, dp.bit_mass, nbl, om, bp,
+                          xbuf, dp.stride)
+            du = -dp.k_d * (vp - r_a)
     else:
         dh[2, k] = 0.0
     dh[4, k] = u_eid + du
@@ -171,19 +203,22 @@ class PredictiveEID:
         self.reference = eid.reference
         self.dt = eid.dt
 
-    def damper_params(self, dt: float) -> np.ndarray:
-        """Parameter array ``dp`` (:data:`DP_LAYOUT`) at step ``dt``."""
+    def damper_params(self, dt: float) -> DamperParams:
+        """The damper's parameters (:class:`DamperParams`) at step ``dt``."""
         ch = self.eid.model_coeffs[0]
-        return np.array([self.damping_gain, max(1, int(round(ch["tau"] / dt))),
-                         max(1, int(round(ch["h"] / dt))), ch["a0"], ch["a1"], ch["g1"], ch["b"],
-                         self.model.params.bit_mass, float(self.model.bit.n_blades), dt,
-                         _stride(max(1, int(round(ch["tau"] / dt))), PREDICTION_STEP / dt)])
+        tau = max(1, int(round(ch["tau"] / dt)))
+        return DamperParams(k_d=float(self.damping_gain), tau_steps=tau,
+                            h_steps=max(1, int(round(ch["h"] / dt))), a0=float(ch["a0"]),
+                            a1=float(ch["a1"]), g1=float(ch["g1"]), b=float(ch["b"]),
+                            bit_mass=float(self.model.params.bit_mass),
+                            n_blades=float(self.model.bit.n_blades), dt=float(dt),
+                            stride=int(_stride(tau, PREDICTION_STEP / dt)))
 
     @staticmethod
-    def damper_arrays(dp: np.ndarray):
+    def damper_arrays(dp: DamperParams):
         """Fresh ``(dh, ds, xbuf)`` for parameters ``dp``."""
-        cap = int(dp[1] + dp[2]) + 8
-        return np.zeros((5, cap)), np.zeros(2), np.zeros(int(dp[1]) // int(dp[10]) + 2)
+        cap = dp.tau_steps + dp.h_steps + 8
+        return np.zeros((5, cap)), np.zeros(2), np.zeros(dp.tau_steps // dp.stride + 2)
 
     def neutral_runner(self, dt: float):
         """Compiled closed loop on the neutral string (see :mod:`downhole.control.eid.
@@ -191,7 +226,7 @@ class PredictiveEID:
         from downhole.control.eid.predictive_runner import make_predictive_runner
 
         return make_predictive_runner(self.eid.compiled_params(dt), self.damper_params(dt),
-                                      self.model.bit.to_array())
+                                      self.model.bit.kernel_params())
 
     def reset(self) -> None:
         """Zero the EID and the damper's histories (steps of :attr:`dt`)."""
@@ -199,7 +234,7 @@ class PredictiveEID:
         self.eid.reset()
         self._dp = self.damper_params(float(self.dt))
         self._dh, self._ds, self._xbuf = self.damper_arrays(self._dp)
-        self._bp = self.model.bit.to_array()
+        self._bp = self.model.bit.kernel_params()
 
     def command(self, t: float, observation: dict, reference=None) -> dict:
         """One step: the EID's commands with ``du`` added to the axial one."""
