@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 
 from downhole.control.eid._kernel import eid_arrays, eid_step
+from downhole.control.eid.predictor import DamperParams, PredictiveEID, damper_step
 from downhole.string.neutral import (neutral_advance, neutral_record, neutral_top_and_bit,
                                      neutral_wave_start)
 
@@ -30,12 +31,16 @@ EID_CHANNELS = ("measured_axial_velocity", "measured_angular_velocity",
 @njit(cache=True)
 def run_neutral_eid(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, approx,
                     ha, pa, wpa, ht, pt, wpt, surf, istate, rp,
-                    cp, cs, ch, cpos, ref, noise, fnoise, nsteps, dt, every, out, sigout):
+                    cp, cs, ch, cpos, dp, dh, ds, xbuf, bpc, ref, noise, fnoise, nsteps, dt,
+                    every, out, sigout):
     """Closed loop from the state held in the wave buffers (``pa``, ``pt``) with the bit at rest
     at t = 0: ``nsteps`` steps of ``dt`` with the EID controller (parameters ``cp``, states
-    ``cs``, ``ch``, ``cpos`` from :func:`~downhole.control.eid._kernel.eid_arrays`). Records
-    every ``every`` steps and the last into ``out`` (:data:`~downhole.string.neutral.
-    NEUTRAL_CHANNELS`) and ``sigout`` (:data:`EID_CHANNELS`); returns (status, step, channel)."""
+    ``cs``, ``ch``, ``cpos`` from :func:`~downhole.control.eid._kernel.eid_arrays`) and, when
+    ``dp.k_d > 0``, the predictive bit damper added to its axial command
+    (:func:`~downhole.control.eid.predictor.damper_step`: parameters ``dp``, states ``dh``,
+    ``ds``, ``xbuf``, the controller's bit law ``bpc``). Records every ``every`` steps and the
+    last into ``out`` (:data:`~downhole.string.neutral.NEUTRAL_CHANNELS`) and ``sigout``
+    (:data:`EID_CHANNELS`); returns (status, step, channel)."""
     x = 0.0
     v = 0.0
     th = 0.0
@@ -46,6 +51,7 @@ def run_neutral_eid(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp
     r = np.zeros(2)
     sig = np.zeros((2, 4))
     rec = 0
+    off = cp[0].offset
     for k in range(nsteps + 1):
         y[0] = v + noise[0, k]
         y[1] = w + noise[1, k]
@@ -53,6 +59,8 @@ def run_neutral_eid(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp
         r[1] = ref[1, k]
         eid_step(cp, cs, ch, cpos, y, r, dt, uvec, sig)
         ua = uvec[0]
+        if dp.k_d > 0.0:
+            ua += damper_step(dp, dh, ds, xbuf, bpc, y[0], y[1], r[0], uvec[0] - off)
         ut = uvec[1]
         top_bit = neutral_top_and_bit(
             za, zt, alpha_a, alpha_t, f_top, bitp, approx, surf, istate, rp,
@@ -82,16 +90,27 @@ def run_neutral_eid(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp
     return 0, nsteps, 0
 
 
-def make_neutral_runner(cp):
+#: The damper switched off (the plain EID loop).
+NO_DAMPER = DamperParams(k_d=0.0, tau_steps=1, h_steps=1, a0=0.0, a1=0.0, g1=0.0, b=0.0,
+                         bit_mass=1.0, n_blades=1.0, dt=1.0, stride=1)
+
+
+def make_neutral_runner(cp, damper=None):
     """A runner for ``simulate_neutral``'s compiled fast path with EID parameters ``cp`` (from
     :meth:`EIDController.compiled_params <downhole.control.eid.controller.EIDController.
-    compiled_params>`); fresh controller states per call."""
-
+    compiled_params>`) and optionally the predictive damper ``damper = (dp, bpc)``
+    (:class:`~downhole.control.eid.predictor.PredictiveEID`); fresh states per call."""
     def runner(plant_args, ref, mnoise, fnoise, nsteps, dt, every, out):
         cs, ch, cpos = eid_arrays(cp)
+        if damper is None:
+            dp, bpc = NO_DAMPER, plant_args[9]  # plant_args[9]: the plant's bit law
+        else:
+            dp, bpc = damper
+        dh, ds, xbuf = PredictiveEID.damper_arrays(dp)
         sigout = np.zeros((out.shape[0], len(EID_CHANNELS)))
-        status, kfail, cfail = run_neutral_eid(*plant_args, cp, cs, ch, cpos, ref, mnoise,
-                                               fnoise, nsteps, dt, every, out, sigout)
+        status, kfail, cfail = run_neutral_eid(*plant_args, cp, cs, ch, cpos, dp, dh, ds, xbuf,
+                                               bpc, ref, mnoise, fnoise, nsteps, dt, every, out,
+                                               sigout)
         return status, kfail, cfail, {name: sigout[:, j] for j, name in enumerate(EID_CHANNELS)}
 
     return runner

@@ -179,7 +179,8 @@ class PredictiveEID:
     """An :class:`~downhole.control.eid.controller.EIDController` plus the predictive bit damper
     on the axial channel (module docstring). Same controller contract (``reset``, ``command``,
     ``dt``, ``needs``, ``commands``); runs compiled in ``simulate_neutral`` through
-    :meth:`neutral_runner` (:mod:`downhole.control.eid.predictive_runner`), or from Python.
+    :meth:`neutral_runner` (the EID loop of :mod:`downhole.control.eid.neutral_runner` with
+    the damper), or from Python.
 
     Parameters
     ----------
@@ -221,12 +222,13 @@ class PredictiveEID:
         return np.zeros((5, cap)), np.zeros(2), np.zeros(dp.tau_steps // dp.stride + 2)
 
     def neutral_runner(self, dt: float):
-        """Compiled closed loop on the neutral string (see :mod:`downhole.control.eid.
-        predictive_runner`)."""
-        from downhole.control.eid.predictive_runner import make_predictive_runner
+        """Compiled closed loop on the neutral string: the EID loop of
+        :mod:`downhole.control.eid.neutral_runner` with this damper."""
+        from downhole.control.eid.neutral_runner import make_neutral_runner
 
-        return make_predictive_runner(self.eid.compiled_params(dt), self.damper_params(dt),
-                                      self.model.bit.kernel_params())
+        return make_neutral_runner(self.eid.compiled_params(dt),
+                                   damper=(self.damper_params(dt),
+                                           self.model.bit.kernel_params()))
 
     def reset(self) -> None:
         """Zero the EID and the damper's histories (steps of :attr:`dt`)."""
