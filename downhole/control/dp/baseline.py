@@ -21,7 +21,8 @@ __all__ = ["constant_velocity_run", "constant_velocity_cost", "best_constant_vel
 @njit(cache=True)
 def constant_velocity_run(v0, w0, n_steps, dt, nsub, lumped, p):
     """Bit velocities at k dt (k = 0..n_steps) for top speeds v0 (m/s), w0 (rad/s) from rest."""
-    mass, inertia, ka, ca, kt, ct = lumped[0], lumped[1], lumped[2], lumped[3], lumped[4], lumped[5]
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     h = dt / nsub
     x2 = np.zeros(n_steps + 1)
     x4 = np.zeros(n_steps + 1)

@@ -9,6 +9,7 @@ Grid node ``n`` stands for (x2[i], x4[j]) with ``n = i * L4 + j``.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -16,8 +17,29 @@ from numba import njit, prange
 from downhole.bit import (approx_depth_of_cut, approx_depth_rate, bit_forces,
                           bit_forces_and_slopes)
 
+class LumpedKernelParams(NamedTuple):
+    """The 4th-order lumped model's constants the DP kernels take (seed Eq. 2.1).
+
+    Attributes
+    ----------
+    mass, inertia : float
+        Bit/BHA mass (kg) and moment of inertia (kg m^2).
+    ka, ca : float
+        Axial string stiffness (N/m) and damping (N s/m).
+    kt, ct : float
+        Torsional string stiffness (N m/rad) and damping (N m s/rad).
+    """
+
+    mass: float
+    inertia: float
+    ka: float
+    ca: float
+    kt: float
+    ct: float
+
+
 __all__ = [
-    "steady_loads", "node_bit_loads", "transition_lists", "backward_plain", "regions_step",
+    "LumpedKernelParams", "steady_loads", "node_bit_loads", "transition_lists", "backward_plain", "regions_step",
     "advance", "project_table", "standard_backward", "standard_choose", "robust_forward_step",
     "robust_forward_step_parallel", "path_load_table",
     "path_replay", "path_inputs", "discrete_replay",
@@ -58,7 +80,8 @@ def transition_lists(g2, g4, lumped, p, dt, bounds, use_rates):
     ``use_rates`` the mean top-drive speeds over the step must lie in ``bounds[4:6]`` and
     ``bounds[6:8]``. Returns ``(succ_ptr, succ, pred_ptr, pred)``.
     """
-    mass, inertia, ka, ca, kt, ct = lumped[0], lumped[1], lumped[2], lumped[3], lumped[4], lumped[5]
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     n2, n4 = g2.size, g4.size
     nn = n2 * n4
     wob, tob = node_bit_loads(g2, g4, p)
@@ -230,7 +253,8 @@ def project_table(g2, g4, fl, tl, lumped, p, dt, nsub, bounds):
 
     The top displacement is held over the step (Eq. 2.12's zero-order hold), so the string force
     relaxes by Ka * (x1 advance). Returns (x2', x4', admissible) arrays of shape (nn, nF*nT)."""
-    mass, inertia, ka, ca, kt, ct = lumped[0], lumped[1], lumped[2], lumped[3], lumped[4], lumped[5]
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     n4 = g4.size
     nn = g2.size * n4
     nq = fl.size * tl.size
@@ -318,7 +342,8 @@ def standard_choose(v, w, jnext, fl, tl, g2, g4, lumped, p, dt, nsub, bounds):
     """Standard-DP policy at an off-grid state: the input minimizing interpolated J_{k+1}.
 
     Returns (q, x2', x4', dx1, dx3) of the best admissible input (q = -1 if none)."""
-    mass, inertia, ka, ca, kt, ct = lumped[0], lumped[1], lumped[2], lumped[3], lumped[4], lumped[5]
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     h = dt / nsub
     h2 = g2[1] - g2[0]
     h4 = g4[1] - g4[0]
@@ -351,7 +376,7 @@ def _path_loads(x2a, x4a, a, b, tau, lumped, p):
     w = x4a + b * tau
     d = approx_depth_of_cut(v, w, p)
     wob, tob = bit_forces(d, v, w, p)
-    return wob + lumped[3] * v + lumped[0] * a, tob + lumped[5] * w + lumped[1] * b
+    return wob + lumped.ca * v + lumped.mass * a, tob + lumped.ct * w + lumped.inertia * b
 
 
 def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens, nominal_mask,
@@ -367,7 +392,8 @@ def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens,
     """
     nn = cost.size
     ne = len(p_ens)
-    mass, inertia, ka, ca, kt, ct = lumped[0], lumped[1], lumped[2], lumped[3], lumped[4], lumped[5]
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     n4 = g4.size
     h = dt / nsub
     new_cost = np.full(nn, _INF)
@@ -474,7 +500,8 @@ def path_replay(x2k, x4k, dt, nsub, lumped, p_nom, p_model, out_every):
     (x2, x4) path and applied open loop to the model with bit parameters ``p_model`` (e.g. a
     perturbed epsilon). Returns time, x2, x4, e1 (= x1_path - x1), e3 sampled every
     ``out_every`` substeps."""
-    mass, inertia, ka, ca, kt, ct = lumped[0], lumped[1], lumped[2], lumped[3], lumped[4], lumped[5]
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     nsteps = x2k.size - 1
     h = dt / nsub
     total = nsteps * nsub
@@ -508,7 +535,8 @@ def path_replay(x2k, x4k, dt, nsub, lumped, p_nom, p_model, out_every):
 def path_inputs(x2k, x4k, dt, times, lumped, p_nom):
     """Top displacements u1(t), u2(t) (m, rad from the hanging start) that make the 4th-order
     model follow the linear (x2, x4) path: u = x_path(t) + (bit load + C x' + M x'') / K."""
-    mass, inertia, ka, ca, kt, ct = lumped[0], lumped[1], lumped[2], lumped[3], lumped[4], lumped[5]
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     nsteps = x2k.size - 1
     x1s = np.zeros(nsteps + 1)
     x3s = np.zeros(nsteps + 1)
@@ -539,7 +567,8 @@ def path_inputs(x2k, x4k, dt, times, lumped, p_nom):
 def discrete_replay(u1, u2, dt, lumped, p):
     """Eq. 2.12 (explicit Euler at the DP step, depth of cut approximated) driven by u1(k), u2(k)
     from the rest state; returns x1..x4 at k = 0..N."""
-    mass, inertia, ka, ca, kt, ct = lumped[0], lumped[1], lumped[2], lumped[3], lumped[4], lumped[5]
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     n = u1.size
     x = np.zeros((n + 1, 4))
     for k in range(n):

@@ -371,9 +371,13 @@ class ModelArrays:
         self.ka, self.ca, self.kt, self.ct = float(ka), float(ca), float(kt), float(ct)
         self.bit = bit  # a BitKernelParams
 
-    def lumped(self) -> np.ndarray:
-        """``[M, I, Ka, Ca, Kt, Ct]`` as a float64 array."""
-        return np.array([self.mass, self.inertia, self.ka, self.ca, self.kt, self.ct])
+    def lumped(self):
+        """The kernels' :class:`~downhole.control.dp.kernels.LumpedKernelParams`."""
+        from downhole.control.dp.kernels import LumpedKernelParams
+
+        return LumpedKernelParams(mass=float(self.mass), inertia=float(self.inertia),
+                                  ka=float(self.ka), ca=float(self.ca), kt=float(self.kt),
+                                  ct=float(self.ct))
 
 
 def _flatten_error(exc: ValidationError) -> tuple[str, str]:
