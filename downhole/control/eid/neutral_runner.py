@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from downhole.control.eid._kernel import eid_arrays, eid_step
-from downhole.control.eid.predictor import DamperParams, PredictiveEID, damper_step
+from downhole.control.eid.damper import DamperParams, damper_arrays, damper_step
 from downhole.string.neutral import (neutral_advance, neutral_record, neutral_top_and_bit,
                                      neutral_wave_start)
 
@@ -106,7 +106,7 @@ def make_neutral_runner(cp, damper=None):
             dp, bpc = NO_DAMPER, plant_args[9]  # plant_args[9]: the plant's bit law
         else:
             dp, bpc = damper
-        dh, ds, xbuf = PredictiveEID.damper_arrays(dp)
+        dh, ds, xbuf = damper_arrays(dp)
         sigout = np.zeros((out.shape[0], len(EID_CHANNELS)))
         status, kfail, cfail = run_neutral_eid(*plant_args, cp, cs, ch, cpos, dp, dh, ds, xbuf,
                                                bpc, ref, mnoise, fnoise, nsteps, dt, every, out,
