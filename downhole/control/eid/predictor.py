@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import math
 
-
 import numpy as np
 
 from downhole.bit.law import bit_forces, bit_forces_and_slopes  # noqa: F401
