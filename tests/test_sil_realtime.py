@@ -17,6 +17,10 @@ from downhole.sil import (ControllerClient, RealTimeRunner, SafetyPolicy, build_
 from downhole.sil.protocol import MsgType, pack
 from downhole.sil.testing import ControllerProcess, ch6_dhp, free_port
 
+#: Paced wall-clock tests: `make test` runs them alone after the parallel run (a loaded core
+#: misses deadlines).
+pytestmark = pytest.mark.realtime
+
 
 def _nrms(a, b):
     n = min(a.size, b.size)

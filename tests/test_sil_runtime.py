@@ -138,6 +138,7 @@ class _Stall:
         return self.inner.command(t, obs, ref)
 
 
+@pytest.mark.realtime  # paced: run alone (make test), a loaded core misses deadlines
 @pytest.mark.parametrize("stall, resyncs", [(0.02, 0), (0.12, 1)])
 def test_falling_behind_catches_up_or_resyncs_and_keeps_simulated_time(stall, resyncs):
     plant = build_plant("lumped")

@@ -44,6 +44,10 @@ from downhole.sil.protocol import (
 )
 from downhole.sil.testing import free_port
 
+#: Paced wall-clock tests: `make test` runs them alone after the parallel run (a loaded core
+#: misses deadlines).
+pytestmark = pytest.mark.realtime
+
 KEY = b"0123456789abcdef0123456789abcdef"
 LAYOUT = Layout(1e-3, "sil", ("time", "bit_angular_velocity"),
                 ("hook_load", "top_drive_angular_velocity"),
