@@ -15,6 +15,7 @@ import typer
 __all__ = ["app", "main", "fail"]
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  rich_markup_mode=None,
                   help="downhole: drilling dynamics, optimization and control.")
 
 
