@@ -23,10 +23,12 @@ chromium:
 
 # The layering contracts of .importlinter (docs/architecture.md, "Layering") run before pytest.
 # Paced real-time tests (marker `realtime`) run alone after the parallel run: on a core shared
-# with another test they miss deadlines.
+# with another test they miss deadlines; `sync` first, so that the parallel run's writes are not
+# flushed to disk during them.
 test: $(STAMP) chromium
 	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -q -n 2 -m "not slow and not realtime" --durations=15
+	sync
 	$(PY) -m pytest -q -m "realtime and not slow"
 
 test-slow: $(STAMP)
