@@ -9,7 +9,11 @@ from downhole.experiments import run_experiment
 pytestmark = pytest.mark.realtime
 
 
-@pytest.mark.parametrize("eid", ["fig6.5", "fig6.8", "fig6.11",
+# fig6.8 (DHP in its own process over UDP, paced at 1 kHz) misses its 5 % deadline claim when it
+# runs right after the parallel suite on a 2-core machine (8-34 % seen; 0.3-0.5 % when run alone):
+# it runs with `make test-slow` and `downhole reproduce fig6.8`.
+@pytest.mark.parametrize("eid", ["fig6.5", pytest.param("fig6.8", marks=pytest.mark.slow),
+                                 "fig6.11",
                                  pytest.param("fig6.12", marks=pytest.mark.slow),
                                  pytest.param("fig6.13", marks=pytest.mark.slow)])
 def test_ch6_experiment_quick(eid, tmp_path):
