@@ -24,12 +24,14 @@ chromium:
 # The layering contracts of .importlinter (docs/architecture.md, "Layering") run before pytest.
 # Paced real-time tests (marker `realtime`) run alone after the parallel run: on a core shared
 # with another test they miss deadlines; `sync` first, so that the parallel run's writes are not
-# flushed to disk during them.
+# flushed to disk during them. A paced test that fails gets one more run (--lf): a deadline missed
+# because the machine was busy is not a defect of the loop; one that fails twice fails the target.
+# Pacing logic itself is tested deterministically on a virtual clock (tests/test_sil_runtime.py).
 test: $(STAMP) chromium
 	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -q -n 2 -m "not slow and not realtime" --durations=15
 	sync
-	$(PY) -m pytest -q -m "realtime and not slow"
+	$(PY) -m pytest -q -m "realtime and not slow" || $(PY) -m pytest -q -m "realtime and not slow" --lf
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow

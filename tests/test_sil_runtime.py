@@ -138,7 +138,76 @@ class _Stall:
         return self.inner.command(t, obs, ref)
 
 
-@pytest.mark.realtime  # paced: run alone (make test), a loaded core misses deadlines
+class _VirtualClock:
+    """A deterministic stand-in for the runtime's wall clock: time advances only when the loop
+    waits (``sleep_until``) or when the controller spends time (``spend``)."""
+
+    def __init__(self):
+        self.now = 1000.0
+
+    def monotonic(self):
+        return self.now
+
+    def sleep_until(self, t, spin):
+        self.now = max(self.now, t)
+
+    def spend(self, s):
+        self.now += s
+
+
+class _VirtualStall:
+    """PI that costs ``cost`` s of virtual time per step and ``stall`` s once at ``at``."""
+
+    def __init__(self, inner, clock, at, stall, cost=2e-4):
+        self.inner, self.clock, self.at, self.stall, self.cost = inner, clock, at, stall, cost
+
+    def reset(self):
+        self.inner.reset()
+
+    def command(self, t, obs, ref):
+        self.clock.spend(self.stall if abs(t - self.at) < 1e-9 else self.cost)
+        return self.inner.command(t, obs, ref)
+
+
+@pytest.mark.parametrize("stall, resyncs", [(0.02, 0), (0.12, 1)])
+def test_falling_behind_catches_up_or_resyncs_on_a_virtual_clock(stall, resyncs, monkeypatch):
+    """The pacing logic, deterministic: the runtime's clock is replaced by a virtual one in which
+    each step costs 0.2 ms and the step at 0.3 s stalls. A 20 ms stall (below max_lag = 50 ms)
+    is caught up in stall / (dt - cost) = 25 steps and later steps are on time, wall = simulated
+    time; a 120 ms stall re-anchors the clock once, wall = simulated time + stall. The same
+    properties on the real clock are the paced test below (make test-slow)."""
+    import types
+
+    from downhole.sil import runtime as rt_mod
+
+    clock = _VirtualClock()
+    monkeypatch.setattr(rt_mod, "time", types.SimpleNamespace(monotonic=clock.monotonic))
+    monkeypatch.setattr(rt_mod, "sleep_until", clock.sleep_until)
+    plant = build_plant("lumped")
+    rt = RealTimeRunner(plant, _VirtualStall(pi_controller_for(plant), clock, 0.3, stall),
+                        record_every=1, max_lag=0.05, realtime=False)
+    res = rt.run(0.8)
+    st = rt.stats
+    np.testing.assert_allclose(res.time, np.arange(801) * 1e-3, atol=1e-12)  # no step skipped
+    assert st["steps"] == 800 and st["resyncs"] == resyncs
+    lag = res["wall_lag"]
+    # the stalled step (the 301st) finished late by the stall less the rest of its period
+    assert lag[301] == pytest.approx(stall - 1e-3, abs=1e-9)
+    assert st["overruns"] == 1
+    if resyncs == 0:
+        # caught up at 0.8 ms per step: ceil(19 ms / 0.8 ms) = 24 late steps, then on time
+        assert st["deadline_misses"] == 24
+        assert np.all(lag[301 + 24:] <= 0) and np.all(lag[:301] <= 0)
+        assert st["wall_s"] == pytest.approx(0.8 - 1e-3 + 2e-4, abs=1e-9)
+    else:  # re-anchored once by the lag (stall - dt): wall time = last start + cost + lag
+        assert st["deadline_misses"] == 1
+        assert [e["kind"] for e in rt.events].count("resync") == 1
+        assert np.all(lag[302:] <= 0)
+        assert st["wall_s"] == pytest.approx(0.8 - 1e-3 + 2e-4 + (stall - 1e-3), abs=1e-9)
+
+
+@pytest.mark.slow  # paced on the wall clock: a loaded 2-core machine misses deadlines
+@pytest.mark.realtime
 @pytest.mark.parametrize("stall, resyncs", [(0.02, 0), (0.12, 1)])
 def test_falling_behind_catches_up_or_resyncs_and_keeps_simulated_time(stall, resyncs):
     plant = build_plant("lumped")
