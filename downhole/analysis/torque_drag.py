@@ -18,11 +18,15 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from downhole.analysis.plots import save_figure  # noqa: E402
-from downhole.string.torque_drag import CASE_LABELS, CASES  # noqa: E402
 
 __all__ = ["survey_table", "torque_drag_table", "write_csv", "summary", "plot_broomstick",
            "plot_profiles", "plot_survey"]
 
+# the cases of downhole.string.torque_drag.CASES (not imported: the core's sim imports this
+# package, so analysis must not import the string package)
+CASE_LABELS = {"trip_out": "pick-up (trip out)", "trip_in": "slack-off (trip in)",
+               "rotating": "rotating off bottom", "drilling": "drilling (on bottom)"}
+CASES = tuple(CASE_LABELS)
 _COLORS = {"trip_out": "tab:red", "trip_in": "tab:blue", "rotating": "tab:green",
            "drilling": "black"}
 _STYLES = ("-", "--", ":", "-.")

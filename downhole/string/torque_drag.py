@@ -230,7 +230,7 @@ def torque_drag(well: WellPath, string: DrillString, *, friction=(0.1, 0.2, 0.3)
     >>> string = DrillString.uniform(1000.0, pipe_section(0.12, 0.06))
     >>> td = torque_drag(well, string, friction=0.3)
     >>> round(float(td.tension["trip_out"][0, 0]))   # vertical: hook load = weight, no drag
-    653162
+    653209
     """
     if not isinstance(well, WellPath):
         raise DownholeInputError(f"well must be a WellPath, got {type(well).__name__}")
