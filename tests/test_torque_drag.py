@@ -373,7 +373,11 @@ BASE = (EXAMPLES / "directional_survey.toml").read_text()
     ("\n[torque_drag]\nfriction_factors = [0.1, -1]\n", [], "torque_drag.friction_factors"),
     ("\n[torque_drag]\nstep = \"0 m\"\n", [], "torque_drag.step"),
     ("\n[torque_drag]\nbogus = 1\n", [], "torque_drag.bogus"),
-    ("\n[torque_drag]\nwob = \"5000 MN\"\n", [], "torque_drag.wob"),
+    ("\n[torque_drag]\nwob = \"900 MN\"\n", [], "torque_drag.wob: no steady cutting"),
+    ("\n[torque_drag]\nwob = \"0 N\"\n", [], "torque_drag.wob"),
+    ("\n[torque_drag]\nfriction_factors = [true]\n", [], "expected numbers"),
+    ("\n[torque_drag]\nvertical_section_azimuth = \"1e9 deg\"\n", [],
+     "torque_drag.vertical_section_azimuth"),
 ])
 def test_cli_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys, edit, args, expect):
     scen = EXAMPLES / "directional_survey.toml"
@@ -407,6 +411,39 @@ def test_cli_refuses_a_preset_scenario_a_short_string_and_a_file_as_out(tmp_path
     assert _main(["torque-drag", EXAMPLES / "table_5_1.toml", "--out", f]) == 2
     assert "expected a folder" in capsys.readouterr().err
     assert f.read_text() == "x"
+
+
+def test_profiles_of_one_case_and_friction():
+    res = DrillingSystem.table_5_1().torque_drag(friction=(0.1, 0.3), hook_load=False)
+    prof = res.at("rotating", 0.3)
+    assert np.array_equal(prof["tension"], res.tension["rotating"][1])
+    assert res.bit_depth.size == 0
+    with pytest.raises(DownholeInputError, match="was not computed"):
+        res.at("rotating", 0.2)
+    with pytest.raises(DownholeInputError, match="case must be one of"):
+        res.at("sliding", 0.1)
+
+
+def test_many_nodes_spread_the_hook_load_depths(monkeypatch, tmp_path):
+    """Above MAX_BIT_DEPTHS nodes the hook-load curves use evenly spread nodes with the total
+    depth; the CSV leaves the other rows' hook-load cells empty."""
+    import downhole.string.torque_drag as tdm
+    from downhole.analysis.torque_drag import torque_drag_table, write_csv
+
+    monkeypatch.setattr(tdm, "MAX_BIT_DEPTHS", 40)
+    sysm = DrillingSystem.table_5_1()
+    res = sysm.torque_drag(friction=0.2, step=20.0)
+    assert res.bit_depth.size == 40 and res.bit_depth[-1] == pytest.approx(res.md[-1])
+    assert np.all(np.isin(res.bit_depth, res.md))
+    assert res.hook_load["trip_out"][0, -1] == pytest.approx(res.tension["trip_out"][0, 0])
+    cols = torque_drag_table(res, sysm.well)
+    hl = cols["hook_load_trip_out_mu0.2 [N]"]
+    assert np.sum(np.isfinite(hl)) == 41 and hl[0] == 0.0
+    write_csv(tmp_path / "t.csv", cols)
+    with open(tmp_path / "t.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    k = rows[0].index("hook_load_trip_out_mu0.2 [N]")
+    assert sum(r[k] == "" for r in rows[1:]) == res.md.size - 41
 
 
 def test_the_table_module_names_the_same_cases():

@@ -63,7 +63,8 @@ def survey_table(well, md, azimuth: float | None = None) -> dict:
 def torque_drag_table(result, well, azimuth: float | None = None) -> dict:
     """The columns of ``torque_drag.csv``: survey quantities at the nodes, then per case and
     friction factor tension, torque (rotating cases) and side force with the bit at total depth,
-    then hook load and surface torque with the bit at the row's MD (0 at the first row)."""
+    then hook load and surface torque with the bit at the row's MD (0 at the first row; NaN, an
+    empty CSV cell, at rows that are not one of the result's bit depths)."""
     cols = survey_table(well, result.md, azimuth)
     for c in CASES:
         for k, f in enumerate(result.friction):
@@ -72,16 +73,20 @@ def torque_drag_table(result, well, azimuth: float | None = None) -> dict:
                 cols[f"torque_{c}_{_mu(f)} [N*m]"] = result.torque[c][k]
             cols[f"side_force_{c}_{_mu(f)} [N/m]"] = result.side_force[c][k]
     n = result.md.size
+    rows = np.searchsorted(result.md, result.bit_depth)
+
+    def column(values):
+        col = np.full(n, np.nan)
+        col[0] = 0.0
+        col[rows] = values
+        return col
+
     for c in CASES:
         for k, f in enumerate(result.friction):
-            col = np.zeros(n)
-            col[n - result.bit_depth.size:] = result.hook_load[c][k]
-            cols[f"hook_load_{c}_{_mu(f)} [N]"] = col
+            cols[f"hook_load_{c}_{_mu(f)} [N]"] = column(result.hook_load[c][k])
     for c in _ROTATING:
         for k, f in enumerate(result.friction):
-            col = np.zeros(n)
-            col[n - result.bit_depth.size:] = result.surface_torque[c][k]
-            cols[f"surface_torque_{c}_{_mu(f)} [N*m]"] = col
+            cols[f"surface_torque_{c}_{_mu(f)} [N*m]"] = column(result.surface_torque[c][k])
     return cols
 
 
@@ -94,7 +99,7 @@ def write_csv(path, columns: dict) -> None:
         w = csv.writer(fh)
         w.writerow(names)
         for row in data:
-            w.writerow([f"{x:.10g}" for x in row])
+            w.writerow(["" if math.isnan(x) else f"{x:.10g}" for x in row])
 
 
 def summary(result, well, azimuth: float | None = None) -> dict:

@@ -233,8 +233,15 @@ class TorqueDragSettings(_Strict):
     friction_factors: list[float] = Field([0.1, 0.2, 0.3], min_length=1, max_length=20)
     step: Q["length"] = Field(10.0, ge=0.1, le=1000.0)
     vertical_section_azimuth: Optional[Q["angle"]] = None
-    wob: Optional[Q["force"]] = Field(None, ge=0)
+    wob: Optional[Q["force"]] = Field(None, gt=0)
     tob: Optional[Q["torque"]] = Field(None, ge=0)
+
+    @field_validator("friction_factors", mode="before")
+    @classmethod
+    def _no_bools(cls, v):
+        if isinstance(v, list) and any(isinstance(f, bool) for f in v):
+            raise ValueError(f"expected numbers (friction factors), got {v!r}")
+        return v
 
     @field_validator("friction_factors")
     @classmethod

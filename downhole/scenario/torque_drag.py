@@ -73,8 +73,9 @@ def torque_drag_case(data: dict, source: str, friction=None) -> TorqueDragCase:
             tob = tob_law if tob is None else tob
         elif tob is None:
             _, _, tob = steady_bit_state(system.bit, op.surface_speed, wob=wob)
-    except DownholeInputError as exc:
-        raise ScenarioError(source, field, str(exc)) from None
+    except (DownholeInputError, ValueError) as exc:
+        raise ScenarioError(source, field, f"no steady cutting state of the bit law at this "
+                            f"set-point: {exc}") from None
     return TorqueDragCase(title=sc.title, system=system, friction=factors, step=td.step,
                           azimuth=td.vertical_section_azimuth, wob=float(wob), tob=float(tob))
 

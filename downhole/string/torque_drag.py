@@ -56,6 +56,9 @@ _ROTATING = {"trip_out": 0.0, "trip_in": 0.0, "rotating": 1.0, "drilling": 1.0}
 
 #: Most nodes a computation may use (total depth / step).
 MAX_NODES = 200_000
+#: Most bit depths of the hook-load curves (each needs one integration over the string above):
+#: with more nodes, evenly spread nodes including the total depth.
+MAX_BIT_DEPTHS = 1000
 
 
 @njit(cache=True)
@@ -156,7 +159,8 @@ class TorqueDrag:
         in tension), torque (N m) and wall reaction per length (N/m, nodal average of the
         adjacent elements).
     bit_depth : ndarray, shape (d,)
-        Bit depths of the hook-load curves, m.
+        Bit depths of the hook-load curves, m: every node below the top (at most
+        :data:`MAX_BIT_DEPTHS`, evenly spread, with the total depth).
     hook_load, surface_torque : dict of str to ndarray, shape (k, d)
         Per case, the tension (N) and torque (N m) at surface with the bit at ``bit_depth``
         (the broomstick plot; the drilling case applies WOB and TOB at every depth).
@@ -308,6 +312,8 @@ def torque_drag(well: WellPath, string: DrillString, *, friction=(0.1, 0.2, 0.3)
 
     if hook_load:
         depth_idx = np.arange(1, n)
+        if depth_idx.size > MAX_BIT_DEPTHS:
+            depth_idx = np.unique(np.round(np.linspace(1, n - 1, MAX_BIT_DEPTHS)).astype(int))
         hook = {c: np.empty((len(mus), depth_idx.size)) for c in CASES}
         storque = {c: np.empty((len(mus), depth_idx.size)) for c in CASES}
         for j, k_bit in enumerate(depth_idx):
