@@ -243,6 +243,23 @@ def test_welleng_as_published_differs_in_build_sections_only():
     assert wl.torque["rotating"][0] / res.torque["rotating"][0, 0] - 1 > 0.4
 
 
+def test_a_well_crossing_north_is_the_rotated_well_turning_through_south():
+    """Loads depend on the path, not on where azimuth 0 is: a right turn through north
+    (350 -> 20 deg) gives the loads of the same turn through south (170 -> 200 deg); the
+    azimuth difference is never taken as almost a full turn (welleng issue 312)."""
+    md = [0.0, 500.0, 1000.0, 1500.0, 2000.0, 2500.0]
+    inc = [0.0, 0.0, 30.0, 55.0, 60.0, 60.0]
+    azi = np.array([350.0, 350.0, 350.0, 5.0, 20.0, 20.0])
+    string = DrillString.uniform(2500.0, pipe_section(0.127, 0.1086), mud_density=1100)
+    a = torque_drag(WellPath.from_survey(md, inc, azi), string, friction=0.3, step=5.0,
+                    hook_load=False)
+    b = torque_drag(WellPath.from_survey(md, inc, azi - 180.0), string, friction=0.3, step=5.0,
+                    hook_load=False)
+    for c in CASES:
+        assert np.allclose(a.tension[c], b.tension[c], rtol=1e-9)
+        assert np.allclose(a.side_force[c], b.side_force[c], rtol=1e-7, atol=1e-6)
+
+
 # ------------------------------------------------------------------------------ survey quantities
 def test_dogleg_build_turn_and_vertical_section():
     well = WellPath.from_sections([Vertical(600.0), Arc(573.0, math.radians(60.0),
