@@ -91,6 +91,22 @@ def test_straight_inclined_well_matches_the_closed_form(inc_deg):
     assert np.allclose(res.side_force["trip_out"][0], w * math.sin(inc), rtol=1e-9)
 
 
+@pytest.mark.parametrize("example", ["table_5_1.toml", "directional_survey.toml",
+                                     "torque_drag.toml"])
+def test_rotating_hook_load_is_the_buoyed_weight_over_tvd(example):
+    """Rotating off bottom has no axial friction: the hook load is sum w_i (TVD at the bottom of
+    segment i - TVD at its top), exactly. DrillingSystem.hanging_weight (Gauss-Legendre over
+    each segment's MD, which kinks at survey stations) agrees within its quadrature error."""
+    sysm = _system(example)
+    res = sysm.torque_drag(friction=0.3, step=10.0, hook_load=False)
+    joints = sysm.well.top_depth + sysm.string.boundaries
+    tvd = sysm.well.tvd(joints)
+    expect = sum(_w(seg, sysm.string.mud_density) * (tvd[i + 1] - tvd[i])
+                 for i, seg in enumerate(sysm.string.segments))
+    assert _rel(res.tension["rotating"][0, 0], expect) < 1e-9
+    assert _rel(res.tension["rotating"][0, 0], sysm.hanging_weight()) < 1e-3
+
+
 def _arc_ode(well_radius, kop, angle, length, w, mu, sign, r, t_bit=0.0, m_bit=0.0):
     """Independent solution of the planar soft-string equations on vertical + build arc +
     tangent: dT/dmd = -(w cos I + sign mu |T I' - w sin I|), dM/dmd = -mu |.| r (rotating)."""
