@@ -81,8 +81,9 @@ def test_straight_inclined_well_matches_the_closed_form(inc_deg):
     string = DrillString.uniform(length, sec, mud_density=1100.0)
     res = torque_drag(well, string, friction=mu, wob=50e3, tob=3e3, step=25.0)
     w = _w(string.segments[0], 1100.0)
-    assert _rel(res.tension["trip_out"][0, 0], w * length * (math.cos(inc) + mu * math.sin(inc))) < 1e-9
-    assert _rel(res.tension["trip_in"][0, 0], w * length * (math.cos(inc) - mu * math.sin(inc))) < 1e-9
+    up, down = math.cos(inc) + mu * math.sin(inc), math.cos(inc) - mu * math.sin(inc)
+    assert _rel(res.tension["trip_out"][0, 0], w * length * up) < 1e-9
+    assert _rel(res.tension["trip_in"][0, 0], w * length * down) < 1e-9
     assert _rel(res.tension["rotating"][0, 0], w * length * math.cos(inc)) < 1e-9
     assert _rel(res.tension["drilling"][0, 0], w * length * math.cos(inc) - 50e3) < 1e-9
     torque = mu * w * math.sin(inc) * length * 0.127 / 2
