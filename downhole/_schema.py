@@ -59,7 +59,7 @@ __all__ = ["TABLES", "RENAMES", "VALUE_RENAMES", "read_scenario", "check_dialect
 #: Every top-level key of a scenario file.
 TABLES = ("title", "description", "model", "well", "string", "bit", "rig", "operation",
           "reference", "controller", "simulation", "realtime", "link", "safety", "dashboard",
-          "sweep", "optimize")
+          "sweep", "optimize", "torque_drag")
 
 #: Keys of the older dialects (dotted) and the key that replaces each. A file using one gets one
 #: line naming its replacement; the most precise key is reported first.

@@ -309,6 +309,16 @@ class DrillingSystem:
             total += w * 0.5 * (b - a) * float(np.dot(wq, cos_inc))
         return total
 
+    def torque_drag(self, friction=(0.1, 0.2, 0.3), wob: float = 0.0, tob: float = 0.0,
+                    step: float = 10.0, hook_load: bool = True):
+        """Soft-string torque and drag of this string in this well at the friction factors
+        ``friction`` (the drilling case with ``wob`` N and ``tob`` N m at the bit):
+        :func:`downhole.string.torque_drag.torque_drag`."""
+        from downhole.string.torque_drag import torque_drag
+
+        return torque_drag(self.well, self.string, friction=friction, wob=wob, tob=tob,
+                           step=step, hook_load=hook_load)
+
     def _lumped(self, order: int, reference_elements: int = 400):
         from downhole.sim.lumped_model import lumped_model
 

@@ -34,6 +34,13 @@ the scenario's set-points. Schema (``docs/scenarios.md``, "Describing the system
     surface_speed = "10 rad/s"    # top-drive speed set-point
     rop = "10 mm/s"               # or wob = "80 kN" (exactly one)
 
+    [torque_drag]                 # optional: `downhole torque-drag` (docs/torque-drag.md)
+    friction_factors = [0.1, 0.2, 0.3]
+    step = "10 m"                 # largest element length
+    vertical_section_azimuth = "30 deg"   # default: the closure azimuth
+    wob = "100 kN"                # drilling case; default: the [operation] set-point's WOB
+    tob = "5 kN*m"                # default: the bit law's TOB at that WOB and surface speed
+
     [simulation]
     duration = "10 s"
     dt = "1 ms"                   # default per fidelity (lumped 0.5 ms, neutral 0.1 ms, FEM 1 ms)
@@ -219,6 +226,32 @@ class SystemSimulation(_Strict):
     integrator: Literal["euler", "newmark"] = "newmark"
 
 
+class TorqueDragSettings(_Strict):
+    """``[torque_drag]`` (optional): settings of ``downhole torque-drag``
+    (:mod:`downhole.scenario.torque_drag`)."""
+
+    friction_factors: list[float] = Field([0.1, 0.2, 0.3], min_length=1, max_length=20)
+    step: Q["length"] = Field(10.0, ge=0.1, le=1000.0)
+    vertical_section_azimuth: Optional[Q["angle"]] = None
+    wob: Optional[Q["force"]] = Field(None, gt=0)
+    tob: Optional[Q["torque"]] = Field(None, ge=0)
+
+    @field_validator("friction_factors", mode="before")
+    @classmethod
+    def _no_bools(cls, v):
+        if isinstance(v, list) and any(isinstance(f, bool) for f in v):
+            raise ValueError(f"expected numbers (friction factors), got {v!r}")
+        return v
+
+    @field_validator("friction_factors")
+    @classmethod
+    def _factors(cls, v):
+        for f in v:
+            if not (math.isfinite(f) and 0.0 <= f <= 10.0):
+                raise ValueError(f"friction factors must be between 0 and 10, got {f!r}")
+        return v
+
+
 class SystemScenario(_Strict):
     """A whole system-description scenario."""
 
@@ -231,6 +264,7 @@ class SystemScenario(_Strict):
     rig: RigSettings = RigSettings()
     operation: OperationSettings
     simulation: SystemSimulation
+    torque_drag: TorqueDragSettings = TorqueDragSettings()
 
 
 def _check_renames(data: dict, source: str) -> None:

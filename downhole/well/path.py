@@ -363,6 +363,60 @@ class WellPath:
         _, i, f = self._locate(md)
         return self._frame(i, f)[3]
 
+    # --- survey quantities -------------------------------------------------------------------
+    def _rates(self, md):
+        """Rates of inclination and azimuth change d(inc)/ds, d(azi)/ds (rad/m) at ``md``.
+
+        From the minimum-curvature arc: dt/ds projected on the inclination and azimuth unit
+        vectors, d(inc)/ds = dt/ds . e_inc and d(azi)/ds = dt/ds . e_azi / sin(inc); the turn
+        rate is 0 where the path is vertical (azimuth undefined)."""
+        _, i, f = self._locate(md)
+        t, _, _, dtds = self._frame(i, f)
+        inc, azi = _inc_azi(t)
+        e_inc = np.stack([np.cos(inc) * np.cos(azi), np.cos(inc) * np.sin(azi), -np.sin(inc)],
+                         axis=-1)
+        e_azi = np.stack([-np.sin(azi), np.cos(azi), np.zeros_like(azi)], axis=-1)
+        build = np.sum(dtds * e_inc, axis=-1)
+        s = np.sin(inc)
+        vertical = s < 1e-9
+        turn = np.where(vertical, 0.0, np.sum(dtds * e_azi, axis=-1) / np.where(vertical, 1.0, s))
+        return build, turn
+
+    def dogleg_severity(self, md, per: float = 30.0) -> np.ndarray:
+        """Dogleg severity at ``md`` in degrees per ``per`` metres (30 m; 30.48 m = 100 ft).
+
+        The curvature of the minimum-curvature arc, piecewise constant between stations:
+        ``degrees(beta / dMD) * per`` for the interval's dogleg angle ``beta``."""
+        return np.degrees(self.curvature(md)) * float(per)
+
+    def build_rate(self, md) -> np.ndarray:
+        """Build rate d(inc)/ds at ``md``, rad/m (positive builds, negative drops)."""
+        return self._rates(md)[0]
+
+    def turn_rate(self, md) -> np.ndarray:
+        """Turn rate d(azi)/ds at ``md``, rad/m (positive turns right, towards east from north);
+        0 where the path is vertical."""
+        return self._rates(md)[1]
+
+    def closure(self) -> tuple[float, float]:
+        """Closure distance (m) and azimuth (rad, 0..2 pi) of the last station from the first
+        (horizontal departure and its direction); azimuth 0 without departure."""
+        d = self._pos[-1, :2] - self._pos[0, :2]
+        dist = float(np.hypot(d[0], d[1]))
+        azi = float(np.mod(math.atan2(d[1], d[0]), 2 * math.pi)) if dist > 1e-9 else 0.0
+        return dist, azi
+
+    def vertical_section(self, md, azimuth: float | None = None) -> np.ndarray:
+        """Vertical section at ``md``, m: the horizontal departure from the first station
+        projected on ``azimuth`` (rad; default the closure azimuth, :meth:`closure`),
+        ``VS = dN cos(az) + dE sin(az)``."""
+        az = self.closure()[1] if azimuth is None else float(azimuth)
+        if not math.isfinite(az):
+            raise DownholeInputError(f"vertical-section azimuth must be finite, got {azimuth!r}")
+        p = self.position(md)
+        return ((p[..., 0] - self._pos[0, 0]) * math.cos(az)
+                + (p[..., 1] - self._pos[0, 1]) * math.sin(az))
+
     def __repr__(self) -> str:
         return (f"WellPath({self._md.size} stations, md {self._md[0]:g}..{self._md[-1]:g} m, "
                 f"max inclination {math.degrees(self._inc.max()):.1f} deg)")
