@@ -168,7 +168,7 @@ function update(s) {
   $("model").textContent = s.model;
   const r = $("running");
   r.textContent = s.phase === "running" ? "running" : s.phase === "stopped" ? "stopped" : s.phase;
-  r.className = "badge " + (s.phase === "running" ? "good" : "bad");
+  r.className = "badge " + s.phase;
   const c = $("controller");
   c.textContent = s.controller_enabled ? "on" : "off";
   c.className = "badge " + (s.controller_enabled ? "good" : "bad");
