@@ -227,6 +227,30 @@ def test_trend_sends_the_whole_recording_thinned_with_its_severity():
     assert part["stick_slip_severity"][-1] == pytest.approx(stick_slip_severity(w[-n:]))
 
 
+def test_the_page_and_its_chart_library_are_served_by_the_app_behind_the_guard():
+    from fastapi.testclient import TestClient
+
+    session = DashboardSession(_runner())
+    c = _client(session)
+    page = c.get("/").text
+    assert "/static/vendor/uplot/uPlot.iife.min.js" in page
+    assert "http://" not in page and "https://" not in page  # no CDN, nothing from elsewhere
+    lib = c.get("/static/vendor/uplot/uPlot.iife.min.js")
+    assert lib.status_code == 200 and lib.headers["content-type"].startswith("text/javascript")
+    assert lib.headers["x-content-type-options"] == "nosniff"
+    assert "MIT" in c.get("/static/vendor/uplot/LICENSE").text
+    for path in ("/static/../dashboard.py", "/static/%2e%2e/dashboard.py",
+                 "/static/vendor/uplot/../../dashboard.js/../../dashboard.py",
+                 "/static/vendor/uplot/package.json", "/static/"):
+        assert c.get(path).status_code == 404, path
+    guarded = TestClient(make_app(session, token="k3y-for-tests-0123456789abcdef", port=8765),
+                         base_url="http://127.0.0.1:8765")
+    assert guarded.get("/static/dashboard.js").status_code == 403
+    assert guarded.get("/static/dashboard.js", headers={
+        "x-downhole-token": "k3y-for-tests-0123456789abcdef"}).status_code == 200
+    assert c.get("/static/dashboard.js", headers={"host": "evil.example:8765"}).status_code == 400
+
+
 # ------------------------------------------------------------------ the command
 def _get(url, timeout=5):
     with urllib.request.urlopen(url, timeout=timeout) as r:

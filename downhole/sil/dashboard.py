@@ -501,7 +501,7 @@ class DashboardSession:
         n = data.shape[0]
         keep = np.arange(n)
         if n > max_points:
-            keep = np.unique(np.concatenate([np.linspace(0, n - 1, max_points).astype(int)]))
+            keep = np.unique(np.linspace(0, n - 1, max_points).round().astype(int))
         out = {}
         for name in TREND_CHANNELS:
             if name in ch:

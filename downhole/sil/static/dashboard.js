@@ -48,7 +48,12 @@ $("start").onclick = () => post("/api/start");
 $("stop").onclick = () => post("/api/stop");
 $("ctrl_on").onclick = () => post("/api/controller", {on: true});
 $("ctrl_off").onclick = () => post("/api/controller", {on: false});
-$("ctrl_apply").onclick = () => post("/api/controller/select", {name: $("ctrl_select").value});
+let ctrlPicked = false;  // the operator's pick is not overwritten by the server's state
+$("ctrl_select").onchange = () => { ctrlPicked = true; };
+$("ctrl_apply").onclick = () => {
+  ctrlPicked = false;
+  post("/api/controller/select", {name: $("ctrl_select").value});
+};
 $("apply_ref").onclick = () => post("/api/reference", {
   axial: parseFloat($("ref_axial").value), angular: parseFloat($("ref_angular").value)});
 $("apply_sp").onclick = () => {
@@ -156,9 +161,9 @@ function fillControls(s) {
       const o = document.createElement("option"); o.value = c.name; o.textContent = c.label;
       sel.appendChild(o);
     }
-    sel.value = s.controller || "off";
     ctrlFilled = true;
   }
+  if (!ctrlPicked) $("ctrl_select").value = s.controller || "off";
 }
 
 function update(s) {
