@@ -25,7 +25,8 @@ from downhole.analysis.metrics import stick_slip_severity
 from downhole.control.base import Controller
 from downhole.errors import DownholeInputError
 from downhole.sil import RealTimeRunner, build_plant, pi_controller_for
-from downhole.sil.controllers import ManualFill, plant_torsional_impedance
+from downhole.sil.controllers import (ManualFill, plant_stick_slip_frequency,
+                                      plant_torsional_impedance)
 from downhole.sil.dashboard import (UNIT_SYSTEMS, DashboardSession, display_units, make_app,
                                     rolling_severity)
 from downhole.sil.testing import free_port
@@ -148,9 +149,15 @@ def test_wob_setpoint_of_a_force_driven_hook_is_buoyed_weight_minus_wob():
 def test_controller_choice_switches_through_the_runtime():
     runner = _runner(paced=False)
     session = DashboardSession(runner)
-    assert set(session.controllers) == {"pi", "ztorque"} and session.controller_name == "pi"
+    assert set(session.controllers) == {"pi", "ztorque", "softspeed"}
+    assert session.controller_name == "pi"
     # Z-torque's impedance of the lumped top: sqrt(k J) of Table 2.1 (685.2 N m/rad, 2863 kg m^2)
     assert plant_torsional_impedance(runner.plant) == pytest.approx(math.sqrt(685.2 * 2863))
+    # SoftSpeed's w_s: the one torsional mode of the 4-DOF chain, sqrt(k / J)
+    assert plant_stick_slip_frequency(runner.plant) == pytest.approx(math.sqrt(685.2 / 2863))
+    soft = session.controllers["softspeed"][1]()
+    assert soft.kp == pytest.approx(math.sqrt(685.2 * 2863))  # P = Z
+    assert soft.ki == pytest.approx(500.0 * 685.2 / 2863)  # I = J w_s^2
     c = _client(session)
     for bad in ({"name": "dhp"}, {"name": 3}, {}, {"name": "pi", "x": 1}):
         assert c.post("/api/controller/select", json=bad).status_code == 422, bad
@@ -182,6 +189,23 @@ def test_controller_choice_switches_through_the_runtime():
         assert type(runner.controller.inner).__name__ == "ZTorque" and session.error is None
     finally:
         session.stop()
+
+
+@pytest.mark.slow
+def test_switching_to_an_impedance_matched_top_drive_ends_the_stick_slip():
+    """The lumped string under the bit-speed PI sticks and slips; switched (through the
+    dashboard session) to Z-torque or SoftSpeed, whose tops absorb the torsional wave, it
+    rotates steadily: severity over the last 20 s of 60 s."""
+    sev = {}
+    for name in ("pi", "ztorque", "softspeed"):
+        runner = _runner(paced=False)
+        session = DashboardSession(runner)
+        session.select_controller(name)
+        res = runner.run(60.0)
+        w = res["bit_angular_velocity"][res.time > 40.0]
+        sev[name] = stick_slip_severity(w)
+    assert sev["pi"] > 0.8, sev
+    assert sev["ztorque"] < 0.1 and sev["softspeed"] < 0.1, sev
 
 
 def test_switch_controller_refuses_what_cannot_drive_the_plant():

@@ -22,7 +22,8 @@ from downhole.errors import DownholeInputError
 from downhole.sim.result import Result
 
 __all__ = ["SurfacePI", "pi_controller_for", "load_controller_file", "run_offline",
-           "CODE_REFUSED", "ManualFill", "plant_torsional_impedance", "controller_choices"]
+           "CODE_REFUSED", "ManualFill", "plant_torsional_impedance", "plant_stick_slip_frequency",
+           "controller_choices"]
 
 
 class SurfacePI:
@@ -146,6 +147,27 @@ def plant_torsional_impedance(plant) -> float | None:
     return math.sqrt(k * j) if k > 0 and j > 0 else None
 
 
+def plant_stick_slip_frequency(plant) -> float | None:
+    """The first torsional natural frequency of ``plant``'s string with the top clamped, rad/s
+    (SoftSpeed's w_s), or None when the plant does not say: a lumped chain's first torsional
+    mode, a FEM string's (a hybrid model has no modal analysis of its own)."""
+    from downhole.errors import DownholeInputError as _Refused
+
+    inner = getattr(plant, "plant", plant)
+    model = getattr(inner, "model", None)
+    nf = getattr(model, "natural_frequencies", None)
+    if nf is None:
+        return None
+    try:
+        if hasattr(model, "torsional") and not hasattr(model, "string"):  # lumped chain
+            w = float(np.asarray(nf()["torsional"])[0])
+        else:
+            w = float(np.asarray(nf("torsional", 1, top="fixed"))[-1])
+    except (_Refused, AttributeError, IndexError, KeyError, TypeError, ValueError):
+        return None
+    return w if math.isfinite(w) and w > 0 else None
+
+
 def controller_choices(plant, scenario_controller=None, scenario_label: str | None = None) -> dict:
     """The controllers an operator can switch ``plant`` to: ``{name: (label, factory)}``, where
     ``factory()`` builds a fresh controller.
@@ -155,7 +177,10 @@ def controller_choices(plant, scenario_controller=None, scenario_label: str | No
       ``lumped``);
     - ``ztorque``: :class:`~downhole.control.ztorque.ZTorque` with the impedance of the top of
       the string (:func:`plant_torsional_impedance`), when the plant observes the surface
-      torque and takes a top-drive speed command.
+      torque and takes a top-drive speed command;
+    - ``softspeed``: :class:`~downhole.control.softspeed.SoftSpeed` (P = Z, I = J w_s^2, J the
+      package's top-drive inertia) where, in addition, the stick-slip frequency is known
+      (:func:`plant_stick_slip_frequency`).
 
     The speed set-point of each is the reference ``reference_angular_velocity`` (the driller's
     surface rpm).
@@ -174,6 +199,15 @@ def controller_choices(plant, scenario_controller=None, scenario_label: str | No
 
         out["ztorque"] = (f"Z-torque (Z = {z:.0f} N m s/rad)",
                           lambda: ZTorque(z, dt=plant.dt))
+        ws = plant_stick_slip_frequency(plant)
+        if ws is not None:
+            from downhole.control.softspeed import SoftSpeed
+            from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
+
+            out["softspeed"] = (f"SoftSpeed (w_s = {ws:.3g} rad/s)",
+                                lambda: SoftSpeed(impedance=z, frequency=ws,
+                                                  inertia=DEFAULT_TOP_DRIVE_INERTIA,
+                                                  dt=plant.dt))
     return out
 
 
