@@ -345,6 +345,33 @@ def test_sil_command_waits_for_start_and_stays_up_after_the_run(tmp_path):
     assert res.time[-1] == pytest.approx(1.0) and "stopped_by" not in res.dataset.attrs
 
 
+def test_sil_command_closed_before_start_records_and_writes_nothing(tmp_path):
+    sc = tmp_path / "s.toml"
+    port = free_port()
+    sc.write_text('[model]\nfidelity = "lumped4"\n[simulation]\nduration = "1 s"\n')
+    out = tmp_path / "run.nc"
+    out.write_text("the previous result")
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    cmd = [sys.executable, "-c", "import sys; from downhole.cli import main; sys.exit(main())",
+           "sil", str(sc), "--dashboard", "--http-port", str(port), "--no-progress",
+           "--out", str(out)]
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_state(f"http://127.0.0.1:{port}", lambda s: s["phase"] == "waiting",
+                    "the dashboard")
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130
+    assert "before the run was started" in stderr and "nothing recorded or written" in stderr
+    assert out.read_text() == "the previous result"  # untouched, and no marker beside it
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.nc", "s.toml"]
+
+
 def test_dashboard_options_need_the_dashboard(capsys):
     from downhole.cli import main
 

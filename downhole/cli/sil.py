@@ -62,6 +62,10 @@ class _Interrupted(Exception):
     """A stop signal arrived before the real-time loop started."""
 
 
+class _NeverStarted(Exception):
+    """The dashboard closed before the operator started the run (args: the signal or None)."""
+
+
 class _StopOnSignal:
     """SIGINT/SIGTERM handler of ``downhole sil``: stop the loop, never lose the recording.
 
@@ -216,7 +220,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
             if not ok:
                 fail(f"no {peer} answered on udp://{h}:{p} within {patience:g} s "
                      "([link] connect_timeout or --wait)")
-        if out_file is not None:
+        if out_file is not None and not dashboard:
             out_file.begin()  # the previous result goes now: a killed run leaves none
         stopper.phase = "running"
         if dashboard:
@@ -227,19 +231,29 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
             def run_ended():
                 stopper.phase = "browsing"
 
-            serve_dashboard(runner, host=d.host, port=d.port, token=token,
-                            duration=dur, publish_hz=d.publish_hz,
-                            allowed_origins=d.allowed_origins, allowed_hosts=d.allowed_hosts,
-                            token_source=d.token_file or f"{scenario} [dashboard] token",
-                            reference_limits=_reference_limits(sc), autostart=autostart,
-                            exit_after_run=exit_after_run, units=d.units,
-                            on_run_end=run_ended)
+            session = serve_dashboard(
+                runner, host=d.host, port=d.port, token=token, duration=dur,
+                publish_hz=d.publish_hz, allowed_origins=d.allowed_origins,
+                allowed_hosts=d.allowed_hosts,
+                token_source=d.token_file or f"{scenario} [dashboard] token",
+                reference_limits=_reference_limits(sc), autostart=autostart,
+                exit_after_run=exit_after_run, units=d.units,
+                on_run_start=out_file.begin if out_file is not None else None,
+                on_run_end=run_ended)
+            if not session.started:
+                raise _NeverStarted(stopper.signum)
             res = runner.result()
         elif progress:
             with RunProgress(runner, dur):
                 res = runner.run(dur)
         else:
             res = runner.run(dur)
+    except _NeverStarted as exc:
+        stopper.restore()
+        code = 128 + exc.args[0] if exc.args[0] is not None else 1
+        typer.echo("error: the dashboard closed before the run was started (Start on the page, "
+                   "or --autostart); nothing recorded or written", err=True)
+        raise typer.Exit(code) from None
     except _Interrupted as exc:
         stopper.restore()
         typer.echo(f"error: interrupted ({signal.Signals(exc.args[0]).name}) while waiting for "

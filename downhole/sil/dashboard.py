@@ -263,6 +263,10 @@ class DashboardSession:
     severity_window : float
         Seconds of the trailing window of the stick-slip severity (default 10 s: about one
         stick-slip period of a few-kilometre string).
+    on_start : callable, optional
+        Called (without arguments) when the run is started the first time, before it runs
+        (the command line removes the previous ``--out`` there); an exception refuses the
+        start and is shown as :attr:`error`.
 
     Attributes
     ----------
@@ -272,7 +276,8 @@ class DashboardSession:
     """
 
     def __init__(self, runner, duration: float | None = None, *, controllers: dict | None = None,
-                 controller_name: str | None = None, severity_window: float = 10.0):
+                 controller_name: str | None = None, severity_window: float = 10.0,
+                 on_start=None):
         from downhole.sil.controllers import SurfacePI, controller_choices
 
         self.runner = runner
@@ -289,6 +294,7 @@ class DashboardSession:
             raise DownholeInputError(f"severity_window must be a positive number of seconds, "
                                      f"got {severity_window!r}")
         self.severity_window = float(severity_window)
+        self.on_start = on_start
         remote = runner.link is not None and not runner.hil
         if controllers is None:
             controllers = {} if remote else controller_choices(runner.plant, runner.controller)
@@ -315,6 +321,11 @@ class DashboardSession:
         return self._thread is not None and self._thread.is_alive()
 
     @property
+    def started(self) -> bool:
+        """Whether the run was ever started."""
+        return self._started_once
+
+    @property
     def phase(self) -> str:
         """``waiting`` (for the operator's Start), ``running``, ``stopped`` (resumable) or
         ``finished`` (the duration is used up)."""
@@ -335,6 +346,12 @@ class DashboardSession:
             if remaining is not None and not fresh:
                 remaining = self.duration - self.runner._k * self.runner.dt
                 if remaining <= 1e-12:
+                    return False
+            if fresh and self.on_start is not None:
+                try:
+                    self.on_start()
+                except Exception as exc:  # noqa: BLE001 - shown on the page
+                    self.error = f"not started: {type(exc).__name__}: {exc}"
                     return False
             self._started_once = True
 
@@ -887,15 +904,17 @@ def serve_dashboard(runner, host: str = "127.0.0.1", port: int = 8765,
                     allowed_origins=(), token_source: str | None = None,
                     reference_limits: dict | None = None, exit_after_run: bool = True,
                     units="metric", controllers: dict | None = None,
-                    controller_name: str | None = None, on_run_end=None) -> DashboardSession:
+                    controller_name: str | None = None, on_run_start=None,
+                    on_run_end=None) -> DashboardSession:
     """Serve the dashboard (blocking) until Ctrl-C or, with ``exit_after_run`` and a
     ``duration``, the run's end.
 
     Parameters are those of :func:`make_app` and :class:`DashboardSession`; ``token_source``
     (a file path or a scenario field) is printed instead of the token, of which at most a
     4-character prefix is shown. ``autostart`` starts the run at once (False: it waits for
-    the operator's Start on the page); ``on_run_end()`` is called (in a thread) when the run
-    has used up its duration. Returns the session.
+    the operator's Start on the page); ``on_run_start()`` is called when the run starts the
+    first time (:class:`DashboardSession` ``on_start``), ``on_run_end()`` (in a thread) when
+    it has used up its duration. Returns the session.
 
     Raises
     ------
@@ -907,7 +926,7 @@ def serve_dashboard(runner, host: str = "127.0.0.1", port: int = 8765,
 
     check_dashboard_settings(host, token)
     session = DashboardSession(runner, duration, controllers=controllers,
-                               controller_name=controller_name)
+                               controller_name=controller_name, on_start=on_run_start)
     sockets = None
     if port == 0:  # any free port: bind it here, so that the Host check and the URL name it
         sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
