@@ -283,13 +283,15 @@ def test_token_is_not_printed(tmp_path, capfd):
     sc = tmp_path / "s.toml"
     sc.write_text(f'[model]\nfidelity = "lumped4"\n[simulation]\nduration = "0.3 s"\n'
                   f'[dashboard]\nport = {free_port()}\ntoken_file = "dashboard.token"\n')
-    assert main(["sil", str(sc), "--dashboard", "--no-progress"]) == 0
+    assert main(["sil", str(sc), "--dashboard", "--autostart", "--exit-after-run",
+                 "--no-progress"]) == 0
     out, err = capfd.readouterr()
     assert TOKEN not in out and TOKEN not in err
     assert TOKEN[:8] not in out + err
     assert str(token_file) in out and "required" in out
     sc.write_text(sc.read_text().replace('token_file = "dashboard.token"', f'token = "{TOKEN}"'))
-    assert main(["sil", str(sc), "--dashboard", "--no-progress"]) == 0
+    assert main(["sil", str(sc), "--dashboard", "--autostart", "--exit-after-run",
+                 "--no-progress"]) == 0
     out, err = capfd.readouterr()
     assert TOKEN not in out + err and f"{TOKEN[:4]}..." in out
 

@@ -3,7 +3,10 @@
 - ``downhole sil SCENARIO.toml [--controller FILE] [--dashboard] [--duration S] [--out F.nc]``
   runs the scenario in real time (or unpaced with ``--unpaced``); with ``[controller] remote =
   true`` (or ``--remote``) it waits for a controller on the UDP link, with a countdown, for
-  ``[link] connect_timeout`` (or ``--wait``) seconds.
+  ``[link] connect_timeout`` (or ``--wait``) seconds. With ``--dashboard`` the run waits for
+  the operator's Start on the page (``--autostart``: at once) and the dashboard stays up after
+  the run until Ctrl-C (``--exit-after-run``: the command ends with the run); ``--http-port``
+  is the dashboard's port (``--port`` is the UDP link's).
 - ``downhole sil-controller (--scenario S.toml | --controller FILE | --rig) [--port P]``
   is the controller end: it builds (designs) its controller first, then connects to the plant
   (the scenario's ``[link]`` address by default) and answers every observation.
@@ -59,12 +62,17 @@ class _Interrupted(Exception):
     """A stop signal arrived before the real-time loop started."""
 
 
+class _NeverStarted(Exception):
+    """The dashboard closed before the operator started the run (args: the signal or None)."""
+
+
 class _StopOnSignal:
     """SIGINT/SIGTERM handler of ``downhole sil``: stop the loop, never lose the recording.
 
     ``phase`` is ``"waiting"`` (before the loop: raise :class:`_Interrupted`), ``"running"``
-    (ask the runner to stop after the current step) or ``"writing"`` (remember the signal and
-    let the result be written).
+    (ask the runner to stop after the current step), ``"browsing"`` (the run has ended and
+    the dashboard shows it: the signal only ends the server, the result is complete) or
+    ``"writing"`` (remember the signal and let the result be written).
     """
 
     def __init__(self, runner):
@@ -86,6 +94,8 @@ class _StopOnSignal:
         self._previous.clear()
 
     def __call__(self, signum, frame) -> None:
+        if self.phase == "browsing":  # the run is over, the dashboard shows it: just quit
+            return
         first = self.signum is None
         if first:
             self.signum = signum
@@ -110,6 +120,16 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                                                   help="controller file (DHP .json/.npz, or a "
                                                        ".py with --allow-code)"),
         dashboard: bool = typer.Option(False, "--dashboard", help="serve the live dashboard"),
+        http_port: Optional[int] = typer.Option(
+            None, "--http-port", help="the dashboard's HTTP port (overrides [dashboard] port; "
+                                      "0: any free port)"),
+        autostart: bool = typer.Option(
+            False, "--autostart", help="with --dashboard: start the run at once instead of "
+                                       "waiting for Start on the page"),
+        exit_after_run: bool = typer.Option(
+            False, "--exit-after-run", help="with --dashboard: end the command when the run "
+                                            "ends instead of keeping the dashboard up until "
+                                            "Ctrl-C"),
         duration: Optional[float] = typer.Option(None, "--duration", help="simulated s"),
         out: Optional[Path] = typer.Option(None, "--out", help="write the Result (NetCDF)"),
         remote: bool = typer.Option(False, "--remote", help="controller over the UDP link"),
@@ -133,7 +153,16 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
 
     _positive_seconds(duration, "--duration")
     _positive_seconds(wait, "--wait")
+    if not dashboard:
+        for given, option in ((http_port is not None, "--http-port"),
+                              (autostart, "--autostart"), (exit_after_run, "--exit-after-run")):
+            if given:
+                fail(f"{option} applies to the dashboard: add --dashboard")
+    if http_port is not None and not 0 <= http_port <= 65535:
+        fail(f"--http-port must be a port number 0..65535, got {http_port}")
     sc = load_sil_scenario(scenario)
+    if http_port is not None:
+        sc.dashboard.port = http_port
     if remote:
         sc.controller.remote = True
     if port is not None:
@@ -191,24 +220,40 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
             if not ok:
                 fail(f"no {peer} answered on udp://{h}:{p} within {patience:g} s "
                      "([link] connect_timeout or --wait)")
-        if out_file is not None:
+        if out_file is not None and not dashboard:
             out_file.begin()  # the previous result goes now: a killed run leaves none
         stopper.phase = "running"
         if dashboard:
             from downhole.sil.dashboard import serve_dashboard
 
             d = sc.dashboard
-            serve_dashboard(runner, host=d.host, port=d.port, token=token,
-                            duration=dur, publish_hz=d.publish_hz,
-                            allowed_origins=d.allowed_origins, allowed_hosts=d.allowed_hosts,
-                            token_source=d.token_file or f"{scenario} [dashboard] token",
-                            reference_limits=_reference_limits(sc))
+
+            def run_ended():
+                stopper.phase = "browsing"
+
+            session = serve_dashboard(
+                runner, host=d.host, port=d.port, token=token, duration=dur,
+                publish_hz=d.publish_hz, allowed_origins=d.allowed_origins,
+                allowed_hosts=d.allowed_hosts,
+                token_source=d.token_file or f"{scenario} [dashboard] token",
+                reference_limits=_reference_limits(sc), autostart=autostart,
+                exit_after_run=exit_after_run, units=d.units,
+                on_run_start=out_file.begin if out_file is not None else None,
+                on_run_end=run_ended)
+            if not session.started:
+                raise _NeverStarted(stopper.signum)
             res = runner.result()
         elif progress:
             with RunProgress(runner, dur):
                 res = runner.run(dur)
         else:
             res = runner.run(dur)
+    except _NeverStarted as exc:
+        stopper.restore()
+        code = 128 + exc.args[0] if exc.args[0] is not None else 1
+        typer.echo("error: the dashboard closed before the run was started (Start on the page, "
+                   "or --autostart); nothing recorded or written", err=True)
+        raise typer.Exit(code) from None
     except _Interrupted as exc:
         stopper.restore()
         typer.echo(f"error: interrupted ({signal.Signals(exc.args[0]).name}) while waiting for "

@@ -13,6 +13,7 @@ A Python file is code: it is never executed because a scenario names it.
 from __future__ import annotations
 
 import importlib.util
+import math
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,8 @@ from downhole.errors import DownholeInputError
 from downhole.sim.result import Result
 
 __all__ = ["SurfacePI", "pi_controller_for", "load_controller_file", "run_offline",
-           "CODE_REFUSED"]
+           "CODE_REFUSED", "ManualFill", "plant_torsional_impedance", "plant_stick_slip_frequency",
+           "controller_choices"]
 
 
 class SurfacePI:
@@ -91,6 +93,122 @@ def pi_controller_for(plant, **kw) -> SurfacePI:
     d = plant.default_command()
     kw.setdefault("wob0", weight - d["hook_load"] if "hook_load" in d else 0.0)
     return SurfacePI(names, weight=weight, dt=plant.dt, **kw)
+
+
+class ManualFill:
+    """A controller that sets only some of the plant's commands, completed by the runner's
+    open-loop (manual) command: e.g. Z-torque sets the top-drive speed and the axial command
+    follows the driller's set-point (ROP or WOB) instead of the last value of the previous
+    controller.
+
+    Parameters
+    ----------
+    controller : object
+        ``reset()`` and ``command(t, observation, reference)``.
+    runner : RealTimeRunner
+        Whose :attr:`manual_command` fills the commands the controller does not return.
+    """
+
+    def __init__(self, controller, runner):
+        self.inner = controller
+        self.runner = runner
+        self.needs = tuple(getattr(controller, "needs", ()) or ())
+        self.commands = tuple(runner.plant.command_names)
+
+    def reset(self) -> None:
+        self.inner.reset()
+
+    def command(self, t: float, observation: dict, reference=None) -> dict:
+        out = dict(self.runner.manual_command)
+        out.update(self.inner.command(t, observation, reference))
+        return out
+
+
+def plant_torsional_impedance(plant) -> float | None:
+    """Characteristic torsional impedance of the top of ``plant``'s string, N m s/rad, or None
+    when the plant does not say.
+
+    A directional (FEM / hybrid) plant: J sqrt(rho G) of the top pipe section. A lumped chain:
+    sqrt(k J) of its top element (stiffness to the top drive times inertia), which is the same
+    quantity for an element cut from a uniform pipe (k = G J_p / L, J = rho J_p L).
+    """
+    inner = getattr(plant, "plant", plant)
+    model = getattr(inner, "model", None)
+    string = getattr(model, "string", None)
+    try:
+        return float(string.segments[0].section.torsional_impedance)
+    except (AttributeError, IndexError, TypeError):
+        pass
+    tors = getattr(model, "torsional", None)
+    try:
+        k, j = float(tors.k_top), float(np.asarray(tors.mass)[0])
+    except (AttributeError, IndexError, TypeError, ValueError):
+        return None
+    return math.sqrt(k * j) if k > 0 and j > 0 else None
+
+
+def plant_stick_slip_frequency(plant) -> float | None:
+    """The first torsional natural frequency of ``plant``'s string with the top clamped, rad/s
+    (SoftSpeed's w_s), or None when the plant does not say: a lumped chain's first torsional
+    mode, a FEM string's (a hybrid model has no modal analysis of its own)."""
+    from downhole.errors import DownholeInputError as _Refused
+
+    inner = getattr(plant, "plant", plant)
+    model = getattr(inner, "model", None)
+    nf = getattr(model, "natural_frequencies", None)
+    if nf is None:
+        return None
+    try:
+        if hasattr(model, "torsional") and not hasattr(model, "string"):  # lumped chain
+            w = float(np.asarray(nf()["torsional"])[0])
+        else:
+            w = float(np.asarray(nf("torsional", 1, top="fixed"))[-1])
+    except (_Refused, AttributeError, IndexError, KeyError, TypeError, ValueError):
+        return None
+    return w if math.isfinite(w) and w > 0 else None
+
+
+def controller_choices(plant, scenario_controller=None, scenario_label: str | None = None) -> dict:
+    """The controllers an operator can switch ``plant`` to: ``{name: (label, factory)}``, where
+    ``factory()`` builds a fresh controller.
+
+    - ``scenario``: the scenario's own controller (DHP, a file), when it is not the PI;
+    - ``pi``: :class:`SurfacePI` (a speed-controlled top drive: interfaces ``surface``,
+      ``lumped``);
+    - ``ztorque``: :class:`~downhole.control.ztorque.ZTorque` with the impedance of the top of
+      the string (:func:`plant_torsional_impedance`), when the plant observes the surface
+      torque and takes a top-drive speed command;
+    - ``softspeed``: :class:`~downhole.control.softspeed.SoftSpeed` (P = Z, I = J w_s^2, J the
+      package's top-drive inertia) where, in addition, the stick-slip frequency is known
+      (:func:`plant_stick_slip_frequency`).
+
+    The speed set-point of each is the reference ``reference_angular_velocity`` (the driller's
+    surface rpm).
+    """
+    out: dict = {}
+    if scenario_controller is not None and not isinstance(scenario_controller, SurfacePI):
+        out["scenario"] = (scenario_label or type(scenario_controller).__name__,
+                           lambda: scenario_controller)
+    names = tuple(plant.command_names)
+    speed = len(names) == 2 and names[1] == "top_drive_angular_velocity"
+    if speed:
+        out["pi"] = ("PI (bit speed)", lambda: pi_controller_for(plant))
+    z = plant_torsional_impedance(plant)
+    if (speed and z is not None and "surface_torque" in plant.observation_names):
+        from downhole.control.ztorque import ZTorque
+
+        out["ztorque"] = (f"Z-torque (Z = {z:.0f} N m s/rad)",
+                          lambda: ZTorque(z, dt=plant.dt))
+        ws = plant_stick_slip_frequency(plant)
+        if ws is not None:
+            from downhole.control.softspeed import SoftSpeed
+            from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
+
+            out["softspeed"] = (f"SoftSpeed (w_s = {ws:.3g} rad/s)",
+                                lambda: SoftSpeed(impedance=z, frequency=ws,
+                                                  inertia=DEFAULT_TOP_DRIVE_INERTIA,
+                                                  dt=plant.dt))
+    return out
 
 
 #: The one-line refusal of a Python controller file without the opt-in (``{path}`` filled in).

@@ -1,10 +1,31 @@
-"""Live dashboard of a real-time run: FastAPI + WebSocket, one self-contained HTML page.
+"""The operator's dashboard of a real-time run: FastAPI + WebSocket, a page with trend charts.
 
-``GET /`` serves the page; ``WS /ws`` pushes the newest recorded row (bit and surface signals,
-references, commands), the runtime counters (deadline misses, overruns, late commands), the
-state (running, controller on, safe action) and the last events, ``publish_hz`` times a
-second. Controls (``POST``, JSON bodies only): ``/api/start``, ``/api/stop``,
-``/api/controller`` ``{"on": bool}``, ``/api/reference`` ``{"axial": m/s, "angular": rad/s}``.
+``GET /`` serves the page (``downhole/sil/static``; its charts are drawn by uPlot, shipped in
+``static/vendor/uplot`` and served by this app: nothing is fetched from elsewhere at run time).
+``WS /ws`` pushes, ``publish_hz`` times a second, the newest recorded row (bit and surface
+signals, references, commands), the runtime counters (deadline misses, overruns, late
+commands), the state (waiting / running / stopped / finished, controller, safe action), the
+last events and the *trend*: the recorded rows the connection has not seen yet (the whole
+recording in memory, thinned to ``max_points`` rows, on connecting: a page opened after the
+run shows all of it), with the stick-slip severity of :func:`rolling_severity`.
+
+The page shows trends of surface and bit rpm, surface torque, hook load, WOB, ROP, stick-slip
+severity and bit depth, in the display units of a unit system (:data:`UNIT_SYSTEMS`,
+converted with pint), and takes the driller's set-points (surface rpm, WOB, ROP) in those
+units.
+
+Controls (``POST``, JSON bodies only): ``/api/start``, ``/api/stop``, ``/api/controller``
+``{"on": bool}``, ``/api/controller/select`` ``{"name": "off" | one of the session's
+controllers}``, ``/api/setpoints`` ``{"surface_rpm", "wob", "rop"}`` (display units),
+``/api/reference`` ``{"axial": m/s, "angular": rad/s}`` (the bit reference, SI).
+``GET /api/state`` is the WebSocket's message without the trend.
+
+A driller set-point sets the controller's reference and the open-loop (manual) command used
+while the controller is off: surface rpm is the bit-speed reference and the top-drive speed;
+ROP is the bit axial-velocity reference and, on a velocity-driven top (lumped plants), the
+top's axial velocity; WOB is the open-loop weight on bit of a force-driven hook (hook load =
+buoyed string weight - WOB; slack-off force = WOB on the ``state`` interface) and is refused
+(422) on a velocity-driven top, where WOB follows from the feed.
 
 Security (every HTTP request and every WebSocket handshake, before any route, the API docs
 ``/docs``, ``/redoc``, ``/openapi.json`` included):
@@ -46,7 +67,8 @@ from urllib.parse import parse_qs
 from downhole.errors import DownholeInputError
 
 __all__ = ["DashboardSession", "make_app", "serve_dashboard", "is_loopback", "TOKEN_COOKIE",
-           "DEFAULT_REFERENCE_LIMITS", "MIN_REMOTE_TOKEN", "check_dashboard_settings"]
+           "DEFAULT_REFERENCE_LIMITS", "MIN_REMOTE_TOKEN", "check_dashboard_settings",
+           "UNIT_SYSTEMS", "display_units", "rolling_severity", "TREND_CHANNELS"]
 
 SIGNALS = ("bit_axial_velocity", "bit_angular_velocity", "wob", "tob", "hook_load",
            "surface_torque", "top_drive_angular_velocity", "top_drive_axial_velocity",
@@ -59,6 +81,89 @@ DEFAULT_REFERENCE_LIMITS = {"axial": (0.0, 0.05), "angular": (0.0, 40.0)}
 #: Shortest token accepted when the dashboard binds beyond loopback.
 MIN_REMOTE_TOKEN = 16
 _UNITS = {"axial": "m/s", "angular": "rad/s"}
+
+#: Recorded channels sent in the trend (those the plant records), plus ``stick_slip_severity``.
+TREND_CHANNELS = ("time", "top_drive_angular_velocity", "bit_angular_velocity",
+                  "reference_angular_velocity", "surface_torque", "hook_load", "wob",
+                  "bit_axial_velocity", "reference_axial_velocity", "bit_axial_position")
+
+#: SI unit of each displayed quantity (the signals' units, :mod:`downhole.signals`).
+_SI_UNITS = {"rotary_speed": "rad/s", "torque": "N*m", "force": "N", "rop": "m/s",
+             "depth": "m"}
+
+#: Display units of the dashboard, by unit system: quantity -> pint unit. A unit system is
+#: just such a mapping: :func:`make_app` takes a name or a mapping of its own.
+UNIT_SYSTEMS = {
+    "metric": {"rotary_speed": "rpm", "torque": "kN*m", "force": "kN", "rop": "m/h",
+               "depth": "m"},
+    "field": {"rotary_speed": "rpm", "torque": "kft*lbf", "force": "klbf", "rop": "ft/h",
+              "depth": "ft"},
+}
+_LABELS = {"kN*m": "kN\u00b7m", "kft*lbf": "kft\u00b7lbf", "N*m": "N\u00b7m"}
+_UREG = None
+
+
+def display_units(system="metric") -> dict:
+    """``{quantity: {"unit": label, "pint": unit, "factor": f}}`` of a unit system (a name of
+    :data:`UNIT_SYSTEMS` or a mapping quantity -> pint unit): a value in SI times ``factor`` is
+    the value in the display unit (factors from pint).
+
+    Raises
+    ------
+    DownholeInputError
+        An unknown system name, a missing or unknown quantity, or a unit of the wrong dimension.
+    """
+    import pint
+
+    global _UREG
+    if _UREG is None:
+        _UREG = pint.UnitRegistry()
+    if isinstance(system, str):
+        if system not in UNIT_SYSTEMS:
+            raise DownholeInputError(f"unknown unit system {system!r}; expected one of "
+                                     f"{sorted(UNIT_SYSTEMS)} or a mapping quantity -> unit")
+        system = UNIT_SYSTEMS[system]
+    missing = sorted(set(_SI_UNITS) - set(system))
+    if missing:
+        raise DownholeInputError(f"the unit system lacks {missing}")
+    out = {}
+    for q, si in _SI_UNITS.items():
+        unit = system[q]
+        try:
+            f = float(_UREG.Quantity(1.0, si).to(unit).magnitude)
+        except (pint.errors.PintError, AttributeError, TypeError, ValueError) as exc:
+            raise DownholeInputError(f"unit system: {q} = {unit!r} is not a unit of {si} "
+                                     f"({type(exc).__name__})") from None
+        out[q] = {"unit": _LABELS.get(unit, unit), "pint": unit, "factor": f}
+    return out
+
+
+def rolling_severity(omega, window_rows: int, context: int = 0):
+    """Stick-slip severity (max - min) / (2 mean) of ``omega`` over a trailing window.
+
+    Row ``i`` gets the severity of ``omega[max(0, i - window_rows + 1) : i + 1]`` (the same
+    formula as :func:`downhole.analysis.metrics.stick_slip_severity`), NaN where that mean is
+    not positive. The first ``context`` rows only serve as history: the result has
+    ``len(omega) - context`` rows.
+    """
+    import numpy as np
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    w = np.asarray(omega, float)
+    n = max(1, int(window_rows))
+    if w.size == 0:
+        return w
+    # a trailing window [i - n + 1, i]: a centred filter of size n shifted by (n - 1) // 2 ...
+    origin = (n - 1) // 2
+    hi = maximum_filter1d(w, n, mode="nearest", origin=origin)
+    lo = minimum_filter1d(w, n, mode="nearest", origin=origin)
+    c = np.concatenate([[0.0], np.cumsum(w)])
+    i = np.arange(w.size)
+    start = np.maximum(0, i - n + 1)
+    mean = (c[i + 1] - c[start]) / (i + 1 - start)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sev = np.where(mean > 0, (hi - lo) / (2.0 * mean), np.nan)
+    return sev[context:]
 _WILDCARDS = ("0.0.0.0", "::", "")
 _SECURITY_HEADERS = [(b"x-frame-options", b"DENY"),
                      (b"content-security-policy", b"frame-ancestors 'none'"),
@@ -140,13 +245,28 @@ def _finite_tree(obj, path: str, bad: list):
 
 class DashboardSession:
     """Runs a :class:`~downhole.sil.runtime.RealTimeRunner` in a background thread for the
-    dashboard: ``start()`` (fresh the first time, then resumes), ``stop()``, ``snapshot()``.
+    dashboard: ``start()`` (fresh the first time, then resumes), ``stop()``, ``snapshot()``,
+    ``trend()``, ``select_controller()``, ``set_setpoints()``.
 
     Parameters
     ----------
     runner : RealTimeRunner
     duration : float, optional
         Simulated seconds of the whole run (None: until stopped).
+    controllers : dict, optional
+        ``{name: (label, factory)}`` the operator can switch to (default:
+        :func:`~downhole.sil.controllers.controller_choices` of the runner's plant and
+        in-process controller; none for a remote controller).
+    controller_name : str, optional
+        The name of the runner's controller among ``controllers`` (default: ``pi`` for a
+        :class:`~downhole.sil.controllers.SurfacePI`, else ``scenario``).
+    severity_window : float
+        Seconds of the trailing window of the stick-slip severity (default 10 s: about one
+        stick-slip period of a few-kilometre string).
+    on_start : callable, optional
+        Called (without arguments) when the run is started the first time, before it runs
+        (the command line removes the previous ``--out`` there); an exception refuses the
+        start and is shown as :attr:`error`.
 
     Attributes
     ----------
@@ -155,7 +275,11 @@ class DashboardSession:
         ``content_type``, ``token``).
     """
 
-    def __init__(self, runner, duration: float | None = None):
+    def __init__(self, runner, duration: float | None = None, *, controllers: dict | None = None,
+                 controller_name: str | None = None, severity_window: float = 10.0,
+                 on_start=None):
+        from downhole.sil.controllers import SurfacePI, controller_choices
+
         self.runner = runner
         self.duration = duration
         self._thread: threading.Thread | None = None
@@ -165,10 +289,51 @@ class DashboardSession:
         self.refused = {"host": 0, "origin": 0, "content_type": 0, "token": 0}
         self._non_finite_reported: set[str] = set()
         self._lock = threading.Lock()
+        if not (isinstance(severity_window, Real) and math.isfinite(severity_window)
+                and severity_window > 0):
+            raise DownholeInputError(f"severity_window must be a positive number of seconds, "
+                                     f"got {severity_window!r}")
+        self.severity_window = float(severity_window)
+        self.on_start = on_start
+        remote = runner.link is not None and not runner.hil
+        if controllers is None:
+            controllers = {} if remote else controller_choices(runner.plant, runner.controller)
+        self.controllers = dict(controllers)
+        if controller_name is None and runner.controller is not None:
+            controller_name = "pi" if isinstance(runner.controller, SurfacePI) else "scenario"
+        self.controller_name = controller_name if controller_name in self.controllers else None
+        p = runner.plant
+        self._interface = p.info.get("interface", "")
+        self._weight = p.safe_command().get("hook_load")
+        man = runner.manual_command
+        wob = None
+        if "hook_load" in man and self._weight is not None:
+            wob = self._weight - man["hook_load"]
+        elif "slack_off_force" in man:
+            wob = man["slack_off_force"]
+        #: the driller's set-points, SI: surface speed rad/s, WOB N (None: not a command of
+        #: this plant), ROP m/s
+        self.setpoints = {"surface_speed": float(runner.reference["angular"]), "wob": wob,
+                          "rop": float(runner.reference["axial"])}
 
     @property
     def running(self) -> bool:
         return self._thread is not None and self._thread.is_alive()
+
+    @property
+    def started(self) -> bool:
+        """Whether the run was ever started."""
+        return self._started_once
+
+    @property
+    def phase(self) -> str:
+        """``waiting`` (for the operator's Start), ``running``, ``stopped`` (resumable) or
+        ``finished`` (the duration is used up)."""
+        if self.running:
+            return "running"
+        if self.finished.is_set():
+            return "finished"
+        return "stopped" if self._started_once else "waiting"
 
     def start(self) -> bool:
         """Start (or resume) the run in a background thread; False when already running or
@@ -181,6 +346,12 @@ class DashboardSession:
             if remaining is not None and not fresh:
                 remaining = self.duration - self.runner._k * self.runner.dt
                 if remaining <= 1e-12:
+                    return False
+            if fresh and self.on_start is not None:
+                try:
+                    self.on_start()
+                except Exception as exc:  # noqa: BLE001 - shown on the page
+                    self.error = f"not started: {type(exc).__name__}: {exc}"
                     return False
             self._started_once = True
 
@@ -205,6 +376,91 @@ class DashboardSession:
         if self._thread is not None:
             self._thread.join(timeout=5.0)
 
+    # ------------------------------------------------------------------ operator actions
+    def select_controller(self, name: str) -> None:
+        """``"off"``: controller off (the open-loop driller set-points drive the plant);
+        another name of :attr:`controllers`: build it, switch the runner to it
+        (:meth:`~downhole.sil.runtime.RealTimeRunner.switch_controller`, at the next step) and
+        turn it on. A controller that sets only some commands is completed by the manual
+        command (:class:`~downhole.sil.controllers.ManualFill`).
+
+        Raises
+        ------
+        DownholeInputError
+            An unknown name, or a controller that cannot drive the plant.
+        """
+        from downhole.sil.controllers import ManualFill
+
+        if name == "off":
+            self.runner.set_controller_enabled(False)
+            return
+        if name not in self.controllers:
+            raise DownholeInputError(f"unknown controller {name!r}; expected 'off' or one of "
+                                     f"{sorted(self.controllers)}")
+        label, factory = self.controllers[name]
+        ctrl = factory()
+        declared = getattr(ctrl, "commands", None)
+        if declared and set(declared) != set(self.runner.plant.command_names):
+            ctrl = ManualFill(ctrl, self.runner)
+        self.runner.switch_controller(ctrl, label)
+        self.controller_name = name
+        self.runner.set_controller_enabled(True)
+
+    def set_setpoints(self, surface_speed: float | None = None, wob: float | None = None,
+                      rop: float | None = None, limits: dict | None = None) -> dict:
+        """Apply driller set-points (SI: rad/s, N, m/s; None leaves one as it is): the
+        reference and the open-loop command (module docstring). Everything is checked
+        before anything is applied.
+
+        Raises
+        ------
+        DownholeInputError
+            A value outside ``limits`` (the reference ranges), a WOB on a velocity-driven
+            top, or a command outside the plant's admissible range.
+        """
+        from downhole.sil.plants import REFERENCE_RANGES, check_range
+
+        r = self.runner
+        limits = limits or DEFAULT_REFERENCE_LIMITS
+        manual = dict(r.manual_command)
+        ref = dict(r.reference)
+        if surface_speed is not None:
+            ref["angular"] = float(surface_speed)
+            if "top_drive_angular_velocity" in manual:
+                manual["top_drive_angular_velocity"] = float(surface_speed)
+        if rop is not None:
+            ref["axial"] = float(rop)
+            if self._interface == "lumped" and "top_drive_axial_velocity" in manual:
+                manual["top_drive_axial_velocity"] = float(rop)
+        if wob is not None:
+            if "hook_load" in manual and self._weight is not None:
+                manual["hook_load"] = self._weight - float(wob)
+            elif "slack_off_force" in manual:
+                manual["slack_off_force"] = float(wob)
+            else:
+                raise DownholeInputError(
+                    "this plant's top is fed at a velocity (ROP); its WOB follows from the feed "
+                    "and is not a set-point")
+            if wob < 0:
+                raise DownholeInputError(f"WOB must be >= 0 N, got {wob:g} N")
+        for k, v in ref.items():
+            lo, hi = limits[k]
+            why = check_range(k, v, REFERENCE_RANGES)
+            if why is None and not lo <= v <= hi:
+                why = f"{v:g} {_UNITS[k]} is outside the admissible range [{lo:g}, {hi:g}]"
+            if why is not None:
+                raise DownholeInputError(f"set-point refused: {why}")
+        why = r.plant.check_command(manual)
+        if why is not None:
+            raise DownholeInputError(f"set-point refused: the open-loop command {why}")
+        r.set_reference(ref["axial"], ref["angular"])
+        r.set_manual_command(**manual)
+        for k, v in (("surface_speed", surface_speed), ("wob", wob), ("rop", rop)):
+            if v is not None:
+                self.setpoints[k] = float(v)
+        return dict(self.setpoints)
+
+    # ------------------------------------------------------------------ what is sent
     def snapshot(self) -> dict:
         """The state sent to the page: JSON-safe, every non-finite number replaced by None
         (a ``dashboard_non_finite`` event names new offenders once)."""
@@ -220,8 +476,13 @@ class DashboardSession:
             ts = f"{t:.3f} s" if isinstance(t, Real) and math.isfinite(t) else "? s"
             events.append(f"{ts} {e.get('kind')} {e.get('detail')}")
         raw = {"signals": sig, "stats": dict(r.stats), "running": self.running,
+               "phase": self.phase, "duration": self.duration,
                "controller_enabled": bool(r.controller_enabled),
+               "controller": self.controller_name if r.controller_enabled else "off",
+               "controllers": [{"name": "off", "label": "off (open loop: set-points)"}] +
+               [{"name": k, "label": v[0]} for k, v in self.controllers.items()],
                "safe_action": r._safe_since is not None, "reference": dict(r.reference),
+               "setpoints": dict(self.setpoints), "manual_command": dict(r.manual_command),
                "events": events, "error": self.error, "model": r.plant.name,
                "scheduler": r.scheduler, "refused": dict(self.refused)}
         bad: list[str] = []
@@ -231,6 +492,44 @@ class DashboardSession:
             self._non_finite_reported.update(new)
             r._event("dashboard_non_finite", "null sent for " + ", ".join(new))
         return out
+
+    def trend(self, since: int, max_points: int = 4000) -> tuple[dict, int]:
+        """The recorded rows from row number ``since`` on (rows overwritten in the ring are
+        skipped), thinned to at most ``max_points``, as ``{channel: [values]}`` (SI; NaN as
+        None) with ``stick_slip_severity``; and the row number to ask from next time."""
+        import numpy as np
+
+        rec = self.runner.recorder
+        count = rec.count
+        first = max(since, count - rec.capacity, 0)
+        if first >= count:
+            return {}, count
+        n_w = max(1, int(round(self.severity_window / (self.runner.dt
+                                                        * self.runner.record_every))))
+        ctx0 = max(first - n_w + 1, count - rec.capacity, 0)
+        idx = np.arange(ctx0, count) % rec.capacity
+        data = rec.buf[idx]
+        ch = rec.channels
+        sev = None
+        if "bit_angular_velocity" in ch:
+            sev = rolling_severity(data[:, ch.index("bit_angular_velocity")], n_w,
+                                   context=first - ctx0)
+        data = data[first - ctx0:]
+        n = data.shape[0]
+        keep = np.arange(n)
+        if n > max_points:
+            keep = np.unique(np.linspace(0, n - 1, max_points).round().astype(int))
+        out = {}
+        for name in TREND_CHANNELS:
+            if name in ch:
+                out[name] = _json_floats(data[keep, ch.index(name)])
+        if sev is not None:
+            out["stick_slip_severity"] = _json_floats(sev[keep])
+        return out, count
+
+
+def _json_floats(a) -> list:
+    return [x if math.isfinite(x) else None for x in a.tolist()]
 
 
 def _check_token(given: str | None, token: str) -> bool:
@@ -346,6 +645,25 @@ class _Guard:
         await send({"type": "http.response.body", "body": body})
 
 
+def _number(body: dict, name: str, unit: str):
+    """``body[name]`` as a finite float (None when absent); 422 otherwise."""
+    from fastapi import HTTPException
+
+    v = body.get(name)
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, Real):
+        raise HTTPException(status_code=422, detail=f"{name} must be a number ({unit}), got "
+                                                    f"{json.dumps(v)[:40]}")
+    try:
+        v = float(v)
+    except OverflowError:
+        v = math.inf
+    if not math.isfinite(v):
+        raise HTTPException(status_code=422, detail=f"{name} must be finite ({unit}), got {v}")
+    return v
+
+
 def _setpoint(body: dict, name: str, limits: dict):
     from fastapi import HTTPException
 
@@ -371,7 +689,8 @@ def _setpoint(body: dict, name: str, limits: dict):
 
 def make_app(session: DashboardSession, token: str | None = None, publish_hz: float = 20.0, *,
              host: str = "127.0.0.1", port: int | None = None, allowed_hosts=(),
-             allowed_origins=(), reference_limits: dict | None = None):
+             allowed_origins=(), reference_limits: dict | None = None, units="metric",
+             max_points: int = 4000):
     """The FastAPI application for ``session`` (see the module docstring).
 
     Parameters
@@ -391,10 +710,16 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
         Extra origins (``scheme://host[:port]``) allowed to call the API.
     reference_limits : dict, optional
         ``{"axial": (lo, hi), "angular": (lo, hi)}`` in m/s and rad/s
-        (default :data:`DEFAULT_REFERENCE_LIMITS`).
+        (default :data:`DEFAULT_REFERENCE_LIMITS`); the driller set-points surface rpm and
+        ROP are checked against them too.
+    units : str or dict
+        The display unit system: a name of :data:`UNIT_SYSTEMS` or a mapping quantity ->
+        pint unit (:func:`display_units`).
+    max_points : int
+        Rows of trend sent at most at once (the history sent to a page that connects).
     """
     from fastapi import FastAPI, HTTPException, Request, WebSocket, WebSocketDisconnect
-    from fastapi.responses import HTMLResponse, JSONResponse
+    from fastapi.responses import HTMLResponse, JSONResponse, Response
 
     check_dashboard_settings("127.0.0.1", token)
     limits = dict(DEFAULT_REFERENCE_LIMITS)
@@ -403,6 +728,9 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
         if name not in _UNITS or not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise DownholeInputError(f"reference_limits[{name!r}] must be finite (lo, hi) with "
                                      f"lo < hi, got {(lo, hi)!r}")
+    disp = display_units(units)
+    if not (isinstance(max_points, Integral) and max_points >= 2):
+        raise DownholeInputError(f"max_points must be an integer >= 2, got {max_points!r}")
     hosts = default_allowed_hosts(host) | {_norm_host(h) for h in allowed_hosts}
     origins = {o.strip().rstrip("/").lower() for o in allowed_origins}
 
@@ -422,13 +750,28 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
             raise HTTPException(status_code=422, detail="the body must be a JSON object")
         return body
 
+    static = _static_files()
+
     @app.get("/", response_class=HTMLResponse)
     def index():
-        return _PAGE
+        return static["dashboard.html"][0].decode("utf-8")
+
+    @app.get("/static/{name:path}")
+    def static_file(name: str):
+        if name not in static:  # a fixed list: no path is ever joined to a request
+            raise HTTPException(status_code=404, detail="no such file")
+        body, media = static[name]
+        return Response(content=body, media_type=media)
+
+    def state_message() -> dict:
+        out = session.snapshot()
+        out["units"] = disp
+        out["limits"] = {k: list(v) for k, v in limits.items()}
+        return out
 
     @app.get("/api/state")
     def state():
-        return JSONResponse(session.snapshot())
+        return JSONResponse(state_message())
 
     @app.post("/api/start")
     def start():
@@ -447,6 +790,50 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
         session.runner.set_controller_enabled(body["on"])
         return {"controller_enabled": session.runner.controller_enabled}
 
+    @app.post("/api/controller/select")
+    async def select_controller(request: Request):
+        body = await json_object(request)
+        names = ["off", *session.controllers]
+        if set(body) != {"name"} or not isinstance(body["name"], str) \
+                or body["name"] not in names:
+            raise HTTPException(status_code=422, detail=f'send {{"name": NAME}} with NAME one '
+                                                        f'of {names}')
+        try:
+            session.select_controller(body["name"])
+        except DownholeInputError as exc:
+            raise HTTPException(status_code=422, detail=str(exc)) from None
+        return {"controller": body["name"],
+                "controller_enabled": session.runner.controller_enabled}
+
+    @app.post("/api/setpoints")
+    async def setpoints(request: Request):
+        body = await json_object(request)
+        fields = {"surface_rpm": "rotary_speed", "wob": "force", "rop": "rop"}
+        extra = set(body) - set(fields)
+        if extra:
+            raise HTTPException(status_code=422, detail=f"unknown field(s) {sorted(extra)}; "
+                                                        f"expected {sorted(fields)}")
+        si = {}
+        for name, q in fields.items():
+            unit, f = disp[q]["unit"], disp[q]["factor"]
+            v = _number(body, name, unit)
+            si[name] = None if v is None else v / f
+        if all(v is None for v in si.values()):
+            raise HTTPException(status_code=422, detail="give surface_rpm, wob and/or rop")
+        for name, lim, q in (("surface_rpm", "angular", "rotary_speed"), ("rop", "axial", "rop")):
+            v = si[name]
+            lo, hi = limits[lim]
+            if v is not None and not lo <= v <= hi:
+                f, unit = disp[q]["factor"], disp[q]["unit"]
+                raise HTTPException(status_code=422, detail=(
+                    f"{name} = {v * f:g} {unit} is outside the admissible range "
+                    f"[{lo * f:g}, {hi * f:g}] {unit}"))
+        try:
+            sp = session.set_setpoints(si["surface_rpm"], si["wob"], si["rop"], limits=limits)
+        except DownholeInputError as exc:
+            raise HTTPException(status_code=422, detail=str(exc)) from None
+        return {"setpoints": sp, "reference": session.runner.reference}
+
     @app.post("/api/reference")
     async def reference(request: Request):
         body = await json_object(request)
@@ -464,9 +851,14 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
     @app.websocket("/ws")
     async def ws(websocket: WebSocket):
         await websocket.accept()
+        cursor = 0
         try:
             while True:
-                await websocket.send_text(json.dumps(session.snapshot(), allow_nan=False))
+                msg = state_message()
+                first = cursor == 0
+                msg["trend"], cursor = session.trend(cursor, max_points)
+                msg["trend_reset"] = first
+                await websocket.send_text(json.dumps(msg, allow_nan=False))
                 await asyncio.sleep(1.0 / publish_hz)
         except (WebSocketDisconnect, RuntimeError):
             return
@@ -510,11 +902,19 @@ def serve_dashboard(runner, host: str = "127.0.0.1", port: int = 8765,
                     token: str | None = None, duration: float | None = None,
                     publish_hz: float = 20.0, autostart: bool = True, *, allowed_hosts=(),
                     allowed_origins=(), token_source: str | None = None,
-                    reference_limits: dict | None = None) -> None:
-    """Serve the dashboard (blocking) until Ctrl-C or, with ``duration``, the run's end.
+                    reference_limits: dict | None = None, exit_after_run: bool = True,
+                    units="metric", controllers: dict | None = None,
+                    controller_name: str | None = None, on_run_start=None,
+                    on_run_end=None) -> DashboardSession:
+    """Serve the dashboard (blocking) until Ctrl-C or, with ``exit_after_run`` and a
+    ``duration``, the run's end.
 
-    Parameters are those of :func:`make_app`; ``token_source`` (a file path or a scenario
-    field) is printed instead of the token, of which at most a 4-character prefix is shown.
+    Parameters are those of :func:`make_app` and :class:`DashboardSession`; ``token_source``
+    (a file path or a scenario field) is printed instead of the token, of which at most a
+    4-character prefix is shown. ``autostart`` starts the run at once (False: it waits for
+    the operator's Start on the page); ``on_run_start()`` is called when the run starts the
+    first time (:class:`DashboardSession` ``on_start``), ``on_run_end()`` (in a thread) when
+    it has used up its duration. Returns the session.
 
     Raises
     ------
@@ -525,142 +925,66 @@ def serve_dashboard(runner, host: str = "127.0.0.1", port: int = 8765,
     import uvicorn
 
     check_dashboard_settings(host, token)
-    session = DashboardSession(runner, duration)
+    session = DashboardSession(runner, duration, controllers=controllers,
+                               controller_name=controller_name, on_start=on_run_start)
+    sockets = None
+    if port == 0:  # any free port: bind it here, so that the Host check and the URL name it
+        sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind((host, 0))
+        port = sock.getsockname()[1]
+        sockets = [sock]
     app = make_app(session, token, publish_hz, host=host, port=port,
                    allowed_hosts=allowed_hosts, allowed_origins=allowed_origins,
-                   reference_limits=reference_limits)
+                   reference_limits=reference_limits, units=units)
     server = uvicorn.Server(uvicorn.Config(app, host=host, port=port, log_level="warning"))
-    if autostart:
-        session.start()
+    shown = f"[{host}]" if ":" in host else host
+    url = f"http://{shown}:{port}/"
 
     def watch():
         session.finished.wait()
-        server.should_exit = True
+        if on_run_end is not None:
+            on_run_end()
+        if exit_after_run:
+            server.should_exit = True
+        else:
+            print(f"dashboard: the run has ended; its results stay on {url} until Ctrl-C",
+                  flush=True)
 
     threading.Thread(target=watch, daemon=True).start()
-    shown = f"[{host}]" if ":" in host else host
-    print(f"dashboard: http://{shown}:{port}/", flush=True)
+    print(f"dashboard: {url}" + ("" if autostart else "  (press Start on the page to run)"),
+          flush=True)
     if token:
         print(f"  {_describe_token(token, token_source)} required: open "
-              f"http://{shown}:{port}/?token=<token> once (sets a cookie), or send "
+              f"{url}?token=<token> once (sets a cookie), or send "
               "'Authorization: Bearer <token>'", flush=True)
+    if autostart:
+        session.start()
     try:
-        server.run()
+        server.run(sockets=sockets)
     finally:
         session.stop()
+    return session
 
 
-_PAGE = r"""<!doctype html>
-<html lang="en"><head><meta charset="utf-8"><title>downhole SIL dashboard</title>
-<style>
-body{font-family:system-ui,sans-serif;margin:16px;background:#f7f7f9;color:#222}
-h1{font-size:20px;margin:0 0 8px}
-.row{display:flex;gap:16px;flex-wrap:wrap}
-.card{background:#fff;border:1px solid #ddd;border-radius:6px;padding:10px 14px}
-table{border-collapse:collapse}td{padding:2px 8px;font-variant-numeric:tabular-nums}
-td.v{text-align:right;min-width:110px}
-button{margin:2px 4px 2px 0;padding:5px 12px}
-#status span{font-weight:600}.bad{color:#b00}.good{color:#080}
-canvas{background:#fff;border:1px solid #ddd}
-</style></head><body>
-<h1>downhole real-time SIL &mdash; <span id="model"></span></h1>
-<div class="row">
- <div class="card" id="status">
-  run: <span id="running">?</span> &nbsp; controller: <span id="controller">?</span>
-  &nbsp; safe action: <span id="safe">?</span><br>
-  t = <span id="time">0</span> s &nbsp; deadline misses: <span id="misses">0</span>
-  (<span id="missfrac">0</span> %) &nbsp; overruns: <span id="overruns">0</span>
-  &nbsp; late commands: <span id="late">0</span> &nbsp; scheduler: <span id="sched"></span>
-  <div>
-   <button id="start">Start</button><button id="stop">Stop</button>
-   <button id="ctrl_on">Controller on</button><button id="ctrl_off">Controller off</button>
-  </div>
-  <div>reference: axial <input id="ref_axial" size="7"> m/s, angular
-   <input id="ref_angular" size="7"> rad/s <button id="apply_ref">Apply</button></div>
-  <div id="error" class="bad"></div><div id="refused" class="bad"></div>
- </div>
- <div class="card"><table id="signals"></table></div>
-</div>
-<div class="row" style="margin-top:12px">
- <canvas id="plot_w" width="640" height="220"></canvas>
- <canvas id="plot_v" width="640" height="220"></canvas>
-</div>
-<div class="card" style="margin-top:12px"><b>events</b><pre id="events"></pre></div>
-<script>
-// the token (when one is set) travels in the HttpOnly cookie set by GET /?token=...
-const UNITS = {bit_axial_velocity:"m/s", bit_angular_velocity:"rad/s", wob:"N", tob:"N m",
-  hook_load:"N", surface_torque:"N m", top_drive_angular_velocity:"rad/s",
-  top_drive_axial_velocity:"m/s", reference_axial_velocity:"m/s",
-  reference_angular_velocity:"rad/s", time:"s"};
-const hist = {t:[], w:[], wr:[], v:[], vr:[]};
-let refFilled = false;
-function post(path, body){
-  return fetch(path, {method:"POST", headers:{"Content-Type":"application/json"},
-    body: JSON.stringify(body || {})}).then(r => r.ok ? null : r.json().then(j => {
-      document.getElementById("refused").textContent = path + ": " + j.detail; }));
-}
-document.getElementById("start").onclick = () => post("/api/start");
-document.getElementById("stop").onclick = () => post("/api/stop");
-document.getElementById("ctrl_on").onclick = () => post("/api/controller", {on:true});
-document.getElementById("ctrl_off").onclick = () => post("/api/controller", {on:false});
-document.getElementById("apply_ref").onclick = () => post("/api/reference", {
-  axial: parseFloat(document.getElementById("ref_axial").value),
-  angular: parseFloat(document.getElementById("ref_angular").value)});
-function fmt(x){ if (x === null || x === undefined) return "-";
-  const a = Math.abs(x); return (a !== 0 && (a < 1e-3 || a >= 1e5)) ? x.toExponential(4) : x.toFixed(4); }
-function draw(id, t, a, b, label){
-  const c = document.getElementById(id), g = c.getContext("2d");
-  g.clearRect(0, 0, c.width, c.height);
-  if (t.length < 2) return;
-  const all = a.concat(b).filter(x => x !== null);
-  let lo = Math.min(...all), hi = Math.max(...all); if (hi - lo < 1e-9) { hi += 1; lo -= 1; }
-  const X = i => 40 + (c.width - 50) * (t[i] - t[0]) / Math.max(t[t.length-1] - t[0], 1e-9);
-  const Y = y => c.height - 20 - (c.height - 40) * (y - lo) / (hi - lo);
-  for (const [s, col] of [[b, "#999"], [a, "#1565c0"]]) {
-    g.strokeStyle = col; g.beginPath();
-    s.forEach((y, i) => { if (y === null) return; i ? g.lineTo(X(i), Y(y)) : g.moveTo(X(i), Y(y)); });
-    g.stroke(); }
-  g.fillStyle = "#222"; g.fillText(label + "  [" + fmt(lo) + ", " + fmt(hi) + "]", 44, 14);
-}
-function update(s){
-  document.getElementById("model").textContent = s.model;
-  const r = document.getElementById("running"); r.textContent = s.running ? "running" : "stopped";
-  r.className = s.running ? "good" : "bad";
-  const c = document.getElementById("controller");
-  c.textContent = s.controller_enabled ? "on" : "off"; c.className = s.controller_enabled ? "good" : "bad";
-  document.getElementById("safe").textContent = s.safe_action ? "ACTIVE" : "no";
-  document.getElementById("time").textContent = fmt(s.signals.time);
-  document.getElementById("misses").textContent = s.stats.deadline_misses;
-  document.getElementById("missfrac").textContent =
-    (100 * s.stats.deadline_misses / Math.max(s.stats.steps, 1)).toFixed(2);
-  document.getElementById("overruns").textContent = s.stats.overruns;
-  document.getElementById("late").textContent = s.stats.late_commands;
-  document.getElementById("sched").textContent = s.scheduler;
-  document.getElementById("error").textContent = s.error || "";
-  if (!refFilled) { document.getElementById("ref_axial").value = s.reference.axial;
-    document.getElementById("ref_angular").value = s.reference.angular; refFilled = true; }
-  const tb = document.getElementById("signals"); let html = "";
-  for (const [k, v] of Object.entries(s.signals))
-    html += "<tr><td>" + k + "</td><td class='v' id='sig_" + k + "'>" + fmt(v) + "</td><td>" +
-            (UNITS[k] || "") + "</td></tr>";
-  tb.innerHTML = html;
-  document.getElementById("events").textContent = s.events.join("\n");
-  const t = s.signals.time;
-  if (t !== null && (hist.t.length === 0 || t !== hist.t[hist.t.length-1])) {
-    if (hist.t.length && t < hist.t[hist.t.length-1]) for (const k in hist) hist[k] = [];
-    hist.t.push(t); hist.w.push(s.signals.bit_angular_velocity);
-    hist.wr.push(s.signals.reference_angular_velocity);
-    hist.v.push(s.signals.bit_axial_velocity); hist.vr.push(s.signals.reference_axial_velocity);
-    if (hist.t.length > 600) for (const k in hist) hist[k].shift();
-  }
-  draw("plot_w", hist.t, hist.w, hist.wr, "bit angular velocity (rad/s) vs reference");
-  draw("plot_v", hist.t, hist.v, hist.vr, "bit axial velocity (m/s) vs reference");
-}
-function connect(){
-  const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
-  ws.onmessage = ev => update(JSON.parse(ev.data));
-  ws.onclose = () => setTimeout(connect, 1000);
-}
-connect();
-</script></body></html>
-"""
+_STATIC = {"dashboard.html": "text/html; charset=utf-8",
+           "dashboard.js": "text/javascript; charset=utf-8",
+           "dashboard.css": "text/css; charset=utf-8",
+           "vendor/uplot/uPlot.iife.min.js": "text/javascript; charset=utf-8",
+           "vendor/uplot/uPlot.min.css": "text/css; charset=utf-8",
+           "vendor/uplot/LICENSE": "text/plain; charset=utf-8"}
+
+
+def _static_files() -> dict:
+    """``{name: (bytes, media type)}`` of the page and its vendored chart library (read from
+    the package once per app)."""
+    from importlib.resources import files
+
+    root = files("downhole.sil").joinpath("static")
+    out = {}
+    for name, media in _STATIC.items():
+        node = root
+        for part in name.split("/"):
+            node = node.joinpath(part)
+        out[name] = (node.read_bytes(), media)
+    return out

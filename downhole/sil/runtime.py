@@ -239,6 +239,8 @@ class RealTimeRunner:
         self.events: deque = deque(maxlen=1000)
         self.event_count = 0
         self._stop = threading.Event()
+        self._switch_lock = threading.Lock()
+        self._pending_controller = None
         self.running = False
         self._reset_state()
 
@@ -323,6 +325,56 @@ class RealTimeRunner:
         else:
             self.link.release_owner()
             self._drain_link_events()
+
+    def switch_controller(self, controller, name: str | None = None) -> None:
+        """Operator action: drive the plant with another in-process controller.
+
+        The new controller is checked against the plant (``reset()``/``command()``, and
+        :func:`~downhole.control.base.check_pair` for one that declares ``needs`` and
+        ``commands``), then takes over at the start of the next step: it is reset there, a
+        ``controller_switch`` event names it, and its first command goes through the same
+        admissibility check as every other. A safe action in progress stays in force until
+        :meth:`arm` (the dashboard's "controller on"). Thread-safe; while stopped the switch is
+        made at once.
+
+        Raises
+        ------
+        DownholeInputError
+            A runner whose controller is remote (SIL over the UDP link; HIL is fine), or a
+            controller that cannot drive this plant.
+        """
+        from downhole.control.base import check_pair
+
+        if self.link is not None and not self.hil:
+            raise DownholeInputError("the controller is remote (UDP link): switch it with "
+                                     "replace_controller() on the controller's side")
+        if not (hasattr(controller, "command") and hasattr(controller, "reset")):
+            raise DownholeInputError("controller must have reset() and command(t, observation, "
+                                     "reference)")
+        why = check_pair(controller, self.plant)
+        if why is not None:
+            raise DownholeInputError(f"cannot switch to this controller: {why}")
+        label = name or type(controller).__name__
+        with self._switch_lock:
+            if self.running:
+                self._pending_controller = (controller, label)
+                return
+            self._pending_controller = None
+        controller.reset()
+        self.controller = controller
+        self._bad_since = None
+        self._event("controller_switch", label)
+
+    def _take_pending_controller(self) -> None:
+        with self._switch_lock:
+            pending, self._pending_controller = self._pending_controller, None
+        if pending is None:
+            return
+        controller, label = pending
+        controller.reset()
+        self.controller = controller
+        self._bad_since = None
+        self._event("controller_switch", label)
 
     # ---------------------------------------------------------------- state
     def _reset_state(self):
@@ -448,6 +500,8 @@ class RealTimeRunner:
         return self._surface_command(t, obs, remote)
 
     def _surface_command(self, t, obs, remote):
+        if self._pending_controller is not None:
+            self._take_pending_controller()
         if not self.controller_enabled:
             cmd = dict(self.manual_command)
         elif self._safe_since is not None:
