@@ -20,7 +20,7 @@ from functools import lru_cache
 
 import pint
 
-__all__ = ["UnitError", "to_si", "as_si", "as_si_array", "SI_UNITS", "RANGES",
+__all__ = ["UnitError", "to_si", "as_si", "as_si_array", "si_or_number", "SI_UNITS", "RANGES",
            "MAX_QUANTITY_LENGTH", "QUANTITY_GRAMMAR", "check_range", "parse_quantity_string",
            "UnitSystem", "SYSTEMS", "display_units", "parse_unit_override", "unit_label",
            "registry", "convert"]
@@ -339,6 +339,14 @@ def as_si(value, dimension: str, what: str) -> float:
         return to_si(value, dimension)
     except UnitError as exc:
         raise DownholeInputError(f"{what}: {exc}") from None
+
+
+def si_or_number(value, dimension: str, what: str):
+    """``value`` converted by :func:`as_si` when it is a quantity string or a pint Quantity;
+    anything else is returned unchanged (numbers are SI and keep their own checks)."""
+    if isinstance(value, str) or _is_quantity(value):
+        return as_si(value, dimension, what)
+    return value
 
 
 def as_si_array(values, dimension: str, what: str):
