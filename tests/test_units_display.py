@@ -426,3 +426,35 @@ def test_sweep_axes_and_csv_in_display_units(tmp_path):
     np.testing.assert_allclose(frame["mean_wob [klbf]"],
                                pint_convert([1e5, 1.1e5, 1.2e5], "N", "klbf"))
     assert "stick_slip_severity [-]" in frame.columns and "error" in frame.columns
+
+
+def test_compare_report_tables_and_plots_in_display_units():
+    from downhole.compare.report import render_html
+
+    case = {"id": "c1", "system": "ch3", "speed": 10.0, "hook": "force", "wob": 1e5,
+            "rop": 0.01, "start": "rest", "pre_time": 0.0, "epsilon_scale": 1.0, "noise": False,
+            "delay": 0.0, "duration": 5.0, "n_elements": 20, "dt": 1e-3, "region": "r"}
+    sc = {"stick_slip_severity": 0.5, "time_to_suppress": None, "stuck_fraction": 0.0,
+          "bit_bounce_fraction": 0.0, "mean_rop": 0.01, "mse": 6.3e7,
+          "tracking_rms_angular": 1.0, "tracking_rms_axial": 1e-3,
+          "peak_surface_torque": 2.0e4, "effort": {"top_drive_angular_velocity": 2.0}}
+    scores = {"suite": {"name": "x", "version": 1}, "cases": [case],
+              "controllers": {"pi": {"source": "builtin", "description": "d"}},
+              "summary": {"pi": {"ok": 1, "n/a": 0, "failed": 0, "stick_slip_cases": 0,
+                                 "suppressed": 0, "mean_severity_stick_slip_cases": None,
+                                 "mean_stuck_fraction_stick_slip_cases": None,
+                                 "mean_relative_speed_tracking_rms": 0.1}},
+              "cells": {"c1": {"pi": {"status": "ok", "scores": sc}}},
+              "score_definitions": {}}
+    traces = {"c1": {"pi": {"time": [0.0, 1.0], "bit_angular_velocity": [0.0, 10.0],
+                            "surface_torque": [0.0, 2e4]}}}
+    page = render_html(scores, traces, "oilfield")
+    assert "ROP [ft/h]" in page and "MSE [psi]" in page and "peak torque [kft·lbf]" in page
+    rop = U.Quantity(0.01, "m/s").to("ft/h").magnitude
+    assert f"<td>{rop:.3g}</td>" in page
+    torque = U.Quantity(2e4, "N*m").to("kft*lbf").magnitude
+    assert f"<td>{torque:.3g}</td>" in page
+    wob = U.Quantity(1e5, "N").to("klbf").magnitude
+    assert f"WOB {wob:.4g} klbf" in page and "95.49 rpm" in page
+    si = render_html(scores, traces)
+    assert "ROP [mm/s]" in si and "MSE [MPa]" in si and "speed RMS [rpm]" in si
