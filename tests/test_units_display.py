@@ -458,3 +458,15 @@ def test_compare_report_tables_and_plots_in_display_units():
     assert f"WOB {wob:.4g} klbf" in page and "95.49 rpm" in page
     si = render_html(scores, traces)
     assert "ROP [mm/s]" in si and "MSE [MPa]" in si and "speed RMS [rpm]" in si
+
+
+def test_optimize_dp_prints_the_final_velocity_in_display_units(tmp_path, capsys):
+    scen = tmp_path / "p.toml"
+    scen.write_text("[optimize]\nhorizon = 3.0\nstep = 0.25\n")
+    assert main(["optimize", "dp", str(scen), "--method", "customized", "--out",
+                 str(tmp_path / "o"), "--no-progress", "--no-replay", "--units",
+                 "oilfield"]) == 0
+    sol = np.load(tmp_path / "o" / "solution.npz")
+    v = U.Quantity(float(sol["x2"][-1]), "m/s").to("ft/h").magnitude
+    w = U.Quantity(float(sol["x4"][-1]), "rad/s").to("rpm").magnitude
+    assert f"{v:.4g} ft/h, {w:.4g} rpm" in capsys.readouterr().out

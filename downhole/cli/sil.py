@@ -27,12 +27,13 @@ import signal
 import threading
 import time
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
 
 from downhole._atomic import OutputFile, check_output_path
 from downhole.cli import app, fail
+from downhole.cli._units import UNIT_OPTION, UNITS_OPTION, resolve_units
 
 __all__ = ["sil", "sil_controller", "export_fmu"]
 
@@ -125,7 +126,8 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         unpaced: bool = typer.Option(False, "--unpaced", help="as fast as possible"),
         link_key_file: Optional[Path] = typer.Option(
             None, "--link-key-file", help="shared key of the UDP link (chmod 600; default: "
-            "$DOWNHOLE_LINK_KEY); required beyond loopback")):
+            "$DOWNHOLE_LINK_KEY); required beyond loopback"),
+        units: str = UNITS_OPTION, unit: Optional[List[str]] = UNIT_OPTION):
     """Run a scenario in the real-time SIL runtime."""
     from downhole.sil.console import RunProgress, wait_with_countdown
     from downhole.sil.runtime import RealTimeRunner, SafetyPolicy
@@ -133,6 +135,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
 
     _positive_seconds(duration, "--duration")
     _positive_seconds(wait, "--wait")
+    display = resolve_units(units, unit)
     sc = load_sil_scenario(scenario)
     if remote:
         sc.controller.remote = True
@@ -202,7 +205,8 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                             duration=dur, publish_hz=d.publish_hz,
                             allowed_origins=d.allowed_origins, allowed_hosts=d.allowed_hosts,
                             token_source=d.token_file or f"{scenario} [dashboard] token",
-                            reference_limits=_reference_limits(sc))
+                            reference_limits=_reference_limits(sc),
+                            **_units_kwarg(serve_dashboard, display))
             res = runner.result()
         elif progress:
             with RunProgress(runner, dur):
@@ -228,6 +232,17 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                            "link": runner.link.counters if runner.link else None,
                            "events": runner.event_count}, indent=1))
     _write_sil_result(res, out, out_file, stopper)
+
+
+def _units_kwarg(func, display) -> dict:
+    """``{"units": display}`` when ``func`` takes a ``units`` keyword (the dashboard shows its
+    plots and numbers in the display units), else nothing (SI)."""
+    import inspect
+
+    try:
+        return {"units": display} if "units" in inspect.signature(func).parameters else {}
+    except (TypeError, ValueError):
+        return {}
 
 
 def _write_sil_result(res, out, out_file, stopper) -> None:
