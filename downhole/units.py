@@ -409,6 +409,10 @@ KIND_ALIASES = {"speed": "angular_velocity", "rotary_speed": "angular_velocity",
                 "mud_density": "density", "dls": "curvature", "dogleg_severity": "curvature",
                 "stress": "pressure"}
 
+#: Signals shown in a kind finer than their dimension: the depth of cut is a small length,
+#: read in inches (oilfield) or millimetres (metric) like a diameter.
+NAME_KINDS = {"depth_of_cut": "diameter"}
+
 _SI_DISPLAY = dict(SI_UNITS, diameter="m")
 
 _OILFIELD = {
@@ -602,7 +606,10 @@ class UnitSystem:
             return si_unit, si_unit  # a unit of no known kind: shown as stored
         if dim == "dimensionless":
             return si_unit, si_unit
-        return si_unit, self.kinds.get(dim, si_unit)
+        kind = NAME_KINDS.get(name, dim)
+        if _kind_dimension(kind) != dim:
+            kind = dim
+        return si_unit, self.kinds.get(kind, si_unit)
 
     def unit_of(self, name: str, si_unit: str | None = None) -> str:
         """Display unit (pint string; ``""``/``"-"`` dimensionless) of signal or metric ``name``;

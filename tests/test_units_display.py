@@ -27,7 +27,7 @@ U = pint.UnitRegistry()
 OILFIELD = {"wob": "klbf", "tob": "kft*lbf", "hook_load": "klbf", "surface_torque": "kft*lbf",
             "bit_angular_velocity": "rpm", "top_drive_angular_velocity": "rpm",
             "bit_axial_velocity": "ft/h", "top_drive_axial_velocity": "ft/h",
-            "bit_axial_position": "ft", "depth_of_cut": "ft", "bit_angle": "deg"}
+            "bit_axial_position": "ft", "depth_of_cut": "in", "bit_angle": "deg"}
 SI = {"wob": "N", "tob": "N*m", "hook_load": "N", "surface_torque": "N*m",
       "bit_angular_velocity": "rad/s", "top_drive_angular_velocity": "rad/s",
       "bit_axial_velocity": "m/s", "top_drive_axial_velocity": "m/s",
