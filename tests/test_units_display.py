@@ -470,3 +470,13 @@ def test_optimize_dp_prints_the_final_velocity_in_display_units(tmp_path, capsys
     v = U.Quantity(float(sol["x2"][-1]), "m/s").to("ft/h").magnitude
     w = U.Quantity(float(sol["x4"][-1]), "rad/s").to("rpm").magnitude
     assert f"{v:.4g} ft/h, {w:.4g} rpm" in capsys.readouterr().out
+
+
+def test_neutral_simulation_takes_quantity_strings():
+    from downhole.string.neutral import simulate_neutral
+
+    res = simulate_neutral("table_3_1", duration="20 ms", dt=U.Quantity(0.1, "ms"),
+                           record_dt="1 ms")
+    assert res.time[-1] == pytest.approx(0.02) and np.diff(res.time)[0] == pytest.approx(1e-3)
+    with pytest.raises(DownholeInputError, match="dt: quantity '1 m' has unit"):
+        simulate_neutral("table_3_1", duration=0.02, dt="1 m")

@@ -8,7 +8,6 @@ and ``bit_bounce_fraction`` metrics, and draws iso-lines of the mean WOB when th
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
