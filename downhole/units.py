@@ -654,7 +654,7 @@ class UnitSystem:
         return {"system": self.name, "kinds": self.kinds, "overrides": dict(self.overrides)}
 
 
-def display_units(system="si", overrides=None) -> UnitSystem:
+def display_units(system="si", overrides=None, **units) -> UnitSystem:
     """A display :class:`UnitSystem` by name, with per-quantity overrides.
 
     Parameters
@@ -664,6 +664,8 @@ def display_units(system="si", overrides=None) -> UnitSystem:
         ``"oilfield"`` (ft, ft/h, rpm, klbf, kft·lbf, psi, lb/gal, in, deg/100ft).
     overrides : dict or list of str, optional
         ``{"torque": "kN*m", "wob": "kN"}`` or ``["torque=kN*m", "wob=kN"]``.
+    **units
+        The same as keywords, welleng-style: ``display_units("oilfield", torque="kN*m")``.
 
     Raises
     ------
@@ -680,7 +682,8 @@ def display_units(system="si", overrides=None) -> UnitSystem:
             raise DownholeInputError(f"units: expected one of {', '.join(SYSTEMS)}, got "
                                      f"{system!r}")
         base, merged = system.strip().lower(), {}
-    items = overrides.items() if isinstance(overrides, dict) else (overrides or [])
+    items = list(overrides.items() if isinstance(overrides, dict) else (overrides or []))
+    items += list(units.items())
     try:
         for item in items:
             key, unit = (item if isinstance(item, tuple) else parse_unit_override(item))

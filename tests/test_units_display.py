@@ -238,6 +238,11 @@ def test_kinds_overrides_and_api_for_dashboards():
     assert f.unit_of("bit_angular_velocity") == "rpm" and f.unit_of("wob") == "kN"
     assert display_units("si").unit_of("bit_angular_velocity") == "rad/s"
     assert u.to_dict()["system"] == "oilfield"
+    kw = display_units("oilfield", torque="kN*m", wob="kN")  # welleng-style keywords
+    assert kw.unit_of("tob") == "kN*m" and kw.unit_of("wob") == "kN"
+    assert kw.unit_of("hook_load") == "klbf"
+    with pytest.raises(DownholeInputError, match="torque=psi: psi is not a unit of torque"):
+        display_units("oilfield", torque="psi")
     # DLS through the registry's own definition
     from downhole.units import convert
 
