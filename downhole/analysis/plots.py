@@ -142,6 +142,7 @@ def plot_overview(result, path=None, title=None, units=None):
     ax.set_ylabel(f"{label} [{units.label('bit_axial_position')}]")
     if measured:
         ax.invert_yaxis()
+    ax.ticklabel_format(axis="y", useOffset=False, style="plain")  # 8858.4 ft, not +8.858e3
     ax.set_xlabel(f"time [{tu}]")
     for a in axes:
         a.grid(alpha=0.3)
