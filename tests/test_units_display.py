@@ -307,6 +307,8 @@ def test_string_well_and_rig_take_unit_strings():
     w = WellPath.from_sections([Vertical("8000 ft"), Arc("3000 ft", "20 deg")])
     arc = U.Quantity(3000, "ft").to("m").magnitude * math.radians(20)
     assert w.total_depth == pytest.approx(U.Quantity(8000, "ft").to("m").magnitude + arc)
+    assert float(w.tvd("8000 ft")) == pytest.approx(U.Quantity(8000, "ft").to("m").magnitude)
+    np.testing.assert_allclose(w.tvd(U.Quantity([1000, 2000], "ft")), [304.8, 609.6])
     s = WellPath.from_survey(U.Quantity([0, 5000, 9600], "ft"), U.Quantity([0, 0, 10], "deg"),
                              [0, 0, 0])
     assert s.total_depth == pytest.approx(U.Quantity(9600, "ft").to("m").magnitude)

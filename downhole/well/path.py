@@ -335,7 +335,9 @@ class WellPath:
 
     # --- queries -----------------------------------------------------------------------------
     def _locate(self, md):
-        md = np.asarray(md, float)
+        # queries take metres, quantity strings ("3000 ft") or pint quantities
+        md = as_si_array(md, "length", "measured depth") if _has_units(md) else \
+            np.asarray(md, float)
         if np.any(~np.isfinite(md)):
             raise DownholeInputError("measured depth query contains non-finite values")
         lo, hi = self._md[0], self._md[-1]
