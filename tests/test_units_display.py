@@ -487,3 +487,17 @@ def test_neutral_simulation_takes_quantity_strings():
     assert res.time[-1] == pytest.approx(0.02) and np.diff(res.time)[0] == pytest.approx(1e-3)
     with pytest.raises(DownholeInputError, match="dt: quantity '1 m' has unit"):
         simulate_neutral("table_3_1", duration=0.02, dt="1 m")
+
+
+def test_overview_of_a_result_without_depth_or_surface_channels():
+    from downhole.analysis.plots import plot_overview
+    from downhole.sim import Result
+
+    t = np.linspace(0.0, 10.0, 501)
+    res = Result(t, {"bit_angular_velocity": 10 + np.sin(t), "wob": 1e5 + 1e4 * np.sin(t),
+                     "tob": 5e3 + 1e3 * np.cos(t)})
+    fig = plot_overview(res, units="oilfield")
+    assert not any("depth" in a.get_ylabel() or "advance" in a.get_ylabel() for a in fig.axes)
+    _axis(fig, "WOB [klbf]")
+    _axis(fig, "TOB [kft·lbf]")
+    assert fig.axes[4].get_xlabel() == "time [s]"

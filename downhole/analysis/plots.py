@@ -84,8 +84,10 @@ def plot_overview(result, path=None, title=None, units=None):
     units = display_units(units or "si").for_figures()
     t = result.time
     tu = units.label("time", "s")
-    fig, axes = plt.subplots(6, 1, figsize=(10, 15), sharex=True,
-                             gridspec_kw={"height_ratios": [1, 1.2, 0.7, 1, 1, 0.8]})
+    has_depth = "bit_axial_position" in result
+    ratios = [1, 1.2, 0.7, 1, 1] + ([0.8] if has_depth else [])
+    fig, axes = plt.subplots(len(ratios), 1, figsize=(10, 2.5 * sum(ratios) + 1), sharex=True,
+                             gridspec_kw={"height_ratios": ratios})
 
     # --- axial velocities
     ax = axes[0]
@@ -98,7 +100,8 @@ def plot_overview(result, path=None, title=None, units=None):
                 {"color": _COLORS["top_drive"]} if label == "top drive" else {})
             ax.plot(t, v, style, lw=1 if label != "bit" else 1.2, label=label, **kw)
     ax.set_ylabel(f"axial velocity [{units.label('bit_axial_velocity')}]")
-    ax.legend(loc="upper right", fontsize=8)
+    if ax.get_lines():
+        ax.legend(loc="upper right", fontsize=8)
 
     # --- stick-slip: rotary speeds, stuck intervals
     ax = axes[1]
@@ -134,16 +137,17 @@ def plot_overview(result, path=None, title=None, units=None):
     _load_panel(axes[4], result, t, ("hook_load", "hook load"),
                 ("surface_torque", "surface torque"), units)
 
-    # --- depth
-    ax = axes[5]
-    label, depth, measured = _bit_depth(result)
-    d, du = units.convert("bit_axial_position", depth)
-    ax.plot(t, d, color=_COLORS["depth"], lw=1.2)
-    ax.set_ylabel(f"{label} [{units.label('bit_axial_position')}]")
-    if measured:
-        ax.invert_yaxis()
-    ax.ticklabel_format(axis="y", useOffset=False, style="plain")  # 8858.4 ft, not +8.858e3
-    ax.set_xlabel(f"time [{tu}]")
+    # --- depth (where the run records the bit's position)
+    if has_depth:
+        ax = axes[5]
+        label, depth, measured = _bit_depth(result)
+        d, du = units.convert("bit_axial_position", depth)
+        ax.plot(t, d, color=_COLORS["depth"], lw=1.2)
+        ax.set_ylabel(f"{label} [{units.label('bit_axial_position')}]")
+        if measured:
+            ax.invert_yaxis()
+        ax.ticklabel_format(axis="y", useOffset=False, style="plain")  # 8858.4 ft, not 8.858e3
+    axes[-1].set_xlabel(f"time [{tu}]")
     for a in axes:
         a.grid(alpha=0.3)
     if title:
