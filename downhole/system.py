@@ -40,6 +40,7 @@ from downhole.params import BitParams, LumpedParams
 from downhole.params.rig import Hook, TopDrive
 from downhole.params.strings import NeutralStringParams
 from downhole.string.drillstring import DrillString, StringSegment
+from downhole.units import si_or_number
 from downhole.well.path import WellPath
 
 __all__ = ["DrillingSystem", "Rig", "FIDELITIES", "LumpedDerivation"]
@@ -155,6 +156,11 @@ class DrillingSystem:
                                      f"{type(self.string).__name__}")
         if not isinstance(self.bit, BitParams):
             raise DownholeInputError(f"bit must be BitParams, got {type(self.bit).__name__}")
+        object.__setattr__(self, "lump_length", si_or_number(self.lump_length, "length",
+                                                             "lump_length"))
+        if isinstance(self.wave_section, (tuple, list)):
+            object.__setattr__(self, "wave_section", tuple(
+                si_or_number(x, "length", "wave_section") for x in self.wave_section))
         _positive("friction", self.friction, allow_zero=True)
         _positive("rayleigh_alpha", self.rayleigh_alpha, allow_zero=True)
         _positive("rayleigh_beta", self.rayleigh_beta, allow_zero=True)

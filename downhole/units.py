@@ -13,13 +13,17 @@ range of its physical dimension (:data:`RANGES`); the same ranges apply to bare 
 from __future__ import annotations
 
 import math
+import numbers
 import re
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import pint
 
-__all__ = ["UnitError", "to_si", "SI_UNITS", "RANGES", "MAX_QUANTITY_LENGTH",
-           "QUANTITY_GRAMMAR", "check_range", "parse_quantity_string"]
+__all__ = ["UnitError", "to_si", "as_si", "as_si_array", "si_or_number", "SI_UNITS", "RANGES",
+           "MAX_QUANTITY_LENGTH", "QUANTITY_GRAMMAR", "check_range", "parse_quantity_string",
+           "UnitSystem", "SYSTEMS", "display_units", "parse_unit_override", "unit_label",
+           "registry", "convert"]
 
 #: The SI unit downhole stores for each physical dimension name used in parameter schemas.
 SI_UNITS: dict[str, str] = {
@@ -42,6 +46,7 @@ SI_UNITS: dict[str, str] = {
     "second_moment": "m**4",
     "dimensionless": "",
     "acceleration": "m/s**2",
+    "curvature": "rad/m",
 }
 
 #: Admissible range ``(low, high)`` of every dimension, in the SI unit of :data:`SI_UNITS`
@@ -68,6 +73,7 @@ RANGES: dict[str, tuple[float, float]] = {
     "second_moment": (0.0, 1e2),              # m^4
     "dimensionless": (-1e15, 1e15),
     "acceleration": (-1e3, 1e3),              # m/s^2
+    "curvature": (0.0, 10.0),                 # rad/m (dogleg severity; 10 rad/m = 1.7 deg/ft)
 }
 
 #: Longest accepted quantity string (characters).
@@ -100,7 +106,16 @@ def _registry() -> pint.UnitRegistry:
     ureg.define("klbf = 1000 * lbf")
     ureg.define("kft_lbf = 1000 * foot * lbf")
     ureg.define("ft_lbf = foot * lbf")
+    # dogleg severity, the way directional drillers quote it
+    ureg.define("deg_per_100ft = degree / (100 * foot)")
+    ureg.define("deg_per_30m = degree / (30 * meter)")
     return ureg
+
+
+def registry() -> pint.UnitRegistry:
+    """The pint registry downhole converts with (pint's defaults plus ``klbf``, ``kft_lbf``,
+    ``ft_lbf``, ``deg_per_100ft`` and ``deg_per_30m``)."""
+    return _registry()
 
 
 def _check_unit_expression(text: str, original: str) -> None:
@@ -245,15 +260,22 @@ def to_si(value: float | int | str, dimension: str) -> float:
         return check_range(float(value), dimension)
     if isinstance(value, float):
         return check_range(value, dimension)
-    if not isinstance(value, str):
-        raise UnitError(f"expected a number or a quantity string, got {type(value).__name__}")
-    number, unit = parse_quantity_string(value)
     ureg = _registry()
     target = SI_UNITS[dimension]
-    try:
-        q = ureg.Quantity(number, unit) if unit else ureg.Quantity(number)
-    except Exception as exc:  # pint raises several error types  # noqa: BLE001
-        raise UnitError(f"cannot parse quantity {value!r}: {exc}") from None
+    if _is_quantity(value):
+        q = _own_quantity(value)
+        if q.magnitude.__class__ is not float and not isinstance(q.magnitude, numbers.Real):
+            raise UnitError(f"expected a scalar quantity, got {value!r}")
+    elif isinstance(value, numbers.Real):  # numpy scalars
+        return check_range(float(value), dimension)
+    elif not isinstance(value, str):
+        raise UnitError(f"expected a number or a quantity string, got {type(value).__name__}")
+    else:
+        number, unit = parse_quantity_string(value)
+        try:
+            q = ureg.Quantity(number, unit) if unit else ureg.Quantity(number)
+        except Exception as exc:  # pint raises several error types  # noqa: BLE001
+            raise UnitError(f"cannot parse quantity {value!r}: {exc}") from None
     try:
         if target == "":
             si = q.to("dimensionless").magnitude
@@ -273,3 +295,400 @@ def to_si(value: float | int | str, dimension: str) -> float:
     except (OverflowError, TypeError, ValueError):
         raise UnitError(f"quantity {value!r} does not convert to a finite number") from None
     return check_range(si, dimension)
+
+
+# ----------------------------------------------------------------------- quantities from Python
+def _is_quantity(value) -> bool:
+    """True for a pint Quantity (of any registry)."""
+    return isinstance(value, pint.Quantity) or (
+        hasattr(value, "magnitude") and hasattr(value, "units")
+        and hasattr(value, "dimensionality"))
+
+
+def _own_quantity(value):
+    """``value`` (a pint Quantity, possibly of another registry) in downhole's registry."""
+    ureg = _registry()
+    if getattr(value, "_REGISTRY", None) is ureg:
+        return value
+    try:
+        return ureg.Quantity(value.magnitude, str(value.units))
+    except Exception as exc:  # noqa: BLE001 - a unit our registry does not know
+        raise UnitError(f"cannot use quantity {value!r}: {exc}") from None
+
+
+def as_si(value, dimension: str, what: str) -> float:
+    """``value`` (a number in SI, a quantity string such as ``"5 in"``, or a pint Quantity) as a
+    float in the SI unit of ``dimension``; the API boundary of the public Python constructors.
+
+    Raises
+    ------
+    DownholeInputError
+        ``what: <reason>``, when the value cannot be parsed, has the wrong dimension or lies
+        outside the admissible range of ``dimension`` (:data:`RANGES`).
+
+    Examples
+    --------
+    >>> as_si("5 in", "length", "outer_diameter")
+    0.127
+    >>> round(as_si("120 rpm", "angular_velocity", "speed"), 4)
+    12.5664
+    """
+    from downhole.errors import DownholeInputError
+
+    try:
+        return to_si(value, dimension)
+    except UnitError as exc:
+        raise DownholeInputError(f"{what}: {exc}") from None
+
+
+def si_or_number(value, dimension: str, what: str):
+    """``value`` converted by :func:`as_si` when it is a quantity string or a pint Quantity;
+    anything else is returned unchanged (numbers are SI and keep their own checks)."""
+    if isinstance(value, str) or _is_quantity(value):
+        return as_si(value, dimension, what)
+    return value
+
+
+def as_si_array(values, dimension: str, what: str):
+    """Like :func:`as_si` for an array: a pint Quantity array, a sequence of numbers (SI) or of
+    quantity strings; returns a float ndarray (finite values only)."""
+    import numpy as np
+
+    from downhole.errors import DownholeInputError
+
+    target = SI_UNITS[dimension]
+    try:
+        if _is_quantity(values):
+            q = _own_quantity(values)
+            try:
+                arr = np.asarray(q.to(target).magnitude if target else
+                                 q.to("dimensionless").magnitude, dtype=float)
+            except pint.DimensionalityError:
+                raise UnitError(f"quantity has unit '{q.units}', which cannot be converted to "
+                                f"{target or 'a plain number'}") from None
+        elif isinstance(values, str):
+            arr = np.asarray(to_si(values, dimension), dtype=float)
+        else:
+            try:
+                arr = np.asarray(values, dtype=float)
+            except (TypeError, ValueError):  # quantity strings or pint quantities inside
+                obj = np.asarray(values, dtype=object)
+                arr = np.array([to_si(v, dimension) if isinstance(v, str) or _is_quantity(v)
+                                else float(v) for v in obj.ravel()],
+                               dtype=float).reshape(obj.shape)
+    except UnitError as exc:
+        raise DownholeInputError(f"{what}: {exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise DownholeInputError(f"{what}: expected numbers or quantities, got {values!r} "
+                                 f"({exc})") from None
+    if not np.all(np.isfinite(arr)):
+        raise DownholeInputError(f"{what}: values must be finite")
+    return arr
+
+
+def convert(values, from_unit: str, to_unit: str):
+    """``values`` (a number or an array) converted from ``from_unit`` to ``to_unit`` with pint
+    (downhole's registry). Scalars come back as float."""
+    import numpy as np
+
+    if (from_unit or "") in ("", "-") and (to_unit or "") in ("", "-"):
+        return values
+    ureg = _registry()
+    q = ureg.Quantity(np.asarray(values, dtype=float), from_unit or "")
+    out = q.to(to_unit or "dimensionless").magnitude
+    return float(out) if np.ndim(out) == 0 else out
+
+
+# ------------------------------------------------------------------------- display unit systems
+#: Display kinds beyond the dimensions of :data:`SI_UNITS`: name -> dimension.
+EXTRA_KINDS = {"diameter": "length"}
+
+#: Short names accepted for kinds in per-quantity overrides (``--unit speed=rad/s``).
+KIND_ALIASES = {"speed": "angular_velocity", "rotary_speed": "angular_velocity",
+                "rop": "velocity", "weight": "force", "load": "force", "depth": "length",
+                "mud_density": "density", "dls": "curvature", "dogleg_severity": "curvature",
+                "stress": "pressure"}
+
+#: Signals shown in a kind finer than their dimension: the depth of cut is a small length,
+#: read in inches (oilfield) or millimetres (metric) like a diameter.
+NAME_KINDS = {"depth_of_cut": "diameter"}
+
+_SI_DISPLAY = dict(SI_UNITS, diameter="m")
+
+_OILFIELD = {
+    "length": "ft", "diameter": "in", "velocity": "ft/h", "angular_velocity": "rpm",
+    "angle": "deg", "force": "klbf", "torque": "kft*lbf", "mass": "lb", "inertia": "lb*ft**2",
+    "stiffness": "lbf/ft", "torsional_stiffness": "ft*lbf/rad", "damping": "lbf*s/ft",
+    "torsional_damping": "ft*lbf*s/rad", "pressure": "psi", "time": "s", "density": "lb/gal",
+    "area": "in**2", "second_moment": "in**4", "dimensionless": "", "acceleration": "ft/s**2",
+    "curvature": "deg_per_100ft",
+}
+
+_METRIC = {
+    "length": "m", "diameter": "mm", "velocity": "m/h", "angular_velocity": "rpm",
+    "angle": "deg", "force": "kN", "torque": "kN*m", "mass": "kg", "inertia": "kg*m**2",
+    "stiffness": "kN/m", "torsional_stiffness": "kN*m/rad", "damping": "kN*s/m",
+    "torsional_damping": "N*m*s/rad", "pressure": "MPa", "time": "s", "density": "kg/m**3",
+    "area": "mm**2", "second_moment": "cm**4", "dimensionless": "", "acceleration": "m/s**2",
+    "curvature": "deg_per_30m",
+}
+
+#: Figures of the ``si`` system: SI with prefixes a plot reader expects, rotary speed in rpm.
+_SI_FIGURES = dict(_SI_DISPLAY, velocity="mm/s", angular_velocity="rpm", angle="deg",
+                   force="kN", torque="kN*m", pressure="MPa", curvature="deg_per_30m")
+
+#: The named display systems: name -> (kind -> pint unit string).
+SYSTEMS: dict[str, dict[str, str]] = {"si": _SI_DISPLAY, "metric": _METRIC,
+                                      "oilfield": _OILFIELD}
+
+_PRETTY = (("deg_per_100ft", "deg/100ft"), ("deg_per_30m", "deg/30m"), ("kft_lbf", "kft*lbf"),
+           ("ft_lbf", "ft*lbf"), ("**2", "²"), ("**3", "³"), ("**4", "⁴"), ("^2", "²"),
+           ("^3", "³"), ("^4", "⁴"), ("*", "·"))
+
+
+def unit_label(unit: str) -> str:
+    """A unit string as printed in tables and axis labels: ``"kft*lbf"`` -> ``"kft·lbf"``,
+    ``"kg/m**3"`` -> ``"kg/m³"``, dimensionless -> ``"-"``."""
+    if unit in ("", "-", None):
+        return "-"
+    for a, b in _PRETTY:
+        unit = unit.replace(a, b)
+    return unit
+
+
+def _dimension_of_unit(unit: str | None) -> str | None:
+    if unit is None:
+        return None
+    u = unit.replace(" ", "")
+    if u in ("", "-", "1", "dimensionless"):
+        return "dimensionless"
+    for dim, si in SI_UNITS.items():
+        if si == u:
+            return dim
+    return None
+
+
+def _kind_dimension(kind: str) -> str:
+    return EXTRA_KINDS.get(kind, kind)
+
+
+def _declared(name: str):
+    """(dimension, SI unit) of a declared signal or metric, or None."""
+    from downhole.signals import METRICS, SIGNALS
+
+    sig = SIGNALS.get(name)
+    if sig is not None:
+        return sig.dimension, sig.unit
+    m = METRICS.get(name)
+    if m is not None:
+        return _dimension_of_unit(m.unit), m.unit
+    return None
+
+
+def parse_unit_override(text: str) -> tuple[str, str]:
+    """``"torque=kN*m"`` -> ``("torque", "kN*m")``, checked (see :meth:`UnitSystem.override`).
+
+    The key is a kind (a dimension of :data:`SI_UNITS`, ``diameter``, or an alias of
+    :data:`KIND_ALIASES`) or the name of a declared signal or metric (``wob``, ``mean_rop``).
+
+    Raises
+    ------
+    UnitError
+        Not ``KEY=UNIT``, an unknown key, a unit pint does not know or of the wrong dimension.
+    """
+    if not isinstance(text, str) or "=" not in text:
+        raise UnitError(f"unit override {text!r}: expected KIND=UNIT, e.g. torque=kN*m or "
+                        "wob=kN")
+    key, unit = (p.strip() for p in text.split("=", 1))
+    _check_override(key, unit)
+    return key, unit
+
+
+def _check_override(key: str, unit: str) -> tuple[str, str]:
+    """(dimension, SI unit) of override ``key``; raises :class:`UnitError` when ``unit`` does
+    not fit."""
+    kind = KIND_ALIASES.get(key, key)
+    if kind in SI_UNITS or kind in EXTRA_KINDS:
+        dim = _kind_dimension(kind)
+        si = SI_UNITS[dim]
+    else:
+        decl = _declared(key)
+        if decl is None or decl[0] is None:
+            kinds = sorted(set(SI_UNITS) | set(EXTRA_KINDS) | set(KIND_ALIASES))
+            raise UnitError(f"unit override {key}={unit}: unknown quantity {key!r}; expected a "
+                            f"kind ({', '.join(kinds)}) or a signal or metric name")
+        dim, si = decl
+    if not isinstance(unit, str) or len(unit) > MAX_QUANTITY_LENGTH:
+        raise UnitError(f"unit override {key}: expected a unit string of at most "
+                        f"{MAX_QUANTITY_LENGTH} characters")
+    if unit in ("", "-"):
+        if dim in ("dimensionless", "angle"):
+            return dim, si
+        raise UnitError(f"unit override {key}=: a {dim.replace('_', ' ')} needs a unit "
+                        f"(SI: {si})")
+    try:
+        _check_unit_expression(unit, unit)
+    except UnitError:
+        raise UnitError(f"unit override {key}={unit}: expected a unit expression such as "
+                        "kN*m, ft/h or lb/gal (names joined by '*' and '/', small powers)"
+                        ) from None
+    ureg = _registry()
+    try:
+        ureg.Quantity(1.0, unit).to(si.replace("-", "") or "dimensionless")
+    except pint.DimensionalityError:
+        raise UnitError(f"unit override {key}={unit}: {unit} is not a unit of "
+                        f"{dim.replace('_', ' ')} (SI: {si or '-'})") from None
+    except Exception as exc:  # noqa: BLE001 - unknown unit names, offset units
+        raise UnitError(f"unit override {key}={unit}: {exc}") from None
+    return dim, si
+
+
+@dataclass(frozen=True)
+class UnitSystem:
+    """A display unit system: the unit every result is shown in, by kind and by name.
+
+    Internally everything stays SI; a UnitSystem converts at the edge (tables, ``summary.json``,
+    plots, LAS, CSV, dashboards), always through pint. Build one with :func:`display_units`.
+
+    Attributes
+    ----------
+    name : str
+        ``si``, ``metric`` or ``oilfield`` (:data:`SYSTEMS`).
+    overrides : dict
+        Per-quantity units: kind (``torque``), alias (``speed``) or signal/metric name
+        (``wob``, ``mean_rop``) -> pint unit string. A name beats its kind.
+
+    Examples
+    --------
+    >>> u = display_units("oilfield")
+    >>> u.unit_of("wob"), u.unit_of("surface_torque"), u.unit_of("mean_rop")
+    ('klbf', 'kft*lbf', 'ft/h')
+    >>> v, unit = u.convert("bit_angular_velocity", 10.0)
+    >>> round(v, 3), unit
+    (95.493, 'rpm')
+    >>> display_units("oilfield", {"torque": "kN*m"}).unit_of("tob")
+    'kN*m'
+    """
+
+    name: str = "si"
+    overrides: dict = field(default_factory=dict)
+    figures: bool = False
+
+    @property
+    def kinds(self) -> dict[str, str]:
+        """kind -> display unit, overrides of kinds applied."""
+        base = dict(_SI_FIGURES if (self.figures and self.name == "si") else SYSTEMS[self.name])
+        for key, unit in self.overrides.items():
+            kind = KIND_ALIASES.get(key, key)
+            if kind in base:
+                base[kind] = unit
+        return base
+
+    def kind_unit(self, kind: str) -> str:
+        """Display unit of a kind (``"torque"``, ``"diameter"``, ``"speed"``...)."""
+        kind = KIND_ALIASES.get(kind, kind)
+        try:
+            return self.kinds[kind]
+        except KeyError:
+            raise KeyError(f"unknown kind {kind!r}; kinds: {', '.join(sorted(self.kinds))}"
+                           ) from None
+
+    def _resolve(self, name: str, si_unit: str | None) -> tuple[str, str]:
+        """(SI unit, display unit) of a signal/metric ``name`` (or of ``si_unit``)."""
+        decl = _declared(name)
+        if si_unit is None:
+            si_unit = decl[1] if decl else ""
+        dim = decl[0] if decl and si_unit.replace(" ", "") == decl[1] else \
+            _dimension_of_unit(si_unit)
+        if name in self.overrides:
+            return si_unit, self.overrides[name]
+        if dim is None:
+            return si_unit, si_unit  # a unit of no known kind: shown as stored
+        if dim == "dimensionless":
+            return si_unit, si_unit
+        kind = NAME_KINDS.get(name, dim)
+        if _kind_dimension(kind) != dim:
+            kind = dim
+        return si_unit, self.kinds.get(kind, si_unit)
+
+    def unit_of(self, name: str, si_unit: str | None = None) -> str:
+        """Display unit (pint string; ``""``/``"-"`` dimensionless) of signal or metric ``name``;
+        ``si_unit`` for names not declared in :mod:`downhole.signals`."""
+        return self._resolve(name, si_unit)[1]
+
+    def label(self, name: str, si_unit: str | None = None) -> str:
+        """Printed display unit of ``name`` (``"kft·lbf"``, ``"-"``)."""
+        return unit_label(self.unit_of(name, si_unit))
+
+    def convert(self, name: str, values, si_unit: str | None = None):
+        """``(values in the display unit, display unit)`` of SI ``values`` of ``name``.
+
+        ``values`` is a number or an array; a number comes back as float. ``si_unit`` is the
+        stored unit (default: the one :mod:`downhole.signals` declares)."""
+        src, dst = self._resolve(name, si_unit)
+        if dst == src or dst.replace(" ", "") == src.replace(" ", ""):
+            return values, dst
+        return convert(values, src, dst), dst
+
+    def convert_summary(self, summary: dict, si_units: dict | None = None
+                        ) -> tuple[dict, dict]:
+        """``(values, units)`` of a summary dict of metrics (None / non-numbers kept as is);
+        ``units`` names every metric's display unit (``"-"`` for ratios)."""
+        values, units = {}, {}
+        for k, v in summary.items():
+            si = (si_units or {}).get(k)
+            unit = self.unit_of(k, si)
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and v is not None:
+                v = self.convert(k, float(v), si)[0]
+            values[k] = v
+            units[k] = unit if unit not in ("",) else "-"
+        return values, units
+
+    def for_figures(self) -> "UnitSystem":
+        """The units of figures: this system, except that ``si`` shows forces in kN, torques in
+        kN·m, velocities in mm/s, rotary speeds in rpm and pressures in MPa."""
+        return UnitSystem(self.name, dict(self.overrides), True)
+
+    def to_dict(self) -> dict:
+        """JSON-ready description: ``{"system": name, "kinds": {...}, "overrides": {...}}``."""
+        return {"system": self.name, "kinds": self.kinds, "overrides": dict(self.overrides)}
+
+
+def display_units(system="si", overrides=None, **units) -> UnitSystem:
+    """A display :class:`UnitSystem` by name, with per-quantity overrides.
+
+    Parameters
+    ----------
+    system : str or UnitSystem
+        ``"si"`` (default: the stored SI units), ``"metric"`` (m/h, rpm, kN, kN·m, MPa) or
+        ``"oilfield"`` (ft, ft/h, rpm, klbf, kft·lbf, psi, lb/gal, in, deg/100ft).
+    overrides : dict or list of str, optional
+        ``{"torque": "kN*m", "wob": "kN"}`` or ``["torque=kN*m", "wob=kN"]``.
+    **units
+        The same as keywords, welleng-style: ``display_units("oilfield", torque="kN*m")``.
+
+    Raises
+    ------
+    DownholeInputError
+        An unknown system, a malformed override, an unknown quantity or a unit of the wrong
+        dimension (one line naming it).
+    """
+    from downhole.errors import DownholeInputError
+
+    if isinstance(system, UnitSystem):
+        base, merged = system.name, dict(system.overrides)
+    else:
+        if not isinstance(system, str) or system.strip().lower() not in SYSTEMS:
+            raise DownholeInputError(f"units: expected one of {', '.join(SYSTEMS)}, got "
+                                     f"{system!r}")
+        base, merged = system.strip().lower(), {}
+    items = list(overrides.items() if isinstance(overrides, dict) else (overrides or []))
+    items += list(units.items())
+    try:
+        for item in items:
+            key, unit = (item if isinstance(item, tuple) else parse_unit_override(item))
+            _check_override(key, unit)
+            merged[key] = unit
+    except UnitError as exc:
+        raise DownholeInputError(str(exc)) from None
+    return UnitSystem(base, merged)

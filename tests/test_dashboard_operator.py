@@ -72,6 +72,24 @@ def test_display_units_are_the_hand_conversions_and_bad_systems_are_refused():
         display_units({**UNIT_SYSTEMS["metric"], "depth": "furlongs_of_doom"})
 
 
+def test_the_command_lines_unit_system_drives_the_dashboard():
+    """``downhole sil --dashboard --units oilfield`` hands the dashboard a
+    :class:`downhole.units.UnitSystem`: the same factors as the field system (hand values), and
+    a per-quantity override (``--unit torque=kN*m``) reaches the torque trend."""
+    from downhole.units import display_units as system
+
+    f = display_units(system("oilfield"))
+    assert f["rotary_speed"]["factor"] == pytest.approx(1 / RPM, rel=1e-12)
+    assert f["force"]["factor"] == pytest.approx(1 / (1000 * LBF), rel=1e-12)
+    assert f["torque"]["factor"] == pytest.approx(1 / (1000 * LBF * 0.3048), rel=1e-12)
+    assert f["rop"]["factor"] == pytest.approx(3600 / 0.3048, rel=1e-12)
+    assert f["depth"]["factor"] == pytest.approx(1 / 0.3048, rel=1e-12)
+    o = display_units(system("oilfield", ["torque=kN*m"]))
+    assert o["torque"]["factor"] == pytest.approx(1e-3) and o["torque"]["unit"] == "kN\u00b7m"
+    m = display_units(system("metric"))
+    assert m["rop"]["factor"] == pytest.approx(3600.0) and m["force"]["factor"] == 1e-3
+
+
 @pytest.mark.parametrize("n", [1, 2, 7, 50])
 def test_rolling_severity_is_the_metric_over_each_trailing_window(n):
     rng = np.random.default_rng(n)

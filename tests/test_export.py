@@ -76,8 +76,9 @@ def test_cli_export_csv_and_las(result, tmp_path, capsys):
                str(tmp_path / "r.las"), "--channel", "wob", "--channel", "tob"])
     assert rc == 0
     df = pd.read_csv(tmp_path / "r.csv")
-    np.testing.assert_allclose(df["time"], result.time)
-    np.testing.assert_allclose(df["wob"], result["wob"], rtol=1e-12)
+    # the CLI names each column's unit (SI by default, see docs/units.md)
+    np.testing.assert_allclose(df["time [s]"], result.time)
+    np.testing.assert_allclose(df["wob [N]"], result["wob"], rtol=1e-12)
     las = lasio.read(str(tmp_path / "r.las"))
     assert [c.mnemonic for c in las.curves] == ["TIME", "WOB", "TOB"]
     assert main(["export", str(nc)]) == 2

@@ -39,7 +39,9 @@ def test_simulate_writes_result_summary_and_figure(tmp_path):
     out = tmp_path / "run"
     assert main(["simulate", str(scen), "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert set(summary) == set(SUMMARY_KEYS) | {"tracking_rms_axial", "tracking_rms_angular"}
+    assert set(summary) == set(SUMMARY_KEYS) | {"tracking_rms_axial", "tracking_rms_angular",
+                                                "units"}
+    assert summary["units"]["mean_rop"] == "m/s" and summary["units"]["mse"] == "Pa"
     assert (out / "overview.png").stat().st_size > 10_000
     res = load_result(out / "result.nc")
     # units were parsed: 36 m/h = 10 mm/s, 95.49 rpm = 10 rad/s

@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-__all__ = ["summarize", "stick_slip_severity", "SUMMARY_KEYS", "STUCK_THRESHOLD"]
+__all__ = ["summarize", "stick_slip_severity", "stick_slip_severity_series", "SUMMARY_KEYS",
+           "STUCK_THRESHOLD"]
 
 #: |bit angular velocity| below this counts as stuck, rad/s.
 STUCK_THRESHOLD = 0.1
@@ -22,6 +23,36 @@ def stick_slip_severity(omega: np.ndarray) -> float:
     if mean <= 0:
         return math.inf
     return float((omega.max() - omega.min()) / (2.0 * mean))
+
+
+def stick_slip_severity_series(t, omega, window: float, points: int = 400):
+    """Stick-slip severity over time: :func:`stick_slip_severity` of the bit angular velocity in
+    a trailing window of ``window`` s, evaluated at up to ``points`` times.
+
+    Returns ``(times, severity)``; NaN where the window's mean speed is <= 0 (severity infinite)
+    and where less than a full window has elapsed.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 20, 2001)
+    >>> tt, s = stick_slip_severity_series(t, 10 + 5 * np.sin(2 * np.pi * t), 2.0)
+    >>> round(float(np.nanmax(s)), 2)
+    0.5
+    """
+    t = np.asarray(t, float)
+    omega = np.asarray(omega, float)
+    if t.size == 0 or not window > 0:
+        return t[:0], t[:0]
+    idx = np.unique(np.linspace(0, t.size - 1, min(points, t.size)).round().astype(int))
+    starts = np.searchsorted(t, t[idx] - window, side="left")
+    sev = np.full(idx.size, np.nan)
+    for k, (i, j) in enumerate(zip(idx, starts)):
+        if t[i] - t[0] < window * (1 - 1e-9):
+            continue
+        s = stick_slip_severity(omega[j:i + 1])
+        sev[k] = s if math.isfinite(s) else np.nan
+    return t[idx], sev
 
 
 def summarize(result, window: tuple[float, float] | None = None) -> dict:

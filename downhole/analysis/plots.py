@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
+import json
+
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
-__all__ = ["plot_overview", "save_figure"]
+__all__ = ["plot_overview", "save_figure", "severity_window"]
+
+# one colour per quantity, the same in every figure
+_COLORS = {"wob": "tab:blue", "tob": "tab:red", "hook_load": "tab:green",
+           "surface_torque": "tab:purple", "bit": "tab:blue", "top_drive": "tab:orange",
+           "severity": "tab:brown", "depth": "tab:gray"}
 
 
 def save_figure(fig, path) -> None:
@@ -16,39 +24,130 @@ def save_figure(fig, path) -> None:
     plt.close(fig)
 
 
-def plot_overview(result, path=None, title=None):
-    """Four panels: bit axial velocity, bit angular velocity, WOB/TOB, surface signals."""
+def severity_window(t) -> float:
+    """Window of the stick-slip severity over time, s: 5 s (a few stick-slip periods of a
+    kilometre-long string), a quarter of the run when that is shorter."""
+    t = np.asarray(t, float)
+    span = float(t[-1] - t[0]) if t.size > 1 else 0.0
+    return min(5.0, span / 4.0) if span > 0 else 0.0
+
+
+def _bit_depth(result):
+    """(label, SI values) of the depth panel: the bit's measured depth when the run records
+    the string's node depths (``node_md``), else the bit's advance from its start."""
+    md = result.attrs.get("node_md")
+    if isinstance(md, str):
+        try:
+            md = json.loads(md)
+        except ValueError:
+            md = None
+    pos = result["bit_axial_position"]
+    if md is not None and np.size(md):
+        return "bit measured depth", float(np.ravel(md)[-1]) + pos, True
+    return "bit advance", pos, False
+
+
+def _load_panel(ax, result, t, left: tuple[str, str], right: tuple[str, str], units):
+    """``left`` = (channel, label) on ``ax``, ``right`` on a twin axis; missing channels are
+    skipped. Returns the axes drawn on."""
+    drawn = []
+    for which, (name, label) in (("left", left), ("right", right)):
+        if name not in result:
+            continue
+        a = ax if which == "left" else ax.twinx()
+        values, unit = units.convert(name, result[name], result.units(name) or None)
+        color = _COLORS[name]
+        a.plot(t, values, color=color, lw=1.0, label=label)
+        a.set_ylabel(f"{label} [{units.label(name, result.units(name) or None)}]",
+                     color=color)
+        a.tick_params(axis="y", colors=color)
+        a.spines[which].set_color(color)
+        drawn.append(a)
+    return drawn
+
+
+def plot_overview(result, path=None, title=None, units=None):
+    """The run at a glance, in display ``units`` (a :class:`~downhole.units.UnitSystem` or
+    a system name; default ``si``, whose figures use kN, kN·m, mm/s and rpm).
+
+    Panels over time: axial velocities (bit, reference, top drive); rotary speeds of the bit and
+    the top drive (surface) in rpm with stuck intervals shaded; the stick-slip severity over a
+    moving window (:func:`~downhole.analysis.metrics.stick_slip_severity_series`); WOB and TOB,
+    each on its own axis; hook load and surface torque, each on its own axis; the bit's depth.
+
+    Returns the :class:`matplotlib.figure.Figure`, also when it is saved to ``path`` (then it is
+    closed after saving; it can still be inspected or saved again).
+    """
+    from downhole.analysis.metrics import STUCK_THRESHOLD, stick_slip_severity_series
+    from downhole.units import display_units
+
+    units = display_units(units or "si").for_figures()
     t = result.time
-    fig, axes = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
+    tu = units.label("time", "s")
+    has_depth = "bit_axial_position" in result
+    ratios = [1, 1.2, 0.7, 1, 1] + ([0.8] if has_depth else [])
+    fig, axes = plt.subplots(len(ratios), 1, figsize=(10, 2.5 * sum(ratios) + 1), sharex=True,
+                             gridspec_kw={"height_ratios": ratios})
+
+    # --- axial velocities
     ax = axes[0]
-    ax.plot(t, result["bit_axial_velocity"] * 1e3, label="bit")
-    if "reference_axial_velocity" in result:
-        ax.plot(t, result["reference_axial_velocity"] * 1e3, "k--", lw=1, label="reference")
-    if "top_drive_axial_velocity" in result:
-        ax.plot(t, result["top_drive_axial_velocity"] * 1e3, ":", lw=1, label="top drive")
-    ax.set_ylabel("axial velocity [mm/s]")
-    ax.legend(loc="upper right", fontsize=8)
+    for name, style, label in (("bit_axial_velocity", "-", "bit"),
+                               ("reference_axial_velocity", "k--", "reference"),
+                               ("top_drive_axial_velocity", ":", "top drive")):
+        if name in result:
+            v, _ = units.convert(name, result[name])
+            kw = {"color": _COLORS["bit"]} if label == "bit" else (
+                {"color": _COLORS["top_drive"]} if label == "top drive" else {})
+            ax.plot(t, v, style, lw=1 if label != "bit" else 1.2, label=label, **kw)
+    ax.set_ylabel(f"axial velocity [{units.label('bit_axial_velocity')}]")
+    if ax.get_lines():
+        ax.legend(loc="upper right", fontsize=8)
+
+    # --- stick-slip: rotary speeds, stuck intervals
     ax = axes[1]
-    ax.plot(t, result["bit_angular_velocity"], label="bit")
-    if "reference_angular_velocity" in result:
-        ax.plot(t, result["reference_angular_velocity"], "k--", lw=1, label="reference")
+    w_bit, wu = units.convert("bit_angular_velocity", result["bit_angular_velocity"])
+    ax.plot(t, w_bit, color=_COLORS["bit"], lw=1.2, label="bit")
     if "top_drive_angular_velocity" in result:
-        ax.plot(t, result["top_drive_angular_velocity"], ":", lw=1, label="top drive")
-    ax.set_ylabel("angular velocity [rad/s]")
+        w_td, _ = units.convert("top_drive_angular_velocity",
+                                result["top_drive_angular_velocity"])
+        ax.plot(t, w_td, color=_COLORS["top_drive"], lw=1.0, label="surface (top drive)")
+    if "reference_angular_velocity" in result:
+        w_ref, _ = units.convert("reference_angular_velocity",
+                                 result["reference_angular_velocity"])
+        ax.plot(t, w_ref, "k--", lw=1, label="reference")
+    stuck = np.abs(result["bit_angular_velocity"]) < STUCK_THRESHOLD
+    if stuck.any():
+        ax.fill_between(t, 0, 1, where=stuck, transform=ax.get_xaxis_transform(),
+                        color="tab:red", alpha=0.12, lw=0, label="bit stuck")
+    ax.set_ylabel(f"rotary speed [{units.label('bit_angular_velocity')}]")
+    ax.set_title("stick-slip: bit and surface rotary speed", fontsize=9, loc="left")
     ax.legend(loc="upper right", fontsize=8)
+
+    # --- stick-slip severity over a moving window
     ax = axes[2]
-    ax.plot(t, result["wob"] / 1e3, label="WOB [kN]")
-    ax.plot(t, result["tob"] / 1e3, label="TOB [kN m]")
-    ax.set_ylabel("bit loads")
-    ax.legend(loc="upper right", fontsize=8)
-    ax = axes[3]
-    if "hook_load" in result:
-        ax.plot(t, result["hook_load"] / 1e3, label="hook load [kN]")
-    if "surface_torque" in result:
-        ax.plot(t, result["surface_torque"] / 1e3, label="surface torque [kN m]")
-    ax.set_ylabel("surface")
-    ax.set_xlabel("time [s]")
-    ax.legend(loc="upper right", fontsize=8)
+    window = severity_window(t)
+    ts, sev = stick_slip_severity_series(t, result["bit_angular_velocity"], window)
+    ax.plot(ts, sev, color=_COLORS["severity"], lw=1.2)
+    ax.axhline(1.0, color="k", lw=0.6, ls=":")  # severity 1: the bit stops at the minimum
+    ax.set_ylabel(f"severity [-]\n({window:g} {tu} window)")
+    ax.set_ylim(bottom=0)
+
+    # --- bit loads and surface loads, each quantity on its own axis
+    _load_panel(axes[3], result, t, ("wob", "WOB"), ("tob", "TOB"), units)
+    _load_panel(axes[4], result, t, ("hook_load", "hook load"),
+                ("surface_torque", "surface torque"), units)
+
+    # --- depth (where the run records the bit's position)
+    if has_depth:
+        ax = axes[5]
+        label, depth, measured = _bit_depth(result)
+        d, du = units.convert("bit_axial_position", depth)
+        ax.plot(t, d, color=_COLORS["depth"], lw=1.2)
+        ax.set_ylabel(f"{label} [{units.label('bit_axial_position')}]")
+        if measured:
+            ax.invert_yaxis()
+        ax.ticklabel_format(axis="y", useOffset=False, style="plain")  # 8858.4 ft, not 8.858e3
+    axes[-1].set_xlabel(f"time [{tu}]")
     for a in axes:
         a.grid(alpha=0.3)
     if title:
@@ -56,5 +155,4 @@ def plot_overview(result, path=None, title=None):
     fig.tight_layout()
     if path is not None:
         save_figure(fig, path)
-        return None
     return fig

@@ -11,6 +11,7 @@ from rich.table import Table
 
 from downhole._atomic import check_output_path
 from downhole.cli import app, fail
+from downhole.cli._units import UNIT_OPTION, UNITS_OPTION, resolve_units
 
 __all__ = ["compare_controllers_cmd"]
 
@@ -34,12 +35,15 @@ def compare_controllers_cmd(
                                     "controller files (they are code)"),
     case: Optional[List[str]] = typer.Option(None, "--case", help="only these case ids"),
     jobs: int = typer.Option(1, "--jobs", "-j", help="worker processes for the cells"),
+    units: str = UNITS_OPTION,
+    unit: Optional[List[str]] = UNIT_OPTION,
 ):
     """Score controllers on a fixed, versioned suite of cases (true FEM plant, delayed depth of
     cut); write OUT/index.html (tables and plots) and OUT/scores.json."""
     from downhole.compare import BUILTIN, SUITES, compare_controllers, load_controller_spec
     from downhole.compare.suite import get_suite
 
+    display = resolve_units(units, unit)
     check_output_path(out, kind="folder")
     if suite not in SUITES:
         fail(f"--suite must be one of {sorted(SUITES)}, got {suite!r}")
@@ -80,7 +84,7 @@ def compare_controllers_cmd(
             progress.update(task, completed=done, description=f"{case_id} / {label}: {status}")
 
         scores = compare_controllers(specs, suite=suite, out=out, jobs=jobs, progress=_progress,
-                                     cases=case)
+                                     cases=case, units=display)
     table = Table("controller", "ok", "n/a", "failed", "suppressed", "mean severity (stick-slip)",
                   "mean stuck (stick-slip)")
     for label, row in scores["summary"].items():

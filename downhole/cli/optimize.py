@@ -10,11 +10,13 @@ the bit velocities and inputs, and prints a one-screen summary. ``--method`` ove
 from __future__ import annotations
 
 from pathlib import Path
+from typing import List, Optional
 
 import typer
 
 from downhole._atomic import OutputFolder, atomic_path, check_output_path
 from downhole.cli import app
+from downhole.cli._units import UNIT_OPTION, UNITS_OPTION, resolve_units
 
 __all__ = ["optimize_app"]
 
@@ -39,18 +41,23 @@ def dp(
     replay: bool = typer.Option(True, "--replay/--no-replay",
                                 help="replay the inputs on the continuous 4th-order model"),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="progress bar"),
+    units: str = UNITS_OPTION,
+    unit: Optional[List[str]] = UNIT_OPTION,
 ):
-    """Solve a DP problem file and write the solution to OUT."""
+    """Solve a DP problem file and write the solution to OUT (solution.npz and .json in SI;
+    the table and solution.png in the display units of --units/--unit)."""
     from rich.console import Console
     from rich.table import Table
 
     from downhole.control.dp import METHODS, replay_path, solve, trajectory_cost
     from downhole.control.dp.problem import load_dp_scenario
     from downhole.errors import DownholeInputError
+    from downhole.units import unit_label
 
     if method is not None and method not in METHODS:
         # raised (not fail()): main() maps it to exit code 2
         raise DownholeInputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    display = resolve_units(units, unit)
     check_output_path(out, kind="folder")
     problem, file_method = load_dp_scenario(scenario)
     method = method or file_method or "customized"
@@ -63,35 +70,41 @@ def dp(
             sol.info["replayed_cost"] = trajectory_cost(problem, r["x2"], r["x4"])
         folder.writing()
         sol.save(out)
-        _plot(sol, out / "solution.png")
+        _plot(sol, out / "solution.png", display)
     console = Console()
     table = Table("quantity", "value")
     table.add_row("method", method)
     table.add_row("cost (Eq. 2.13)", f"{sol.cost:.6g}")
     if "replayed_cost" in sol.info:
         table.add_row("cost replayed (continuous model)", f"{sol.info['replayed_cost']:.6g}")
-    table.add_row("final bit velocity", f"{sol.x2[-1] * 1e3:.3f} mm/s, {sol.x4[-1]:.3f} rad/s")
+    fig_units = display.for_figures()
+    v, vu = fig_units.convert("bit_axial_velocity", float(sol.x2[-1]))
+    w, wu = fig_units.convert("bit_angular_velocity", float(sol.x4[-1]))
+    table.add_row("final bit velocity", f"{v:.4g} {unit_label(vu)}, {w:.4g} {unit_label(wu)}")
     table.add_row("search time", f"{sol.info['seconds']:.3f} s")
     console.print(table)
     console.print(f"solution in {out}/ (solution.npz, solution.json, solution.png)")
 
 
-def _plot(sol, path: Path) -> None:
+def _plot(sol, path: Path, units=None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from downhole.units import display_units
+
+    u = display_units(units or "si").for_figures()
     fig, ax = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
     t = sol.times
-    ax[0, 0].plot(t, sol.x2 * 1e3, ".-")
-    ax[0, 0].set_ylabel("bit axial velocity (mm/s)")
-    ax[0, 1].plot(t, sol.x4, ".-")
-    ax[0, 1].set_ylabel("bit angular velocity (rad/s)")
-    ax[1, 0].step(t[:-1], sol.force / 1e3, where="post")
-    ax[1, 0].set_ylabel("string force (kN)")
-    ax[1, 1].step(t[:-1], sol.torque / 1e3, where="post")
-    ax[1, 1].set_ylabel("string torque (kN m)")
+    ax[0, 0].plot(t, u.convert("bit_axial_velocity", sol.x2)[0], ".-")
+    ax[0, 0].set_ylabel(f"bit axial velocity ({u.label('bit_axial_velocity')})")
+    ax[0, 1].plot(t, u.convert("bit_angular_velocity", sol.x4)[0], ".-")
+    ax[0, 1].set_ylabel(f"bit angular velocity ({u.label('bit_angular_velocity')})")
+    ax[1, 0].step(t[:-1], u.convert("hook_load", sol.force)[0], where="post")
+    ax[1, 0].set_ylabel(f"string force ({u.label('hook_load')})")
+    ax[1, 1].step(t[:-1], u.convert("surface_torque", sol.torque)[0], where="post")
+    ax[1, 1].set_ylabel(f"string torque ({u.label('surface_torque')})")
     for a in ax[1]:
         a.set_xlabel("time (s)")
     fig.suptitle(f"{sol.method} DP, cost {sol.cost:.4g}")

@@ -30,12 +30,13 @@ import signal
 import threading
 import time
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
 
 from downhole._atomic import OutputFile, check_output_path
 from downhole.cli import app, fail
+from downhole.cli._units import UNIT_OPTION, UNITS_OPTION, resolve_units
 
 __all__ = ["sil", "sil_controller", "export_fmu"]
 
@@ -145,7 +146,8 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         unpaced: bool = typer.Option(False, "--unpaced", help="as fast as possible"),
         link_key_file: Optional[Path] = typer.Option(
             None, "--link-key-file", help="shared key of the UDP link (chmod 600; default: "
-            "$DOWNHOLE_LINK_KEY); required beyond loopback")):
+            "$DOWNHOLE_LINK_KEY); required beyond loopback"),
+        units: str = UNITS_OPTION, unit: Optional[List[str]] = UNIT_OPTION):
     """Run a scenario in the real-time SIL runtime."""
     from downhole.sil.console import RunProgress, wait_with_countdown
     from downhole.sil.runtime import RealTimeRunner, SafetyPolicy
@@ -160,6 +162,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                 fail(f"{option} applies to the dashboard: add --dashboard")
     if http_port is not None and not 0 <= http_port <= 65535:
         fail(f"--http-port must be a port number 0..65535, got {http_port}")
+    display = resolve_units(units, unit)
     sc = load_sil_scenario(scenario)
     if http_port is not None:
         sc.dashboard.port = http_port
@@ -237,7 +240,8 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                 allowed_hosts=d.allowed_hosts,
                 token_source=d.token_file or f"{scenario} [dashboard] token",
                 reference_limits=_reference_limits(sc), autostart=autostart,
-                exit_after_run=exit_after_run, units=d.units,
+                exit_after_run=exit_after_run,
+                units=display if (units != "si" or unit) else d.units,
                 on_run_start=out_file.begin if out_file is not None else None,
                 on_run_end=run_ended)
             if not session.started:

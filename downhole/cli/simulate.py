@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
 from rich.console import Console
@@ -12,6 +12,7 @@ from rich.table import Table
 
 from downhole._atomic import OutputFolder, check_output_path, write_json_atomic
 from downhole.cli import app
+from downhole.cli._units import UNIT_OPTION, UNITS_OPTION, resolve_units
 
 console = Console()
 
@@ -20,36 +21,61 @@ console = Console()
 RUN_FILES = ("result.nc", "summary.json", "overview.png")
 
 
-def write_run(result, out: Path, title: str = "") -> dict:
+def write_run(result, out: Path, title: str = "", units=None) -> dict:
     """Write ``result.nc``, ``summary.json`` and ``overview.png`` into ``out``; returns the
-    summary.
+    summary in SI.
+
+    ``units`` (a :class:`~downhole.units.UnitSystem`, default SI) sets the units of
+    ``summary.json`` (its values, and its ``"units"`` object naming each metric's unit) and of
+    the figure; ``result.nc`` is always SI with the unit of every channel in its attributes.
 
     Each file is written atomically. The three belong together: call this inside an
     :class:`~downhole._atomic.OutputFolder` of ``out`` (as ``simulate`` and ``demo`` do), which
     removed the previous run's three before the run and keeps the folder marked ``INCOMPLETE``
     until the last one is written.
     """
+    from downhole._atomic import atomic_path
+    from downhole.analysis.plots import plot_overview
+    from downhole.units import display_units
+
+    units = display_units(units or "si")
     summary = result.summary()
     out.mkdir(parents=True, exist_ok=True)
     result.save(out / "result.nc")
-    write_json_atomic(out / "summary.json",
-                      {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                       for k, v in summary.items()})
-    result.plot(out / "overview.png", title=title or None)
+    write_json_atomic(out / "summary.json", summary_json(summary, units))
+    with atomic_path(out / "overview.png") as tmp:
+        plot_overview(result, tmp, title=title or None, units=units)
     return summary
 
 
-def summary_table(rows: dict[str, dict]) -> Table:
+def summary_json(summary: dict, units) -> dict:
+    """The content of ``summary.json``: each metric in the display ``units`` (NaN/inf as null)
+    and a top-level ``"units"`` object naming the unit of every metric (``"-"`` for ratios)."""
+    values, names = units.convert_summary(summary)
+    doc = {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+           for k, v in values.items()}
+    doc["units"] = names
+    return doc
+
+
+def summary_table(rows: dict[str, dict], units=None) -> Table:
+    """A table of metrics, one column per run, with the ``unit`` of each metric (values in the
+    display ``units``, default SI)."""
+    from downhole.units import display_units
+
+    units = display_units(units or "si")
     keys = []
     for s in rows.values():
         keys += [k for k in s if k not in keys]
-    table = Table("metric", *rows.keys())
+    table = Table("metric", "unit", *rows.keys())
     for k in keys:
         cells = []
         for s in rows.values():
             v = s.get(k)
+            if v is not None:
+                v = units.convert(k, v)[0]
             cells.append("-" if v is None else f"{v:.4g}")
-        table.add_row(k, *cells)
+        table.add_row(k, units.label(k), *cells)
     return table
 
 
@@ -60,11 +86,14 @@ def simulate(
     fidelity: Optional[str] = typer.Option(
         None, "--fidelity", help="model fidelity of a system scenario ([model] fidelity): "
         "lumped4, lumped12, neutral, fem or hybrid; overrides the file's"),
+    units: str = UNITS_OPTION,
+    unit: Optional[List[str]] = UNIT_OPTION,
 ):
     """Run a scenario; write OUT/result.nc, OUT/summary.json and OUT/overview.png."""
     from downhole.scenario import load_scenario, run_scenario, validate_data
     from downhole.scenario.system import check_fidelity
 
+    display = resolve_units(units, unit)
     check_output_path(out, kind="folder")
     data, source, _ = load_scenario(scenario)
     if fidelity is not None:
@@ -74,13 +103,14 @@ def simulate(
         with console.status(f"simulating {scenario}"):
             result = run_scenario(scenario, fidelity=fidelity)
         folder.writing()
-        summary = write_run(result, out, title=data.get("title", ""))
-    console.print(summary_table({scenario.stem: summary}))
+        summary = write_run(result, out, title=data.get("title", ""), units=display)
+    console.print(summary_table({scenario.stem: summary}, display))
     console.print(f"written {out}/result.nc, summary.json, overview.png")
 
 
 @app.command()
-def demo(out: Path = typer.Option(Path("out"), "--out", help="output folder")):
+def demo(out: Path = typer.Option(Path("out"), "--out", help="output folder"),
+         units: str = UNITS_OPTION, unit: Optional[List[str]] = UNIT_OPTION):
     """The main demo on built-in defaults: nominal Table 2.1 drilling and the stick-slip case."""
     from downhole.scenario import run_scenario
 
@@ -95,6 +125,7 @@ def demo(out: Path = typer.Option(Path("out"), "--out", help="output folder")):
                       "operation": {"rop": "10 mm/s", "surface_speed": "2 rad/s"},
                       "simulation": {"duration": "100 s", "dt": "0.5 ms", "record_dt": "10 ms"}},
     }
+    display = resolve_units(units, unit)
     check_output_path(out, kind="folder")
     for name in cases:
         check_output_path(out / name, kind="folder")
@@ -104,6 +135,6 @@ def demo(out: Path = typer.Option(Path("out"), "--out", help="output folder")):
             with OutputFolder(out / name, RUN_FILES, "demo") as folder:
                 res = run_scenario(data, source=f"<demo {name}>")
                 folder.writing()
-                rows[name] = write_run(res, out / name, title=data["title"])
-    console.print(summary_table(rows))
+                rows[name] = write_run(res, out / name, title=data["title"], units=display)
+    console.print(summary_table(rows, display))
     console.print(f"figures: {out}/nominal/overview.png, {out}/stickslip/overview.png")

@@ -11,6 +11,7 @@ from rich.console import Console
 
 from downhole._atomic import OutputFolder, check_output_path, write_json_atomic
 from downhole.cli import app, fail
+from downhole.cli._units import UNIT_OPTION, UNITS_OPTION, resolve_units
 
 #: What ``sweep`` writes into its folder (the previous run's are removed when a new one starts).
 SWEEP_FILES = ("sweep.nc", "failed.json", "stability_map.png", "sweep_*.png")
@@ -47,12 +48,15 @@ def sweep(
     bounce_threshold: float = typer.Option(0.01, "--bounce-threshold",
                                            help="bit bounce above this fraction (map)"),
     no_plots: bool = typer.Option(False, "--no-plots", help="write only the NetCDF dataset"),
+    units: str = UNITS_OPTION,
+    unit: Optional[List[str]] = UNIT_OPTION,
 ):
     """Sweep scenario parameters; write OUT/sweep.nc, plots and the drilling stability map."""
     from downhole.sweep import load_sweep_file
 
     if scheduler and local_cluster:
         fail("give either --scheduler ADDRESS or --local-cluster, not both")
+    display = resolve_units(units, unit)
     check_output_path(out, kind="folder")
     base, source, settings = load_sweep_file(scenario)
     base["sweep"] = settings
@@ -63,7 +67,7 @@ def sweep(
     try:
         _run_and_write(folder, folder.begin, base, source, param, metric, random, seed, window,
                        sched, processes, batch_size, severity_threshold, bounce_threshold,
-                       no_plots)
+                       no_plots, display)
     except BaseException as exc:
         folder.fail(f"{type(exc).__name__}: {exc}")
         raise
@@ -71,7 +75,8 @@ def sweep(
 
 
 def _run_and_write(folder, begin, base, source, param, metric, random, seed, window, sched,
-                   processes, batch_size, severity_threshold, bounce_threshold, no_plots):
+                   processes, batch_size, severity_threshold, bounce_threshold, no_plots,
+                   display=None):
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
 
     from downhole.sweep import (failed_cases, plot_sweep, run_sweep, save_sweep,
@@ -98,10 +103,11 @@ def _run_and_write(folder, begin, base, source, param, metric, random, seed, win
             regimes = stability_map(ds, out / "stability_map.png",
                                     severity_threshold=severity_threshold,
                                     bounce_threshold=bounce_threshold,
-                                    title=f"drilling stability map: {base.get('title', source)}")
+                                    title=f"drilling stability map: {base.get('title', source)}",
+                                    units=display)
             ds["regime"] = regimes.transpose(*ds["error"].dims)
             files.append(out / "stability_map.png")
-        files += plot_sweep(ds, out)
+        files += plot_sweep(ds, out, units=display)
     save_sweep(ds, out / "sweep.nc")
     failed = failed_cases(ds)
     write_json_atomic(out / "failed.json", failed)

@@ -163,7 +163,7 @@ def _picklable(obj) -> bool:
 
 def compare_controllers(controllers=None, suite: str = "standard", out=None, *, jobs: int = 1,
                         progress: Callable | None = None, cases=None,
-                        traces: bool = True) -> dict:
+                        traces: bool = True, units=None) -> dict:
     """Score ``controllers`` on every case of ``suite``.
 
     Parameters
@@ -186,6 +186,9 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
         Only these case ids of the suite.
     traces : bool
         Keep decimated time series of each cell (for the report's plots; not in the scores).
+    units : str or UnitSystem, optional
+        Display units of ``index.html`` (:func:`downhole.units.display_units`); the scores
+        stay SI.
 
     Returns
     -------
@@ -279,7 +282,7 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
     if out is not None:
         from downhole.compare.report import write_report
 
-        write_report(out, scores, trace_data)
+        write_report(out, scores, trace_data, units)
     if traces:
         scores["_traces"] = trace_data
     return scores

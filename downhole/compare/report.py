@@ -16,35 +16,59 @@ __all__ = ["write_report", "render_html", "OUTPUT_FILES", "TABLE_COLUMNS"]
 #: Files the command owns in its output folder.
 OUTPUT_FILES = ("index.html", "scores.json")
 
-#: (score key, column title, scale, format) of the per-case tables.
+#: (score key, column title, quantity whose display unit the column takes (None: a ratio),
+#: format) of the per-case tables.
 TABLE_COLUMNS = (
-    ("stick_slip_severity", "severity", 1.0, "{:.2f}"),
-    ("time_to_suppress", "suppressed after [s]", 1.0, "{:.1f}"),
-    ("stuck_fraction", "stuck", 1.0, "{:.2f}"),
-    ("bit_bounce_fraction", "bounce", 1.0, "{:.2f}"),
-    ("mean_rop", "ROP [mm/s]", 1e3, "{:.2f}"),
-    ("mse", "MSE [MPa]", 1e-6, "{:.0f}"),
-    ("tracking_rms_angular", "speed RMS [rad/s]", 1.0, "{:.2f}"),
-    ("tracking_rms_axial", "ROP RMS [mm/s]", 1e3, "{:.2f}"),
-    ("peak_surface_torque", "peak torque [kN m]", 1e-3, "{:.1f}"),
+    ("stick_slip_severity", "severity", None, "{:.2f}"),
+    ("time_to_suppress", "suppressed after", "time", "{:.1f}"),
+    ("stuck_fraction", "stuck", None, "{:.2f}"),
+    ("bit_bounce_fraction", "bounce", None, "{:.2f}"),
+    ("mean_rop", "ROP", "mean_rop", "{:.3g}"),
+    ("mse", "MSE", "mse", "{:.4g}"),
+    ("tracking_rms_angular", "speed RMS", "tracking_rms_angular", "{:.3g}"),
+    ("tracking_rms_axial", "ROP RMS", "tracking_rms_axial", "{:.3g}"),
+    ("peak_surface_torque", "peak torque", "surface_torque", "{:.3g}"),
 )
 
 
-def _fmt(value, scale, fmt, key):
+def _units(units):
+    """The figure flavour of a display unit system (si: rpm, mm/s, kN, kN·m, MPa)."""
+    from downhole.units import display_units
+
+    return display_units(units or "si").for_figures()
+
+
+def _conv(units, quantity, value):
+    """``value`` (SI) of ``quantity`` (a signal/metric name or ``"time"``) in display units."""
+    if quantity is None:
+        return value
+    if quantity == "time":
+        return units.convert("time", value, "s")[0]
+    return units.convert(quantity, value)[0]
+
+
+def _title(units, title, quantity):
+    if quantity is None:
+        return title
+    unit = units.label("time", "s") if quantity == "time" else units.label(quantity)
+    return f"{title} [{unit}]"
+
+
+def _fmt(value, quantity, fmt, key, units):
     if value is None:
         return "never" if key == "time_to_suppress" else "-"
     if isinstance(value, float) and not math.isfinite(value):
         return "-"
-    return fmt.format(value * scale)
+    return fmt.format(_conv(units, quantity, value))
 
 
-def _effort_text(scores: dict) -> str:
+def _effort_text(scores: dict, units) -> str:
     eff = scores.get("effort", {})
     w = eff.get("top_drive_angular_velocity")
-    return "-" if w is None else f"{w:.2f}"
+    return "-" if w is None else f"{_conv(units, 'top_drive_angular_velocity', w):.3g}"
 
 
-def _plot(case: dict, traces: dict) -> str | None:
+def _plot(case: dict, traces: dict, units=None) -> str | None:
     """A PNG (base64) of the bit speed and surface torque of every controller on one case."""
     if not traces:
         return None
@@ -53,18 +77,22 @@ def _plot(case: dict, traces: dict) -> str | None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    units = _units(units)
     fig, axes = plt.subplots(2, 1, figsize=(8, 4.6), sharex=True)
     for label, tr in traces.items():
-        axes[0].plot(tr["time"], tr["bit_angular_velocity"], lw=0.9, label=label)
-        axes[1].plot(tr["time"], [x / 1e3 for x in tr["surface_torque"]], lw=0.9, label=label)
-    axes[0].axhline(case["speed"], color="k", ls="--", lw=0.8)
+        axes[0].plot(tr["time"], _conv(units, "bit_angular_velocity",
+                                       list(tr["bit_angular_velocity"])), lw=0.9, label=label)
+        axes[1].plot(tr["time"], _conv(units, "surface_torque", list(tr["surface_torque"])),
+                     lw=0.9, label=label)
+    axes[0].axhline(_conv(units, "bit_angular_velocity", case["speed"]), color="k", ls="--",
+                    lw=0.8)
     t0 = case["pre_time"] if case["start"] == "stick_slip" else 0.0
     for ax in axes:
         if t0 > 0:
             ax.axvline(t0, color="grey", ls=":", lw=1)
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("bit speed [rad/s]")
-    axes[1].set_ylabel("surface torque [kN m]")
+    axes[0].set_ylabel(f"bit speed [{units.label('bit_angular_velocity')}]")
+    axes[1].set_ylabel(f"surface torque [{units.label('surface_torque')}]")
     axes[1].set_xlabel("time [s]" + (" (dotted: hand-over)" if t0 > 0 else ""))
     axes[0].legend(fontsize=7, loc="upper right", ncol=3)
     fig.suptitle(case["id"], fontsize=10)
@@ -75,9 +103,14 @@ def _plot(case: dict, traces: dict) -> str | None:
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def _case_line(c: dict) -> str:
-    axial = (f"WOB {c['wob'] / 1e3:g} kN (force hook)" if c["hook"] == "force"
-             else f"ROP set-point {c['rop'] * 1e3:g} mm/s (velocity hook)")
+def _case_line(c: dict, units=None) -> str:
+    units = _units(units)
+
+    def q(name, value):
+        return f"{_conv(units, name, value):.4g} {units.label(name)}"
+
+    axial = (f"WOB {q('wob', c['wob'])} (force hook)" if c["hook"] == "force"
+             else f"ROP set-point {q('bit_axial_velocity', c['rop'])} (velocity hook)")
     start = {"rest": "from rest", "steady": "from steady drilling",
              "stick_slip": f"from a developed stick-slip cycle ({c['pre_time']:g} s of stiff PI)"}
     extra = []
@@ -87,16 +120,20 @@ def _case_line(c: dict) -> str:
         extra.append("sensor noise")
     if c["delay"]:
         extra.append(f"{1e3 * c['delay']:.0f} ms actuator delay")
-    return (f"system <b>{html.escape(c['system'])}</b>, {c['speed']:g} rad/s, {axial}, "
+    return (f"system <b>{html.escape(c['system'])}</b>, "
+            f"{q('top_drive_angular_velocity', c['speed'])}, {axial}, "
             f"{start[c['start']]}, {c['duration']:g} s controlled"
             + (", " + ", ".join(extra) if extra else "")
             + f"; FEM {c['n_elements']} elements, dt {c['dt'] * 1e3:g} ms; region: "
             f"{html.escape(c['region'] or '?')}")
 
 
-def render_html(scores: dict, traces: dict | None = None) -> str:
-    """The report page (self-contained: plots are embedded as data URIs)."""
+def render_html(scores: dict, traces: dict | None = None, units=None) -> str:
+    """The report page (self-contained: plots are embedded as data URIs), its tables and plots
+    in the display ``units`` (a system name or :class:`~downhole.units.UnitSystem`; default
+    ``si``, shown with rpm, mm/s, kN·m and MPa). ``scores.json`` stays SI."""
     traces = traces or {}
+    disp = _units(units)
     esc = html.escape
     s = scores["suite"]
     parts = [
@@ -135,10 +172,11 @@ def render_html(scores: dict, traces: dict | None = None) -> str:
     parts.append("</table>")
     for case in scores["cases"]:
         cid = case["id"]
-        parts.append(f"<h2 id='{esc(cid)}'>{esc(cid)}</h2><p>{_case_line(case)}</p>")
-        head = "".join(f"<th>{esc(t)}</th>" for _, t, _, _ in TABLE_COLUMNS)
+        parts.append(f"<h2 id='{esc(cid)}'>{esc(cid)}</h2><p>{_case_line(case, disp)}</p>")
+        head = "".join(f"<th>{esc(_title(disp, t, q))}</th>" for _, t, q, _ in TABLE_COLUMNS)
         parts.append(f"<table><tr><th class='l'>controller</th>{head}"
-                     "<th>effort: speed cmd RMS [rad/s]</th></tr>")
+                     "<th>effort: speed cmd RMS "
+                     f"[{esc(disp.label('top_drive_angular_velocity'))}]</th></tr>")
         for label, cell in scores["cells"][cid].items():
             if cell["status"] != "ok":
                 cls = "na" if cell["status"] == "n/a" else "fail"
@@ -147,12 +185,12 @@ def render_html(scores: dict, traces: dict | None = None) -> str:
                              f"{esc(cell['reason'])}</td></tr>")
                 continue
             sc = cell["scores"]
-            vals = "".join(f"<td>{_fmt(sc.get(k), scale, fmt, k)}</td>"
-                           for k, _, scale, fmt in TABLE_COLUMNS)
+            vals = "".join(f"<td>{_fmt(sc.get(k), q, fmt, k, disp)}</td>"
+                           for k, _, q, fmt in TABLE_COLUMNS)
             parts.append(f"<tr><td class='l'>{esc(label)}</td>{vals}"
-                         f"<td>{_effort_text(sc)}</td></tr>")
+                         f"<td>{_effort_text(sc, disp)}</td></tr>")
         parts.append("</table>")
-        png = _plot(case, traces.get(cid, {}))
+        png = _plot(case, traces.get(cid, {}), disp)
         if png:
             parts.append(f"<img alt='{esc(cid)}' src='data:image/png;base64,{png}'>")
     parts.append("<h2>Score definitions</h2><table><tr><th class='l'>score</th><th>unit</th>"
@@ -165,12 +203,12 @@ def render_html(scores: dict, traces: dict | None = None) -> str:
     return "\n".join(parts)
 
 
-def write_report(out, scores: dict, traces: dict | None = None) -> None:
-    """Write ``out/scores.json`` and ``out/index.html`` atomically (an ``INCOMPLETE`` marker
-    stands in the folder until both are written)."""
+def write_report(out, scores: dict, traces: dict | None = None, units=None) -> None:
+    """Write ``out/scores.json`` (SI) and ``out/index.html`` (in the display ``units``)
+    atomically (an ``INCOMPLETE`` marker stands in the folder until both are written)."""
     data = {k: v for k, v in scores.items() if not k.startswith("_")}
     with OutputFolder(out, OUTPUT_FILES, "compare-controllers") as folder:
-        page = render_html(data, traces)
+        page = render_html(data, traces, units)
         folder.writing()
         write_text_atomic(folder.path / "scores.json", json.dumps(data, indent=1,
                                                                   allow_nan=False))

@@ -16,7 +16,8 @@ __all__ = ["write_las", "read_las", "NULL"]
 
 
 def read_las(path: str | os.PathLike):
-    """Read a time-indexed LAS file written by :func:`write_las` back into a Result."""
+    """Read a time-indexed LAS file written by :func:`write_las` back into a Result (curves of
+    declared signals written in other units, e.g. oilfield, are converted back to SI)."""
     import lasio
 
     from downhole.sim.result import Result
@@ -27,8 +28,21 @@ def read_las(path: str | os.PathLike):
                                  "expected the TIME index of a downhole LAS file")
     t = np.asarray(las.curves[0].data, float)
     channels, units = {}, {}
+    from downhole.signals import SIGNALS
+    from downhole.units import convert
+
     for c in las.curves[1:]:
         name = c.descr.split(":", 1)[0] if ":" in c.descr else c.mnemonic.lower()
-        channels[name] = np.asarray(c.data, float)
-        units[name] = c.unit
+        data = np.asarray(c.data, float)
+        sig = SIGNALS.get(name)
+        if sig is not None and c.unit and c.unit.replace(" ", "") != sig.unit.replace(" ", ""):
+            # written in display units (e.g. --units oilfield): back to SI
+            try:
+                data = convert(data, c.unit, sig.unit)
+            except Exception as exc:  # noqa: BLE001 - pint's unit and dimension errors
+                raise DownholeInputError(
+                    f"{path}: curve {c.mnemonic} has unit {c.unit!r}, which does not convert "
+                    f"to {sig.unit or 'a plain number'} ({exc})") from None
+        channels[name] = data
+        units[name] = sig.unit if sig is not None else c.unit
     return Result(t, channels, units=units, attrs={"source": str(path)})

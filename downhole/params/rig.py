@@ -33,6 +33,15 @@ _TD_MODES = ("pi", "soft_torque", "torque")
 _HOOK_MODES = ("force", "velocity")
 
 
+def _quantities(obj, what: str, dims: dict) -> None:
+    """Quantity strings and pint Quantities of a frozen rig part to SI floats (numbers are SI
+    and keep their checks): ``TopDrive(speed="120 rpm")``, ``Hook(wob="25 klbf")``."""
+    from downhole.units import si_or_number
+
+    for name, dim in dims.items():
+        object.__setattr__(obj, name, si_or_number(getattr(obj, name), dim, f"{what} {name}"))
+
+
 def _num(name, value, lo=0.0, strict=False):
     try:
         x = float(value)
@@ -80,6 +89,10 @@ class TopDrive:
     def __post_init__(self):
         if self.mode not in _TD_MODES:
             raise DownholeInputError(f"top drive mode must be one of {_TD_MODES}, got {self.mode!r}")
+        _quantities(self, "top drive", {
+            "inertia": "inertia", "speed": "torque" if self.mode == "torque" else
+            "angular_velocity", "kp": "torsional_damping", "ki": "torsional_stiffness",
+            "soft_tau": "time", "ramp_time": "time"})
         _num("top drive inertia", self.inertia, strict=True)
         _num("top drive kp", self.kp)
         _num("top drive ki", self.ki)
@@ -131,6 +144,9 @@ class Hook:
     def __post_init__(self):
         if self.mode not in _HOOK_MODES:
             raise DownholeInputError(f"hook mode must be one of {_HOOK_MODES}, got {self.mode!r}")
+        _quantities(self, "hook", {"wob": "force", "velocity": "velocity", "block_mass": "mass",
+                                   "servo_stiffness": "stiffness",
+                                   "servo_damping": "damping"})
         _num("hook wob", self.wob)
         _num("hook block_mass", self.block_mass)
         _num("hook servo_stiffness", self.servo_stiffness, strict=True)

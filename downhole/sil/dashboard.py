@@ -99,6 +99,10 @@ UNIT_SYSTEMS = {
     "field": {"rotary_speed": "rpm", "torque": "kft*lbf", "force": "klbf", "rop": "ft/h",
               "depth": "ft"},
 }
+#: A signal of each displayed quantity, by which a :class:`downhole.units.UnitSystem` names
+#: its display unit.
+_SIGNAL_OF = {"rotary_speed": "top_drive_angular_velocity", "torque": "surface_torque",
+              "force": "wob", "rop": "mean_rop", "depth": None}
 _LABELS = {"kN*m": "kN\u00b7m", "kft*lbf": "kft\u00b7lbf", "N*m": "N\u00b7m"}
 _UREG = None
 
@@ -118,6 +122,9 @@ def display_units(system="metric") -> dict:
     global _UREG
     if _UREG is None:
         _UREG = pint.UnitRegistry()
+    if hasattr(system, "unit_of"):  # a downhole.units.UnitSystem (``--units``, docs/units.md)
+        system = {q: (system.unit_of(_SIGNAL_OF[q]) if _SIGNAL_OF[q] else system.kind_unit(
+            "length")) or si for q, si in _SI_UNITS.items()}
     if isinstance(system, str):
         if system not in UNIT_SYSTEMS:
             raise DownholeInputError(f"unknown unit system {system!r}; expected one of "

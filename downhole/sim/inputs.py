@@ -8,6 +8,7 @@ from typing import Callable, Union
 import numpy as np
 
 from downhole.errors import DownholeInputError
+from downhole.units import _is_quantity, as_si, as_si_array
 
 __all__ = ["SurfaceInputs", "Signal", "sample_signal"]
 
@@ -44,6 +45,37 @@ def sample_signal(sig: Signal, t: np.ndarray, name: str) -> np.ndarray:
     return out
 
 
+#: Dimensions of the (axial, angular) inputs of each mode.
+_DIMENSIONS = {"velocity": ("velocity", "angular_velocity"),
+               "displacement": ("length", "angle"), "force": ("force", "torque")}
+
+
+def _si_signal(sig, dimension: str, name: str):
+    """A signal with its quantities in SI: a quantity string or pint Quantity becomes a float,
+    ``(times, values)`` arrays of quantities become float arrays; callables are taken as SI."""
+    if callable(sig) and not _is_quantity(sig):
+        return sig
+    if isinstance(sig, tuple):
+        if len(sig) != 2:
+            raise DownholeInputError(f"{name}: expected (times, values), got a tuple of "
+                                     f"{len(sig)}")
+        return (as_si_array(sig[0], "time", f"{name} times"),
+                as_si_array(sig[1], dimension, f"{name} values"))
+    if isinstance(sig, bool):
+        raise DownholeInputError(f"{name}: expected a number, a quantity, (times, values) or "
+                                 f"f(t), got {sig!r}")
+    if isinstance(sig, str) or _is_quantity(sig):
+        return as_si(sig, dimension, name)
+    try:
+        value = float(sig)
+    except (TypeError, ValueError):
+        raise DownholeInputError(f"{name}: expected a number, a quantity such as '30 ft/h', "
+                                 f"(times, values) or f(t), got {sig!r}") from None
+    if not np.isfinite(value):
+        raise DownholeInputError(f"{name}: {value} is not a finite number")
+    return value
+
+
 @dataclass(frozen=True)
 class SurfaceInputs:
     """Top-drive inputs.
@@ -57,17 +89,31 @@ class SurfaceInputs:
     axial: Signal
     angular: Signal
 
+    def __post_init__(self):
+        if self.mode not in _DIMENSIONS:
+            raise DownholeInputError(f"input mode must be one of {tuple(_DIMENSIONS)}, got "
+                                     f"{self.mode!r}")
+        for attr, dim in zip(("axial", "angular"), _DIMENSIONS[self.mode]):
+            object.__setattr__(self, attr, _si_signal(getattr(self, attr), dim,
+                                                      f"{self.mode} input {attr}"))
+
     @classmethod
     def velocity(cls, axial: Signal = 0.01, angular: Signal = 10.0) -> "SurfaceInputs":
+        """Top-drive axial velocity (m/s, or a quantity such as ``"30 ft/h"``) and rotary speed
+        (rad/s, or ``"120 rpm"``): constants, ``(times, values)`` or callables f(t) in SI."""
         return cls("velocity", axial, angular)
 
     @classmethod
     def displacement(cls, time, axial, angular) -> "SurfaceInputs":
-        t = np.asarray(time, float)
-        return cls("displacement", (t, np.asarray(axial, float)), (t, np.asarray(angular, float)))
+        """Top-drive axial displacement (m) and angle (rad) at ``time`` (s); arrays of numbers
+        in SI, of quantity strings or pint Quantity arrays."""
+        t = as_si_array(time, "time", "displacement input time")
+        return cls("displacement", (t, as_si_array(axial, "length", "displacement input axial")),
+                   (t, as_si_array(angular, "angle", "displacement input angular")))
 
     @classmethod
     def force(cls, hook_load: Signal, torque: Signal) -> "SurfaceInputs":
+        """Hook load (N, or ``"250 klbf"``) and surface torque (N m, or ``"10 kft*lbf"``)."""
         return cls("force", hook_load, torque)
 
     def sample(self, t: np.ndarray):

@@ -41,7 +41,7 @@ def _mnemonic(name: str) -> str:
 
 def write_las(result, path: str | os.PathLike, well: str = "downhole simulation",
               channels: list[str] | None = None, company: str = "", field: str = "",
-              summary: bool = True) -> Path:
+              summary: bool = True, units=None) -> Path:
     """Write ``result`` as a time-indexed LAS 2.0 file.
 
     Parameters
@@ -57,6 +57,10 @@ def write_las(result, path: str | os.PathLike, well: str = "downhole simulation"
         ``COMP`` and ``FLD`` entries.
     summary : bool
         Also write the summary metrics (second half of the run) as ~Parameter entries.
+    units : str or UnitSystem, optional
+        Display units of the curves and parameters (:func:`downhole.units.display_units`,
+        e.g. ``"oilfield"``: WOB in klbf, torques in kft*lbf, speeds in rpm, ROP in ft/h);
+        default: the stored SI units.
 
     Returns
     -------
@@ -64,6 +68,9 @@ def write_las(result, path: str | os.PathLike, well: str = "downhole simulation"
     """
     import lasio
 
+    from downhole.units import convert, display_units
+
+    disp = display_units(units or "si")
     names = [n for n in result.channels if result.dataset[n].ndim == 1]
     if channels is not None:
         unknown = [c for c in channels if c not in result.channels]
@@ -100,7 +107,9 @@ def write_las(result, path: str | os.PathLike, well: str = "downhole simulation"
         da = result.dataset[n]
         unit = str(da.attrs.get("units", "")).replace(" ", "")
         desc = str(da.attrs.get("description", "")) or n
-        values = np.where(np.isfinite(da.values), da.values, NULL)
+        values, unit = disp.convert(n, da.values, unit)
+        unit = "" if unit == "-" else unit
+        values = np.where(np.isfinite(values), values, NULL)
         las.append_curve(mnem, values, unit=unit, descr=f"{n}: {desc}")
     attrs = result.attrs
     for key, (mnem, unit) in _PARAM_ATTRS.items():
@@ -108,6 +117,10 @@ def write_las(result, path: str | os.PathLike, well: str = "downhole simulation"
             value = attrs[key]
             if isinstance(value, (np.generic,)):
                 value = value.item()
+            if key == "bit_radius" and isinstance(value, (int, float)):
+                # a radius reads like a diameter: inches, not feet, in oilfield units
+                unit = disp.kind_unit("diameter")
+                value = convert(float(value), "m", unit)
             las.params.append(lasio.HeaderItem(mnem, unit=unit, value=value, descr=key))
     if summary:
         try:
@@ -118,7 +131,7 @@ def write_las(result, path: str | os.PathLike, well: str = "downhole simulation"
 
         for k, v in s.items():
             if isinstance(v, float) and math.isfinite(v):
-                unit = metric_unit(k)
+                v, unit = disp.convert(k, v, metric_unit(k))
                 las.params.append(lasio.HeaderItem(_mnemonic(k), unit=unit.replace("-", ""),
                                                    value=float(f"{v:.8g}"),
                                                    descr=f"summary: {k} (second half)"))

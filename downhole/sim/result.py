@@ -141,16 +141,35 @@ class Result:
             fig = plot_overview(self, tmp, title)
         return fig
 
-    def to_csv(self, path: str | os.PathLike) -> Path:
-        """Write the 1-D channels as CSV with a ``time`` column (atomically)."""
+    def to_csv(self, path: str | os.PathLike, units=None) -> Path:
+        """Write the 1-D channels as CSV with a ``time`` column (atomically).
+
+        With ``units`` (a system name such as ``"oilfield"`` or a
+        :class:`~downhole.units.UnitSystem`) the values are in those display units and every
+        header names its unit, ``wob [klbf]``; without, the columns are the channel names and
+        the values SI."""
         one_d = [n for n in self.channels if self.dataset[n].ndim == 1]
+        if units is None:
+            with atomic_path(path) as tmp:
+                self.dataset[one_d].to_dataframe().to_csv(tmp)
+            return Path(path)
+        import pandas as pd
+
+        from downhole.units import display_units
+
+        disp = display_units(units)
+        cols = {}
+        for n in one_d:
+            values, unit = disp.convert(n, self.dataset[n].values, self.units(n))
+            cols[f"{n} [{unit or '-'}]"] = values
+        frame = pd.DataFrame(cols, index=pd.Index(self.time, name="time [s]"))
         with atomic_path(path) as tmp:
-            self.dataset[one_d].to_dataframe().to_csv(tmp)
+            frame.to_csv(tmp)
         return Path(path)
 
     def to_las(self, path: str | os.PathLike, **kwargs) -> Path:
         """Write the 1-D channels as a time-indexed LAS 2.0 file, atomically (keywords:
-        ``well``, ``channels``, ``company``, ``field``, ``summary``; see
+        ``well``, ``channels``, ``company``, ``field``, ``summary``, ``units``; see
         :func:`downhole.sim.las.write_las`, also :func:`downhole.io.write_las`)."""
         from downhole.sim.las import write_las
 

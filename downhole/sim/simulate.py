@@ -18,6 +18,7 @@ from downhole.sim.inputs import SurfaceInputs
 from downhole.sim.lumped_model import ChainModel
 from downhole.sim.plant import Plant, check_start, steady_depth_of_cut
 from downhole.sim.result import Result
+from downhole.units import si_or_number
 
 __all__ = ["simulate", "LumpedPlant", "DEPTH_OF_CUT_MODES", "INTEGRATORS"]
 
@@ -52,7 +53,8 @@ def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration
     inputs : SurfaceInputs, optional
         Top-drive inputs; default ``SurfaceInputs.velocity(0.01, 10.0)`` (10 mm/s, 10 rad/s).
     duration : float
-        Simulated time, s.
+        Simulated time, s. This and ``dt``, ``record_dt`` and ``clearance`` also accept a
+        quantity string (``"20 s"``, ``"0.5 ms"``) or a pint Quantity.
     dt : float
         Time step, s (the seed uses 5e-4 s with explicit Euler).
     depth_of_cut : {"delayed", "approximate"}
@@ -100,6 +102,10 @@ def simulate(model: ChainModel, inputs: SurfaceInputs | None = None, *, duration
     if not isinstance(model, ChainModel):
         raise DownholeInputError(f"simulate() takes a lumped ChainModel, got {type(model).__name__}")
     inputs = inputs or SurfaceInputs.velocity()
+    duration = si_or_number(duration, "time", "duration")
+    dt = si_or_number(dt, "time", "dt")
+    record_dt = si_or_number(record_dt, "time", "record_dt")
+    clearance = si_or_number(clearance, "length", "clearance")
     _check(duration, dt, depth_of_cut, integrator, record_dt)
     nsteps = int(round(duration / dt))
     if abs(nsteps * dt - duration) > 1e-9 * max(1.0, duration):

@@ -14,6 +14,7 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.params.strings import PipeSection
+from downhole.units import si_or_number
 
 __all__ = ["StringSegment", "Stabilizer", "DrillString", "pipe_section"]
 
@@ -39,6 +40,7 @@ class StringSegment:
     kind: str = "pipe"
 
     def __post_init__(self):
+        object.__setattr__(self, "length", si_or_number(self.length, "length", "segment length"))
         if not (isinstance(self.length, (int, float)) and self.length > 0):
             raise DownholeInputError(f"segment length must be > 0 m, got {self.length!r}")
         if self.kind not in _KINDS:
@@ -53,6 +55,9 @@ class Stabilizer:
     outer_diameter: float
 
     def __post_init__(self):
+        for name in ("distance_from_bit", "outer_diameter"):
+            object.__setattr__(self, name, _number(getattr(self, name), "length",
+                                                   f"stabilizer {name}"))
         if not self.distance_from_bit >= 0:
             raise DownholeInputError(
                 f"stabilizer distance_from_bit must be >= 0 m, got {self.distance_from_bit!r}")
@@ -61,8 +66,36 @@ class Stabilizer:
                 f"stabilizer outer_diameter must be > 0 m, got {self.outer_diameter!r}")
 
 
+#: Dimensions of the material keywords of :func:`pipe_section`.
+_MATERIAL = {"young_modulus": "pressure", "shear_modulus": "pressure", "density": "density"}
+
+
+def _number(value, dimension: str, what: str) -> float:
+    """A number in SI from a number, a quantity string or a pint Quantity (one-line errors)."""
+    value = si_or_number(value, dimension, what)
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise DownholeInputError(f"{what}: expected a number or a quantity such as '5 in', got "
+                                 f"{value!r}")
+    return float(value)
+
+
 def pipe_section(outer_diameter: float, inner_diameter: float, **material) -> PipeSection:
-    """A :class:`PipeSection` with precise errors for negative or inverted diameters."""
+    """A :class:`PipeSection` with precise errors for negative or inverted diameters.
+
+    Every value is a number in SI or a quantity (``"5 in"``, ``"30e6 psi"``, a pint Quantity).
+
+    Examples
+    --------
+    >>> round(pipe_section("5 in", "4.276 in").outer_diameter, 4)
+    0.127
+    """
+    outer_diameter = _number(outer_diameter, "length", "outer_diameter")
+    inner_diameter = _number(inner_diameter, "length", "inner_diameter")
+    unknown = sorted(set(material) - set(_MATERIAL))
+    if unknown:
+        raise DownholeInputError(f"pipe_section: unknown keyword(s) {unknown}; expected "
+                                 f"{sorted(_MATERIAL)}")
+    material = {k: _number(v, _MATERIAL[k], k) for k, v in material.items()}
     if not outer_diameter > 0:
         raise DownholeInputError(f"outer_diameter must be > 0 m, got {outer_diameter!r}")
     if not inner_diameter >= 0:
@@ -102,6 +135,9 @@ class DrillString:
     g: float = 9.81
 
     def __post_init__(self):
+        object.__setattr__(self, "mud_density", _number(self.mud_density, "density",
+                                                         "mud_density"))
+        object.__setattr__(self, "g", _number(self.g, "acceleration", "g"))
         if not self.segments:
             raise DownholeInputError("a drill string needs at least one segment")
         for k, s in enumerate(self.segments):
@@ -123,8 +159,9 @@ class DrillString:
     @classmethod
     def uniform(cls, length: float, section: PipeSection, mud_density: float = 0.0,
                 g: float = 9.81) -> "DrillString":
-        """One uniform pipe of ``length`` m."""
-        return cls((StringSegment(float(length), section),), mud_density=mud_density, g=g)
+        """One uniform pipe of ``length`` m (or a quantity such as ``"15000 ft"``)."""
+        return cls((StringSegment(_number(length, "length", "length"), section),),
+                   mud_density=mud_density, g=g)
 
     @property
     def length(self) -> float:

@@ -34,6 +34,7 @@ from downhole.sim.result import Result
 from downhole.sim.wave import WaveParams
 from downhole.string.drillstring import DrillString
 from downhole.string.zoh import zoh
+from downhole.units import si_or_number
 from downhole.well import WellPath
 
 __all__ = ["DirectionalModel", "fem_model", "fem_from_nodes", "simulate_directional",
@@ -922,7 +923,8 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
     ----------
     model : DirectionalModel
     duration, dt : float
-        Simulated time and step, s.
+        Simulated time and step, s (numbers, quantity strings such as ``"0.5 ms"`` or pint
+        quantities; also ``record_dt`` and ``clearance``).
     top_drive : TopDrive, optional
         Default: PI at 10 rad/s, J_td = DEFAULT_TOP_DRIVE_INERTIA (500 kg m^2), Kp = 1e4, Ki = 2e3.
     hook : Hook, optional
@@ -966,6 +968,10 @@ def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: fl
     """
     top_drive = top_drive or TopDrive()
     hook = hook or Hook()
+    duration = si_or_number(duration, "time", "duration")
+    dt = si_or_number(dt, "time", "dt")
+    record_dt = si_or_number(record_dt, "time", "record_dt")
+    clearance = si_or_number(clearance, "length", "clearance")
     _check_duration(duration, dt, record_dt)
     pk = _packed(model, dt, top_drive, hook, depth_of_cut)
     n_steps = int(round(duration / dt))

@@ -35,6 +35,7 @@ from downhole.sim.references import as_reference
 from downhole.sim.result import Result
 from downhole.sim.wave import (WaveSegment, segments_from_pipe, wave_read_at, wave_read_plan,
                                wave_source_forces, wave_state, wave_step_at)
+from downhole.units import si_or_number
 
 __all__ = ["NeutralModel", "NDDEMatrices", "NeutralPlant", "neutral_model", "simulate_neutral",
            "NEUTRAL_CHANNELS", "NOMINAL_U_A", "NOMINAL_U_T"]
@@ -650,8 +651,11 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         model = neutral_model(model, bit)
     elif bit is not None:
         model = model.with_bit(bit)
-    duration = _check_positive("duration", duration)
-    dt = _check_positive("dt", dt)
+    duration = _check_positive("duration", si_or_number(duration, "time", "duration"))
+    dt = _check_positive("dt", si_or_number(dt, "time", "dt"))
+    record_dt = si_or_number(record_dt, "time", "record_dt")
+    control_dt = si_or_number(control_dt, "time", "control_dt")
+    clearance = si_or_number(clearance, "length", "clearance")
     if depth_of_cut not in ("delayed", "approximate"):
         raise DownholeInputError(f"depth_of_cut must be 'delayed' or 'approximate', got "
                                  f"{depth_of_cut!r}")

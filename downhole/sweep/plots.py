@@ -8,7 +8,6 @@ and ``bit_bounce_fraction`` metrics, and draws iso-lines of the mean WOB when th
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -21,24 +20,32 @@ __all__ = ["plot_sweep", "classify_regimes", "stability_map", "REGIMES", "displa
 #: Regime codes of :func:`classify_regimes`.
 REGIMES = {0: "stable", 1: "stick-slip", 2: "bit bounce", 3: "stick-slip + bit bounce"}
 
-_DISPLAY = {"m/s": ("mm/s", 1e3), "rad/s": ("rpm", 60.0 / (2 * math.pi)), "N": ("kN", 1e-3),
-            "N*m": ("kN m", 1e-3), "Pa": ("MPa", 1e-6)}
+def display_units(units: str, system=None) -> tuple[str, float]:
+    """(label, factor) that show SI values of unit ``units`` in the figure units of ``system``
+    (:func:`downhole.units.display_units`; default ``si``: rpm, mm/s, kN, kN·m, MPa). The factor
+    comes from pint."""
+    from downhole.units import display_units as _system
+    from downhole.units import unit_label
 
-
-def display_units(units: str) -> tuple[str, float]:
-    """(label, factor) used to show SI values in drilling units (rpm, mm/s, kN, kN m, MPa)."""
-    return _DISPLAY.get(units, (units, 1.0))
+    disp = _system(system or "si").for_figures()
+    factor, unit = disp.convert("", 1.0, units)
+    return unit_label(unit) if unit not in ("", "-") else unit, float(factor)
 
 
 _FRIENDLY = {"operation.surface_speed": "rotary speed", "operation.rop": "feed velocity",
              "operation.hook_load": "hook load", "operation.surface_torque": "surface torque"}
 
 
-def _label(ds, name) -> tuple[str, float]:
-    var = ds[name]
-    unit, factor = display_units(var.attrs.get("units", ""))
+def _label(ds, name, system=None) -> tuple[str, float]:
+    """Axis label with the display unit of variable ``name`` and the factor from SI to it."""
+    from downhole.units import display_units as _system
+
+    disp = _system(system or "si").for_figures()
+    si = str(ds[name].attrs.get("units", ""))
+    factor, unit = disp.convert(name, 1.0, si)
     text = f"{_FRIENDLY[name]}, {name}" if name in _FRIENDLY else name
-    return (f"{text} ({unit})" if unit and unit != "-" else text), factor
+    label = disp.label(name, si)
+    return (f"{text} ({label})" if unit and unit != "-" else text), float(factor)
 
 
 def _mpl():
@@ -50,9 +57,10 @@ def _mpl():
     return plt
 
 
-def plot_sweep(ds, out_dir: str | Path) -> list[Path]:
+def plot_sweep(ds, out_dir: str | Path, units=None) -> list[Path]:
     """One PNG per metric: lines (1 parameter), heat maps (2), scatter against each parameter
-    (random sweeps); further grid dimensions are shown at their first value. Returns the files."""
+    (random sweeps); further grid dimensions are shown at their first value, in the display
+    ``units`` (a system name or :class:`~downhole.units.UnitSystem`). Returns the files."""
     plt = _mpl()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -60,13 +68,13 @@ def plot_sweep(ds, out_dir: str | Path) -> list[Path]:
     files = []
     for m in metrics:
         da = ds[m]
-        mlabel, mf = _label(ds, m)
+        mlabel, mf = _label(ds, m, units)
         if "case" in da.dims:
             params = [c for c in ds.coords if c != "case"]
             fig, axes = plt.subplots(1, len(params), figsize=(4.2 * len(params), 3.4),
                                      squeeze=False)
             for ax, p in zip(axes[0], params):
-                plabel, pf = _label(ds, p)
+                plabel, pf = _label(ds, p, units)
                 ok = np.isfinite(da.values)
                 ax.scatter(ds[p].values[ok] * pf, da.values[ok] * mf, s=8)
                 ax.scatter(ds[p].values[~ok] * pf, np.zeros((~ok).sum()), marker="x", c="r",
@@ -81,15 +89,15 @@ def plot_sweep(ds, out_dir: str | Path) -> list[Path]:
             fig, ax = plt.subplots(figsize=(5.6, 4.0))
             if sub.ndim == 1:
                 d = sub.dims[0]
-                plabel, pf = _label(ds, d)
+                plabel, pf = _label(ds, d, units)
                 ax.plot(ds[d].values * pf, sub.values * mf, "o-", ms=3)
                 ax.set_xlabel(plabel)
                 ax.set_ylabel(mlabel)
                 ax.grid(alpha=0.3)
             else:
                 ydim, xdim = sub.dims[0], sub.dims[1]
-                xl, xf = _label(ds, xdim)
-                yl, yf = _label(ds, ydim)
+                xl, xf = _label(ds, xdim, units)
+                yl, yf = _label(ds, ydim, units)
                 mesh = ax.pcolormesh(ds[xdim].values * xf, ds[ydim].values * yf,
                                      sub.values * mf, shading="nearest", cmap="viridis")
                 fig.colorbar(mesh, ax=ax, label=mlabel)
@@ -133,7 +141,7 @@ def classify_regimes(ds, severity_threshold: float = 0.5, bounce_threshold: floa
 
 def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = None,
                   severity_threshold: float = 0.5, bounce_threshold: float = 0.01,
-                  title: str | None = None):
+                  title: str | None = None, units=None):
     """Draw the drilling stability map of a 2-D grid sweep into ``path`` (PNG).
 
     Parameters
@@ -146,6 +154,8 @@ def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = No
         contains ``surface_speed`` or ``angular_velocity`` (rotary speed) on x, the other on y.
     severity_threshold, bounce_threshold : float
         Classification thresholds (see :func:`classify_regimes`).
+    units : str or UnitSystem, optional
+        Display units of the axes (default ``si``: rpm, mm/s, kN).
 
     Returns
     -------
@@ -171,8 +181,8 @@ def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = No
     regimes = classify_regimes(ds, severity_threshold, bounce_threshold).transpose(y, x)
     sev = ds["stick_slip_severity"].transpose(y, x)
     bounce = ds["bit_bounce_fraction"].transpose(y, x)
-    xl, xf = _label(ds, x)
-    yl, yf = _label(ds, y)
+    xl, xf = _label(ds, x, units)
+    yl, yf = _label(ds, y, units)
     xv, yv = ds[x].values * xf, ds[y].values * yf
 
     fig, axes = plt.subplots(1, 3, figsize=(16.5, 4.6))
@@ -195,7 +205,7 @@ def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = No
     norm = BoundaryNorm([-1.5, -0.5, 0.5, 1.5, 2.5, 3.5], cmap.N)
     ax.pcolormesh(xv, yv, regimes.values, shading="nearest", cmap=cmap, norm=norm)
     if "mean_wob" in ds and len(xv) > 1 and len(yv) > 1:
-        wl, wf = display_units(ds["mean_wob"].attrs.get("units", "N"))
+        wl, wf = display_units(ds["mean_wob"].attrs.get("units", "N"), units)
         wob = ds["mean_wob"].transpose(y, x).values * wf
         if np.isfinite(wob).sum() > 3:
             cs = ax.contour(xv, yv, wob, levels=6, colors="k", linewidths=0.8, linestyles="--")

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from downhole.errors import DownholeInputError
+from downhole.units import _is_quantity, as_si_array, si_or_number
 
 __all__ = ["Vertical", "Tangent", "Arc", "BuildTurn", "WellPath", "read_survey_csv",
            "minimum_curvature"]
@@ -28,11 +29,28 @@ _FT = 0.3048
 
 
 # ----------------------------------------------------------------------------------- sections
+def _quantities(obj, dims: dict) -> None:
+    """Convert the quantity fields (strings such as ``"3000 ft"``, pint Quantities) of a
+    frozen section to SI floats; numbers are SI and keep the checks of the path builder."""
+    for name, dim in dims.items():
+        value = getattr(obj, name)
+        if value is not None:
+            object.__setattr__(obj, name, si_or_number(value, dim,
+                                                       f"{type(obj).__name__}.{name}"))
+
+
 @dataclass(frozen=True)
 class Vertical:
-    """Straight vertical section of ``length`` m (inclination 0)."""
+    """Straight vertical section of ``length`` m (inclination 0).
+
+    Every section takes numbers in SI (m, rad) or quantities: ``Vertical("3000 ft")``,
+    ``Arc("1000 ft", "30 deg")``.
+    """
 
     length: float
+
+    def __post_init__(self):
+        _quantities(self, {"length": "length"})
 
 
 @dataclass(frozen=True)
@@ -40,6 +58,9 @@ class Tangent:
     """Straight section of ``length`` m keeping the current inclination and azimuth."""
 
     length: float
+
+    def __post_init__(self):
+        _quantities(self, {"length": "length"})
 
 
 @dataclass(frozen=True)
@@ -55,6 +76,10 @@ class Arc:
     toolface: float = 0.0
     azimuth: float | None = None
 
+    def __post_init__(self):
+        _quantities(self, {"radius": "length", "angle": "angle", "toolface": "angle",
+                           "azimuth": "angle"})
+
 
 @dataclass(frozen=True)
 class BuildTurn:
@@ -63,6 +88,9 @@ class BuildTurn:
     length: float
     inclination: float
     azimuth: float
+
+    def __post_init__(self):
+        _quantities(self, {"length": "length", "inclination": "angle", "azimuth": "angle"})
 
 
 # ------------------------------------------------------------------------------- geometry core
@@ -195,6 +223,9 @@ class WellPath:
         """
         if not sections:
             raise DownholeInputError("sections is empty: give at least one section")
+        inclination = si_or_number(inclination, "angle", "inclination")
+        azimuth = si_or_number(azimuth, "angle", "azimuth")
+        start = tuple(si_or_number(x, "length", "start") for x in start)
         md, inc, azi = [0.0], [float(inclination)], [float(azimuth)]
         for k, s in enumerate(sections):
             if isinstance(s, (Vertical, Tangent)):
@@ -251,9 +282,22 @@ class WellPath:
     @classmethod
     def from_survey(cls, md, inclination, azimuth, *, degrees: bool = True,
                     length_unit: str = "m", start=(0.0, 0.0, 0.0)) -> "WellPath":
-        """Path from survey columns; ``degrees`` for the angles, ``length_unit`` "m" or "ft"."""
+        """Path from survey columns; ``degrees`` for the angles, ``length_unit`` "m" or "ft".
+
+        Columns may also be pint Quantity arrays or sequences of quantity strings
+        (``["0 ft", "1000 ft"]``); those carry their own units and ignore ``degrees`` and
+        ``length_unit``.
+        """
         scale = _length_scale(length_unit)
         ang = math.pi / 180.0 if degrees else 1.0
+        if _has_units(md):
+            md, scale = as_si_array(md, "length", "md"), 1.0
+            start = tuple(si_or_number(x, "length", "start") for x in start)
+        if _has_units(inclination) or _has_units(azimuth):
+            inc = as_si_array(inclination, "angle", "inclination").ravel()
+            azi = as_si_array(azimuth, "angle", "azimuth").ravel()
+            return cls(np.asarray(md, float) * scale, inc, azi,
+                       tuple(float(x) * scale for x in start))
         inc = np.asarray(inclination, float).ravel()
         if degrees:
             bad = np.flatnonzero((inc < 0) | (inc > 180))
@@ -291,7 +335,9 @@ class WellPath:
 
     # --- queries -----------------------------------------------------------------------------
     def _locate(self, md):
-        md = np.asarray(md, float)
+        # queries take metres, quantity strings ("3000 ft") or pint quantities
+        md = as_si_array(md, "length", "measured depth") if _has_units(md) else \
+            np.asarray(md, float)
         if np.any(~np.isfinite(md)):
             raise DownholeInputError("measured depth query contains non-finite values")
         lo, hi = self._md[0], self._md[-1]
@@ -420,6 +466,18 @@ class WellPath:
     def __repr__(self) -> str:
         return (f"WellPath({self._md.size} stations, md {self._md[0]:g}..{self._md[-1]:g} m, "
                 f"max inclination {math.degrees(self._inc.max()):.1f} deg)")
+
+
+def _has_units(values) -> bool:
+    """True for a pint Quantity or a sequence holding quantity strings or Quantities."""
+    if _is_quantity(values) or isinstance(values, str):
+        return True
+    if isinstance(values, np.ndarray) and values.dtype.kind in "fiub":
+        return False
+    try:
+        return any(isinstance(v, str) or _is_quantity(v) for v in values)
+    except TypeError:
+        return False
 
 
 def _length_scale(unit: str) -> float:
