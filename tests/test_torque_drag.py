@@ -401,6 +401,47 @@ def test_cli_writes_the_table_and_figures(tmp_path):
 BASE = (EXAMPLES / "directional_survey.toml").read_text()
 
 
+def test_cli_oilfield_units_are_the_si_run_converted_by_pint(tmp_path):
+    """``--units oilfield``: every CSV column is the SI run's column converted by an independent
+    pint registry (ft, klbf, kft*lbf, lbf/ft, deg/100ft), headers naming the units; summary.json
+    names the system."""
+    import pint
+
+    ureg = pint.UnitRegistry()
+    si, oil = tmp_path / "si", tmp_path / "oil"
+    scen = EXAMPLES / "directional_survey.toml"
+    assert _main(["torque-drag", scen, "--out", si, "--friction", "0.2"]) == 0
+    assert _main(["torque-drag", scen, "--out", oil, "--friction", "0.2", "--units",
+                  "oilfield"]) == 0
+
+    def table(path):
+        with open(path / "torque_drag.csv", newline="") as fh:
+            rows = list(csv.reader(fh))
+        data = np.array([[float(x) if x else np.nan for x in r] for r in rows[1:]])
+        return rows[0], data
+
+    hs, ds = table(si)
+    ho, do = table(oil)
+    assert len(hs) == len(ho)
+    to = {"m": "ft", "N": "kip", "N*m": "kip*ft", "N/m": "lbf/ft", "deg": "deg"}
+    for k, (a, b) in enumerate(zip(hs, ho)):
+        base, unit = a[:-1].split(" [")
+        assert b.startswith(base + " ["), (a, b)
+        if a.startswith("dls "):  # both DLS columns are kept as they are
+            np.testing.assert_allclose(do[:, k], ds[:, k], rtol=1e-9)
+            continue
+        if unit == "deg/30m":  # build and turn rates: deg per 30 m -> deg per 100 ft
+            assert b.endswith("[deg/100ft]")
+            ref = (ureg.Quantity(ds[:, k], "deg") / ureg.Quantity(30.0, "m")).to(
+                "deg/ft").magnitude * 100.0
+        else:
+            ref = ureg.Quantity(ds[:, k], unit).to(to[unit]).magnitude
+        np.testing.assert_allclose(do[:, k], ref, rtol=1e-8, atol=1e-9, err_msg=a)
+    assert "tension_trip_out_mu0.2 [klbf]" in ho and "torque_rotating_mu0.2 [kft*lbf]" in ho
+    summ = json.loads((oil / "summary.json").read_text())
+    assert summ["units"]["system"] == "oilfield"
+
+
 @pytest.mark.parametrize("edit,args,expect", [
     (None, ["--friction", "0.1,x"], "--friction"),
     (None, ["--friction", "-0.2"], "between 0 and 10"),

@@ -19,8 +19,8 @@ import numpy as np  # noqa: E402
 
 from downhole.analysis.plots import save_figure  # noqa: E402
 
-__all__ = ["survey_table", "torque_drag_table", "write_csv", "summary", "plot_broomstick",
-           "plot_profiles", "plot_survey"]
+__all__ = ["survey_table", "torque_drag_table", "display_table", "write_csv", "summary",
+           "plot_broomstick", "plot_profiles", "plot_survey"]
 
 # the cases of downhole.string.torque_drag.CASES (not imported: the core's sim imports this
 # package, so analysis must not import the string package)
@@ -32,6 +32,46 @@ _COLORS = {"trip_out": "tab:red", "trip_in": "tab:blue", "rotating": "tab:green"
 _STYLES = ("-", "--", ":", "-.")
 _ROTATING = ("rotating", "drilling")
 _FT100 = 30.48  # 100 ft in m
+
+
+def _units(units, figures: bool = True):
+    """The display :class:`~downhole.units.UnitSystem` (None: SI; figures in kN, kN m)."""
+    from downhole.units import display_units
+
+    u = display_units(units if units is not None else "si")
+    return u.for_figures() if figures else u
+
+
+def _conv(units, values, si_unit: str):
+    """``(values, printed unit)`` of SI ``values`` in ``units`` (pint, downhole.units)."""
+    from downhole.units import convert, unit_label
+
+    if si_unit == "deg_per_30m":
+        dst = units.kind_unit("curvature")
+        return convert(values, si_unit, dst), unit_label(dst)
+    v, dst = units.convert("torque_drag_column", values, si_unit)
+    return v, unit_label(dst)
+
+
+def display_table(columns: dict, units=None) -> dict:
+    """``columns`` of :func:`torque_drag_table` (SI, ``"name [unit]"``) in the display units
+    ``units`` (a name or :class:`~downhole.units.UnitSystem`; None: unchanged): lengths, forces,
+    torques, side forces and build/turn rates converted with pint, the header naming the unit;
+    inclination and azimuth stay in degrees, and both DLS columns are kept."""
+    if units is None:
+        return dict(columns)
+    u = _units(units, figures=False)
+    out = {}
+    for name, values in columns.items():
+        base, _, unit = name.partition(" [")
+        unit = unit.rstrip("]")
+        if (unit in ("deg", "deg/100ft") or name.startswith("dls ")
+                or (unit == "deg/30m" and u.kind_unit("curvature") == "rad/m")):
+            out[name] = values
+            continue
+        v, label = _conv(u, values, "deg_per_30m" if unit == "deg/30m" else unit)
+        out[f"{base} [{label.replace('·', '*')}]"] = v
+    return out
 
 
 def _mu(f: float) -> str:
@@ -130,53 +170,62 @@ def _depth_axis(ax, label="measured depth [m]"):
     ax.grid(alpha=0.3)
 
 
-def plot_broomstick(result, path, title: str | None = None) -> None:
+def plot_broomstick(result, path, title: str | None = None, units=None) -> None:
     """Hook load against bit depth per case and friction factor (the broomstick plot), and the
-    surface torque against bit depth rotating off bottom and drilling."""
+    surface torque against bit depth rotating off bottom and drilling (``units``: display unit
+    system, default SI with kN and kN m)."""
+    u = _units(units)
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 6.5), sharey=True,
                                    gridspec_kw={"width_ratios": [3, 2]})
-    d = np.concatenate([[0.0], result.bit_depth])
+    d, lu = _conv(u, np.concatenate([[0.0], result.bit_depth]), "m")
+    _, fu = _conv(u, 1.0, "N")
+    _, tu = _conv(u, 1.0, "N*m")
     for c in CASES:
         for k, f in enumerate(result.friction):
             y = np.concatenate([[0.0], result.hook_load[c][k]])
             ls = _STYLES[k % len(_STYLES)]
             lbl = f"{CASE_LABELS[c]}, mu = {f:g}"
-            ax1.plot(y / 1e3, d, ls, color=_COLORS[c], lw=1.3, label=lbl)
+            ax1.plot(_conv(u, y, "N")[0], d, ls, color=_COLORS[c], lw=1.3, label=lbl)
             if c in _ROTATING:
                 q = np.concatenate([[0.0], result.surface_torque[c][k]])
-                ax2.plot(q / 1e3, d, ls, color=_COLORS[c], lw=1.3, label=lbl)
-    ax1.set_xlabel("hook load [kN]")
-    _depth_axis(ax1, "bit depth (MD) [m]")
+                ax2.plot(_conv(u, q, "N*m")[0], d, ls, color=_COLORS[c], lw=1.3, label=lbl)
+    ax1.set_xlabel(f"hook load [{fu}]")
+    _depth_axis(ax1, f"bit depth (MD) [{lu}]")
     ax1.legend(fontsize=7, loc="lower left")
     ax1.set_title("hook load (broomstick)")
-    ax2.set_xlabel("surface torque [kN m]")
+    ax2.set_xlabel(f"surface torque [{tu}]")
     ax2.grid(alpha=0.3)
     ax2.set_title("surface torque")
     ax2.legend(fontsize=7, loc="lower right")
-    fig.suptitle(title or f"torque and drag: WOB {result.wob / 1e3:.0f} kN, "
-                 f"TOB {result.tob / 1e3:.2f} kN m while drilling")
+    fig.suptitle(title or f"torque and drag: WOB {_conv(u, result.wob, 'N')[0]:.0f} {fu}, "
+                 f"TOB {_conv(u, result.tob, 'N*m')[0]:.2f} {tu} while drilling")
     save_figure(fig, path)
 
 
-def plot_profiles(result, path, title: str | None = None) -> None:
+def plot_profiles(result, path, title: str | None = None, units=None) -> None:
     """Tension, torque and side force along measured depth with the bit at total depth."""
+    u = _units(units)
+    md, lu = _conv(u, result.md, "m")
+    _, fu = _conv(u, 1.0, "N")
+    _, tu = _conv(u, 1.0, "N*m")
+    _, su = _conv(u, 1.0, "N/m")
     fig, axes = plt.subplots(1, 3, figsize=(12, 6.5), sharey=True)
     for c in CASES:
         for k, f in enumerate(result.friction):
             ls = _STYLES[k % len(_STYLES)]
             lbl = f"{CASE_LABELS[c]}, mu = {f:g}"
-            axes[0].plot(result.tension[c][k] / 1e3, result.md, ls, color=_COLORS[c], lw=1.2,
-                         label=lbl)
+            axes[0].plot(_conv(u, result.tension[c][k], "N")[0], md, ls, color=_COLORS[c],
+                         lw=1.2, label=lbl)
             if c in _ROTATING:
-                axes[1].plot(result.torque[c][k] / 1e3, result.md, ls, color=_COLORS[c],
-                             lw=1.2, label=lbl)
-            axes[2].plot(result.side_force[c][k], result.md, ls, color=_COLORS[c], lw=1.2,
-                         label=lbl)
+                axes[1].plot(_conv(u, result.torque[c][k], "N*m")[0], md, ls,
+                             color=_COLORS[c], lw=1.2, label=lbl)
+            axes[2].plot(_conv(u, result.side_force[c][k], "N/m")[0], md, ls,
+                         color=_COLORS[c], lw=1.2, label=lbl)
     axes[0].axvline(0.0, color="grey", lw=0.8)
-    axes[0].set_xlabel("effective tension [kN]")
-    axes[1].set_xlabel("torque [kN m]")
-    axes[2].set_xlabel("side force [N/m]")
-    _depth_axis(axes[0])
+    axes[0].set_xlabel(f"effective tension [{fu}]")
+    axes[1].set_xlabel(f"torque [{tu}]")
+    axes[2].set_xlabel(f"side force [{su}]")
+    _depth_axis(axes[0], f"measured depth [{lu}]")
     for ax in axes[1:]:
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7, loc="lower left")
@@ -184,40 +233,47 @@ def plot_profiles(result, path, title: str | None = None) -> None:
     save_figure(fig, path)
 
 
-def plot_survey(well, path, azimuth: float | None = None, title: str | None = None) -> None:
+def plot_survey(well, path, azimuth: float | None = None, title: str | None = None,
+                units=None) -> None:
     """Plan view (east against north), section view (TVD against vertical section) and DLS,
     build and turn rates along measured depth."""
+    u = _units(units)
     md = np.linspace(well.top_depth, well.total_depth, 1001)
     md = np.unique(np.concatenate([md, well.stations["md"]]))
     cols = survey_table(well, md, azimuth)
+    L = lambda v: _conv(u, np.asarray(v, float), "m")[0]  # noqa: E731
+    lu = _conv(u, 1.0, "m")[1]
+    K = lambda v: _conv(u, v, "deg_per_30m")[0]  # noqa: E731
+    ku = _conv(u, 1.0, "deg_per_30m")[1]
     st = well.stations
     az = well.closure()[1] if azimuth is None else azimuth
     fig, axes = plt.subplots(1, 3, figsize=(13, 5), layout="constrained")
     ax = axes[0]
-    ax.plot(cols["east [m]"], cols["north [m]"], "k-", lw=1.5)
-    ax.plot(st["east"], st["north"], "o", ms=3, color="tab:blue", label="stations")
-    ax.set_xlabel("east [m]")
-    ax.set_ylabel("north [m]")
+    ax.plot(L(cols["east [m]"]), L(cols["north [m]"]), "k-", lw=1.5)
+    ax.plot(L(st["east"]), L(st["north"]), "o", ms=3, color="tab:blue", label="stations")
+    ax.set_xlabel(f"east [{lu}]")
+    ax.set_ylabel(f"north [{lu}]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title("plan view")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax = axes[1]
-    ax.plot(cols["vertical_section [m]"], cols["tvd [m]"], "k-", lw=1.5)
+    ax.plot(L(cols["vertical_section [m]"]), L(cols["tvd [m]"]), "k-", lw=1.5)
     vs_st = well.vertical_section(st["md"], azimuth)
-    ax.plot(vs_st, st["tvd"], "o", ms=3, color="tab:blue")
-    ax.set_xlabel(f"vertical section at {math.degrees(az):.1f} deg [m]")
-    ax.set_ylabel("TVD [m]")
+    ax.plot(L(vs_st), L(st["tvd"]), "o", ms=3, color="tab:blue")
+    ax.set_xlabel(f"vertical section at {math.degrees(az):.1f} deg [{lu}]")
+    ax.set_ylabel(f"TVD [{lu}]")
     ax.invert_yaxis()
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title("section view")
     ax.grid(alpha=0.3)
     ax = axes[2]
-    ax.plot(cols["dls [deg/30m]"], md, "k-", lw=1.2, label="DLS")
-    ax.plot(cols["build_rate [deg/30m]"], md, "--", color="tab:red", lw=1.2, label="build")
-    ax.plot(cols["turn_rate [deg/30m]"], md, ":", color="tab:blue", lw=1.2, label="turn")
-    ax.set_xlabel("deg/30 m")
-    _depth_axis(ax)
+    ax.plot(K(cols["dls [deg/30m]"]), L(md), "k-", lw=1.2, label="DLS")
+    ax.plot(K(cols["build_rate [deg/30m]"]), L(md), "--", color="tab:red", lw=1.2,
+            label="build")
+    ax.plot(K(cols["turn_rate [deg/30m]"]), L(md), ":", color="tab:blue", lw=1.2, label="turn")
+    ax.set_xlabel(ku)
+    _depth_axis(ax, f"measured depth [{lu}]")
     ax.legend(fontsize=8)
     ax.set_title("dogleg severity, build and turn")
     fig.suptitle(title or "well path")

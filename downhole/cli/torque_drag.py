@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
 from rich.console import Console
@@ -12,6 +12,7 @@ from rich.table import Table
 
 from downhole._atomic import OutputFolder, atomic_path, check_output_path, write_json_atomic
 from downhole.cli import app
+from downhole.cli._units import UNIT_OPTION, UNITS_OPTION, resolve_units
 
 console = Console()
 
@@ -47,6 +48,7 @@ def torque_drag(
     friction: Optional[str] = typer.Option(
         None, "--friction", help="friction factors, comma-separated (e.g. 0.1,0.2,0.3); "
         "overrides the file's torque_drag.friction_factors"),
+    units: str = UNITS_OPTION, unit: Optional[List[str]] = UNIT_OPTION,
 ):
     """Soft-string torque and drag: tension, torque and side force along the string, hook load
     and surface torque against bit depth (trip out, trip in, rotating off bottom, drilling) at
@@ -55,8 +57,11 @@ def torque_drag(
     from downhole.analysis import torque_drag as tdplot
     from downhole.scenario import load_scenario
     from downhole.scenario.torque_drag import run_torque_drag, torque_drag_case
+    from downhole.units import unit_label
 
     check_output_path(out, kind="folder")
+    display = resolve_units(units, unit)
+    fig_units = display.for_figures()
     factors = _parse_friction(friction) if friction is not None else None
     data, source, _ = load_scenario(scenario)
     case = torque_drag_case(data, source, factors)  # every check before the folder is touched
@@ -65,28 +70,36 @@ def torque_drag(
         with console.status(f"torque and drag of {scenario}"):
             result = run_torque_drag(case, source)
         folder.writing()
-        cols = tdplot.torque_drag_table(result, well, case.azimuth)
+        cols = tdplot.display_table(tdplot.torque_drag_table(result, well, case.azimuth),
+                                    display)
         with atomic_path(out / "torque_drag.csv") as tmp:
             tdplot.write_csv(tmp, cols)
         summ = tdplot.summary(result, well, case.azimuth)
         summ["title"] = case.title
+        summ["units"] = display.to_dict()  # the CSV's headers name each column's unit
         write_json_atomic(out / "summary.json", summ)
-        for name, plot in (("broomstick.png", lambda p: tdplot.plot_broomstick(result, p)),
-                           ("profiles.png", lambda p: tdplot.plot_profiles(result, p)),
-                           ("survey.png", lambda p: tdplot.plot_survey(well, p, case.azimuth))):
+        for name, plot in (
+                ("broomstick.png", lambda p: tdplot.plot_broomstick(result, p, units=fig_units)),
+                ("profiles.png", lambda p: tdplot.plot_profiles(result, p, units=fig_units)),
+                ("survey.png", lambda p: tdplot.plot_survey(well, p, case.azimuth,
+                                                            units=fig_units))):
             with atomic_path(out / name) as tmp:
                 plot(tmp)
+    F = lambda v: fig_units.convert("hook_load", v, "N")  # noqa: E731
+    T = lambda v: fig_units.convert("surface_torque", v, "N*m")  # noqa: E731
+    fu, tu = (unit_label(F(1.0)[1]), unit_label(T(1.0)[1]))
+    depth, du = fig_units.convert("md", well.total_depth, "m")
     table = Table("case", *[f"mu = {f:g}" for f in result.friction],
-                  title=escape(f"hook load [kN] / surface torque [kN m], bit at "
-                               f"{well.total_depth:.0f} m MD"))
+                  title=escape(f"hook load [{fu}] / surface torque [{tu}], bit at "
+                               f"{depth:.0f} {unit_label(du)} MD"))
     for c in ("trip_out", "trip_in", "rotating", "drilling"):
         cells = []
         for k in range(len(result.friction)):
-            hl = result.tension[c][k, 0] / 1e3
-            tq = result.torque[c][k, 0] / 1e3
+            hl = F(result.tension[c][k, 0])[0]
+            tq = T(result.torque[c][k, 0])[0]
             cells.append(f"{hl:.1f}" + (f" / {tq:.2f}" if c in ("rotating", "drilling") else ""))
         table.add_row(c, *cells)
     console.print(table)
-    console.print(f"WOB {result.wob / 1e3:.1f} kN, TOB {result.tob / 1e3:.2f} kN m (drilling)")
+    console.print(f"WOB {F(result.wob)[0]:.1f} {fu}, TOB {T(result.tob)[0]:.2f} {tu} (drilling)")
     console.print(f"written {out}/torque_drag.csv, summary.json, broomstick.png, profiles.png, "
                   "survey.png")
