@@ -44,6 +44,7 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.signals import SIGNALS, range_reason
+from downhole.sim.plant import plant_bit_radius
 
 __all__ = ["SilPlant", "build_plant", "SIGNAL_UNITS", "COMMAND_RANGES", "REFERENCE_RANGES",
            "check_range", "resolve_ranges"]
@@ -143,6 +144,9 @@ class SilPlant:
         self.name = name
         self.state_names = tuple(state_names or ())
         self.info = dict(info or {})
+        radius = plant_bit_radius(plant)
+        if radius is not None:  # recorded in the Result's attributes, for the MSE
+            self.info.setdefault("bit_radius", radius)
         #: The start of a bare ``reset()`` (the runtime's): ``{"start": "steady"}``, ... of
         #: :meth:`downhole.sim.plant.Plant.reset`; empty: from rest.
         self.default_start: dict = {}
