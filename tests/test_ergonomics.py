@@ -183,3 +183,17 @@ def test_plant_bit_radius_finds_the_bit_through_wrappers():
     a = Loop()
     a.plant = a  # a cycle ends the search
     assert plant_bit_radius(a) is None
+
+
+def test_a_las_round_trip_keeps_the_bit_radius_and_the_mse(tmp_path):
+    from downhole.io import read_las
+    from downhole.sim import SurfaceInputs, simulate
+    from downhole.sim.lumped_model import lumped_model
+
+    res = simulate(lumped_model("table_2_1", order=4), SurfaceInputs.velocity(0.01, 10.0),
+                   duration=4.0, dt=5e-4)
+    res.to_las(tmp_path / "r.las")
+    back = read_las(tmp_path / "r.las")
+    assert back.attrs["bit_radius"] == 0.15 and back.attrs["model"] == res.attrs["model"]
+    # the LAS file keeps 10 significant digits
+    assert back.summary()["mse"] == pytest.approx(res.summary()["mse"], rel=1e-8)

@@ -94,6 +94,6 @@ def test_fmpy_runs_the_default_experiment_and_results_keep_the_bit_radius(lumped
     s = res.summary()
     area = math.pi * 0.15 ** 2
     sel = res.time >= res.time[-1] / 2
-    ref = (res["wob"][sel].mean() / area + (res["tob"][sel] * res["bit_angular_velocity"][sel]
-                                             ).mean() / (area * res["bit_axial_velocity"][sel].mean()))
+    power = (res["tob"][sel] * res["bit_angular_velocity"][sel]).mean()
+    ref = res["wob"][sel].mean() / area + power / (area * res["bit_axial_velocity"][sel].mean())
     assert math.isfinite(s["mse"]) and s["mse"] == pytest.approx(ref, rel=1e-12)

@@ -10,7 +10,7 @@ import os
 import numpy as np
 
 from downhole.errors import DownholeInputError
-from downhole.sim.las import NULL, write_las
+from downhole.sim.las import _PARAM_ATTRS, NULL, write_las
 
 __all__ = ["write_las", "read_las", "NULL"]
 
@@ -31,4 +31,12 @@ def read_las(path: str | os.PathLike):
         name = c.descr.split(":", 1)[0] if ":" in c.descr else c.mnemonic.lower()
         channels[name] = np.asarray(c.data, float)
         units[name] = c.unit
-    return Result(t, channels, units=units, attrs={"source": str(path)})
+    attrs = {"source": str(path)}
+    for attr, (mnemonic, _) in _PARAM_ATTRS.items():  # the run's metadata written by write_las
+        if mnemonic in las.params:
+            value = las.params[mnemonic].value
+            attrs[attr] = value.strip() if isinstance(value, str) else value
+    radius = attrs.get("bit_radius")
+    if not isinstance(radius, (int, float)):
+        attrs.pop("bit_radius", None)
+    return Result(t, channels, units=units, attrs=attrs)

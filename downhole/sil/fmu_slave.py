@@ -13,9 +13,10 @@ variable named ``time`` clashes with the importer's own time column). Every vari
 its SI unit and description from :mod:`downhole.signals` (the units declared in
 ``<UnitDefinitions>`` with their SI base-unit exponents), the constant ``bit_radius`` (m, for
 the MSE) is exported when the plant's bit is known, and the default experiment runs from 0 to
-the scenario's duration (or the ``stop_time`` of ``export_plant_fmu``) at the plant's step. ``do_step`` advances ``round(step_size / dt)`` plant steps holding
-the inputs (the communication step must be a whole multiple of the plant's ``dt``, the FMU's
-default step size); a rejected command (non-finite, out of its range) fails the step with the
+the scenario's duration (or the ``stop_time`` of ``export_plant_fmu``) at the plant's step.
+``do_step`` advances ``round(step_size / dt)`` plant steps holding the inputs (the
+communication step must be a whole multiple of the plant's ``dt``, the FMU's default step
+size); a rejected command (non-finite, out of its range) fails the step with the
 plant's reason in the FMU log and is never applied. The FMU imports downhole from the Python
 environment that runs it (the pickled plant needs the downhole version that exported it).
 """
