@@ -14,7 +14,8 @@ statement of the main script that is running now (the frame of ``__main__``'s to
 raises :class:`~downhole.errors.DownholeInputError` unless that statement is an
 ``if __name__ == "__main__":`` block. In a worker re-importing the script it raises too (the
 parent then sees a broken pool). Interactive sessions, ``python -c`` and notebooks have no main
-script to re-import and pass. :func:`broken_pool_error` is the error a caller raises when a pool
+script to re-import and pass (the rule of ``multiprocessing.spawn``: a script run by path, or a
+module run with ``python -m``, is imported again; a package's ``__main__`` is not). :func:`broken_pool_error` is the error a caller raises when a pool
 breaks anyway (a worker killed by the OS, out of memory, ...), instead of reporting every
 remaining task as failed and returning normally.
 
@@ -74,6 +75,20 @@ def _main_frame():
     return None
 
 
+def _spawn_reimports_main() -> bool:
+    """Whether a ``spawn`` worker runs the main module again (the rule of
+    :func:`multiprocessing.spawn.get_preparation_data`): a script run by path, or a module run
+    with ``python -m NAME`` (not a package's ``__main__``); not a notebook or ``python -c``."""
+    main = sys.modules.get("__main__")
+    if main is None:
+        return False
+    name = getattr(getattr(main, "__spec__", None), "name", None)
+    if name is not None:
+        return not (name == "__main__" or name.endswith(".__main__"))
+    path = getattr(main, "__file__", None)
+    return bool(path) and os.path.splitext(os.path.basename(path))[0] != "ipython"
+
+
 def check_main_guarded(what: str, serial: str) -> None:
     """Raise unless starting spawned worker processes from here is safe.
 
@@ -94,13 +109,14 @@ def check_main_guarded(what: str, serial: str) -> None:
     if frame is None:
         return  # no main script running (an interactive session, python -c, a notebook)
     name = frame.f_globals.get("__name__")
-    path = frame.f_globals.get("__file__") or frame.f_code.co_filename
+    path = frame.f_globals.get("__file__")
     fix = (f"put the call under `{GUARD}` (worker processes import the script again), or "
            f"use {serial}")
     if name == "__mp_main__":  # a spawned worker importing the main script runs the call again
         raise DownholeInputError(f"{path}: {what} ran again while a worker process imported "
                                  f"the script: {fix}")
-    if name != "__main__" or not path or not os.path.isfile(path):
+    if name != "__main__" or not path or not os.path.isfile(path) \
+            or not _spawn_reimports_main():
         return
     try:
         mtime = os.stat(path).st_mtime_ns

@@ -83,7 +83,8 @@ def _exec_as_main(tmp_path, body: str):
     main = sys.modules["__main__"]
     saved = dict(vars(main))
     try:
-        vars(main).update(__name__="__main__", __file__=str(path), check=check_main_guarded)
+        vars(main).update(__name__="__main__", __file__=str(path), __spec__=None,
+                          check=check_main_guarded)
         exec(code, vars(main))
     finally:
         vars(main).clear()
@@ -117,6 +118,26 @@ def test_a_worker_reimporting_the_script_is_refused(tmp_path):
          "check": check_main_guarded}
     with pytest.raises(DownholeInputError, match="ran again while a worker process imported"):
         exec(compile(body, str(tmp_path / "s.py"), "exec"), g)
+
+
+def test_a_package_main_or_a_notebook_is_not_reimported(tmp_path):
+    # python -m pkg (pkg/__main__.py): spawn does not run it again, so no guard is needed
+    pkg = tmp_path / "mypkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "__main__.py").write_text("from downhole._workers import check_main_guarded\n"
+                                     "check_main_guarded('f(jobs=2)', 'jobs=1')\nprint('ok')\n")
+    p = subprocess.run([sys.executable, "-m", "mypkg"], cwd=tmp_path,
+                       env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True,
+                       text=True, timeout=120)
+    assert p.stdout.strip() == "ok", p.stderr
+    # python -m module (a plain module run as main) is imported again: refused
+    (tmp_path / "mymod.py").write_text("from downhole._workers import check_main_guarded\n"
+                                       "check_main_guarded('f(jobs=2)', 'jobs=1')\n")
+    p = subprocess.run([sys.executable, "-m", "mymod"], cwd=tmp_path,
+                       env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True,
+                       text=True, timeout=120)
+    assert p.returncode != 0 and "mymod.py, line 2: f(jobs=2) starts worker" in p.stderr
 
 
 def test_no_main_script_passes():
