@@ -97,3 +97,23 @@ def test_fmpy_runs_the_default_experiment_and_results_keep_the_bit_radius(lumped
     power = (res["tob"][sel] * res["bit_angular_velocity"][sel]).mean()
     ref = res["wob"][sel].mean() / area + power / (area * res["bit_axial_velocity"][sel].mean())
     assert math.isfinite(s["mse"]) and s["mse"] == pytest.approx(ref, rel=1e-12)
+
+
+def test_state_interface_fmu_gives_the_design_states_their_units(tmp_path):
+    """The DHP ``state`` interface outputs the design model's states (x_i, alpha_i, v_i,
+    omega_i): their units come from the state kinds (m, rad, m/s, rad/s)."""
+    from downhole.sil.fmu import export_fmu
+
+    fmu = export_fmu("examples/sil_dhp_hybrid68.toml", tmp_path / "dhp_plant.fmu")
+    md = fmpy.read_model_description(str(fmu), validate=True)
+    byname = {v.name: v for v in md.modelVariables}
+    expected = {"x_": "m", "alpha_": "rad", "v_": "m/s", "omega_": "rad/s"}
+    states = [n for n in byname if n.split("_")[0] + "_" in expected and n[-1].isdigit()]
+    assert len(states) == 24  # the 24-state design model
+    for n in states:
+        assert byname[n].unit == expected[n.split("_")[0] + "_"], n
+        assert "design model" in byname[n].description
+    for v in md.modelVariables:
+        assert v.unit and v.description, v.name
+    assert "time" not in byname
+    assert float(md.defaultExperiment.stopTime) > 0

@@ -66,11 +66,18 @@ def unit_definition(unit: str) -> Element:
     return node
 
 
-def _signal(name: str):
+def _signal(name: str, plant=None):
+    """``(unit, description)`` of a plant signal: the registry's, else the plant's own unit
+    (a design-model state of the DHP ``state`` interface)."""
     from downhole.signals import SIGNALS
 
     sig = SIGNALS.get(name)
-    return (sig.unit, sig.description) if sig is not None else ("", "")
+    if sig is not None:
+        return sig.unit, sig.description
+    unit = (getattr(plant, "units", None) or {}).get(name, "")
+    if name in tuple(getattr(plant, "state_names", ()) or ()):
+        return unit, f"state {name} of the controller's design model"
+    return unit, ""
 
 
 def _load_plant(resources: Path):
@@ -121,7 +128,7 @@ class DownholePlant(Fmi2Slave):
                      for n in self._plant.observation_names]
         self._set_outputs(self._plant.reset(**self._reset))
         for var, n in self._out:
-            unit, desc = _signal(n)
+            unit, desc = _signal(n, self._plant)
             self.register_variable(UnitReal(var, unit=unit, description=desc or n,
                                             causality=Fmi2Causality.output,
                                             variability=Fmi2Variability.continuous))

@@ -338,8 +338,10 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         dm = design_model if design_model is not None else _design_model(design)
         p = DirectionalStatePlant(dmodel, dm, dt, depth_of_cut=depth_of_cut)
         info["design"] = design
-        return SilPlant(p, ("slack_off_force", "surface_torque"),
-                        {"slack_off_force": wob, "surface_torque": surface_torque},
-                        {"slack_off_force": 0.0, "surface_torque": 0.0},
-                        name=dmodel.name, state_names=dm.state_names, info=info)
+        sp = SilPlant(p, ("slack_off_force", "surface_torque"),
+                      {"slack_off_force": wob, "surface_torque": surface_torque},
+                      {"slack_off_force": 0.0, "surface_torque": 0.0},
+                      name=dmodel.name, state_names=dm.state_names, info=info)
+        sp.units.update(zip(dm.state_names, dm.state_units()))  # m, rad, m/s, rad/s by kind
+        return sp
     raise DownholeInputError(f"interface must be 'surface' or 'state', got {interface!r}")
