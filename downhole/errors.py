@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-__all__ = ["DownholeError", "DownholeInputError", "ScenarioError", "SimulationDiverged"]
+__all__ = ["DownholeError", "DownholeInputError", "ScenarioError", "SimulationDiverged",
+           "WorkerProcessError"]
 
 
 class DownholeError(Exception):
@@ -38,3 +39,9 @@ class SimulationDiverged(DownholeError, FloatingPointError):
     def __init__(self, time: float, channel: str):
         self.time, self.channel = time, channel
         super().__init__(f"simulation went non-finite at t = {time:.6g} s in channel '{channel}'")
+
+
+class WorkerProcessError(DownholeError, RuntimeError):
+    """A pool of worker processes broke (a worker died: killed by the system, out of memory, or
+    a script that starts workers without the ``if __name__ == "__main__":`` guard); raised
+    instead of reporting every remaining task as failed (see :mod:`downhole._workers`)."""

@@ -75,6 +75,13 @@ def test_save_load_round_trip_gives_identical_commands(tmp_path, model, ctrl):
     np.savez(tmp_path / "bad.npz", x=np.zeros(1))
     with pytest.raises(DownholeInputError, match="is not a downhole DHP controller"):
         load_controller(tmp_path / "bad")
+    # a missing folder is created (as docs/dhp.md's ctrl.save("out/dhp_step") needs); a file
+    # in the way is refused by name
+    npz, _ = ctrl.save(tmp_path / "new" / "deeper" / "ctl")
+    assert npz == tmp_path / "new" / "deeper" / "ctl.npz" and npz.exists()
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(DownholeInputError, match="afile: it is a file, not a folder"):
+        ctrl.save(tmp_path / "afile" / "ctl")
 
 
 def test_past_horizon_policies(model, ctrl):

@@ -216,6 +216,10 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
         all_cases = tuple(c for c in all_cases if c.id in set(cases))
     if not (isinstance(jobs, int) and jobs >= 1):
         raise DownholeInputError(f"jobs must be an integer >= 1, got {jobs!r}")
+    if jobs > 1:  # before any work: a script without the guard would kill every worker
+        from downhole._workers import check_main_guarded
+
+        check_main_guarded(f"compare_controllers(jobs={jobs})", "jobs=1")
     t_start = time.perf_counter()
     cells: dict = {c.id: {} for c in all_cases}
     todo = []  # (case, label, controller)
@@ -243,6 +247,9 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
     if remote:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor, as_completed
+        from concurrent.futures.process import BrokenProcessPool
+
+        from downhole._workers import broken_pool_error
 
         with ProcessPoolExecutor(max_workers=jobs,
                                  mp_context=multiprocessing.get_context("spawn")) as pool:
@@ -252,6 +259,11 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
                 case_id, label = futures[fut]
                 try:
                     cell = fut.result()
+                except BrokenProcessPool as exc:  # every cell left would fail: stop
+                    for other in futures:
+                        other.cancel()
+                    raise broken_pool_error(f"compare_controllers(jobs={jobs})", "jobs=1",
+                                            exc) from None
                 except Exception as exc:  # noqa: BLE001 - a crashed cell is a failed cell
                     cell = {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
                 _report(case_id, label, cell)

@@ -183,7 +183,8 @@ def _tracking(kind, fig, out_dir, quick):
 
     ch = {c: res[c] for c in ("bit_axial_velocity", "bit_angular_velocity", "wob", "tob")}
     ch.update(reference_axial_velocity=v_ref, reference_angular_velocity=w_ref)
-    shown = Result(t, ch, attrs={"controller": "dhp"})
+    shown = Result(t, ch, attrs={"controller": "dhp",
+                                 "bit_radius": res.attrs.get("bit_radius", 0.0)})
     s = res.summary((10.0, T))
     rms_v = float(np.sqrt(np.mean(ev ** 2)))
     rms_w = float(np.sqrt(np.mean(ew ** 2)))

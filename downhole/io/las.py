@@ -10,7 +10,7 @@ import os
 import numpy as np
 
 from downhole.errors import DownholeInputError
-from downhole.sim.las import NULL, write_las
+from downhole.sim.las import _PARAM_ATTRS, NULL, write_las
 
 __all__ = ["write_las", "read_las", "NULL"]
 
@@ -45,4 +45,18 @@ def read_las(path: str | os.PathLike):
                     f"to {sig.unit or 'a plain number'} ({exc})") from None
         channels[name] = data
         units[name] = sig.unit if sig is not None else c.unit
-    return Result(t, channels, units=units, attrs={"source": str(path)})
+    attrs = {"source": str(path)}
+    for attr, (mnemonic, _) in _PARAM_ATTRS.items():  # the run's metadata written by write_las
+        if mnemonic in las.params:
+            value = las.params[mnemonic].value
+            attrs[attr] = value.strip() if isinstance(value, str) else value
+    radius = attrs.get("bit_radius")
+    if not isinstance(radius, (int, float)):
+        attrs.pop("bit_radius", None)
+    else:  # written in the display unit of a diameter (in, mm, m): back to metres
+        unit = (las.params["BITRAD"].unit or "m").strip() or "m"
+        try:
+            attrs["bit_radius"] = float(convert(float(radius), unit, "m"))
+        except Exception:  # noqa: BLE001 - an unknown unit: no radius rather than a wrong one
+            attrs.pop("bit_radius", None)
+    return Result(t, channels, units=units, attrs=attrs)

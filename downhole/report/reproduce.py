@@ -179,6 +179,10 @@ def reproduce(ids: list[str], out_dir: str | Path, quick: bool = False, jobs: in
     for eid in ids:
         _check_experiment_folder(out_dir, eid)
     jobs = max(1, int(jobs or os.cpu_count() or 1))
+    if jobs > 1:  # before anything is written: a script without the guard would kill the workers
+        from downhole._workers import check_main_guarded
+
+        check_main_guarded(f"reproduce(jobs={jobs})", "jobs=1")
     order = sorted(ids, key=lambda e: -_previous_seconds(out_dir, e))
     # the previous results go before anything runs: a killed run cannot leave them looking fresh
     top = OutputFolder(out_dir, ("reproduce.json", "index.html"), "reproduce").writing()
@@ -226,6 +230,9 @@ def _run_pool(ids: list[str], out_dir: Path, quick: bool, jobs: int, done) -> No
         return
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    from downhole._workers import broken_pool_error
 
     saved = {v: os.environ.get(v) for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
                                              "MKL_NUM_THREADS", "MPLBACKEND")}
@@ -239,7 +246,12 @@ def _run_pool(ids: list[str], out_dir: Path, quick: bool, jobs: int, done) -> No
                 eid = futs[f]
                 try:
                     claim = f.result()
-                except BaseException as exc:  # noqa: BLE001 - the worker process died
+                except BrokenProcessPool as exc:  # every worker is gone: no claim is true
+                    for other in futs:
+                        other.cancel()
+                    _crashed(out_dir, eid, exc, quick)
+                    raise broken_pool_error(f"reproduce(jobs={jobs})", "jobs=1", exc) from None
+                except BaseException as exc:  # noqa: BLE001 - the experiment's task raised
                     claim = _crashed(out_dir, eid, exc, quick)
                 done(eid, claim)
     finally:

@@ -6,8 +6,10 @@ controller of the :class:`~downhole.control.base.Controller` contract.
 any plant object of the :class:`~downhole.sim.plant.Plant` contract, so every fidelity of one
 :class:`~downhole.system.DrillingSystem` (``lumped4``, ``lumped12``, ``neutral``, ``fem``,
 ``hybrid``) can be exported. Inputs: ``command_<name>`` for every command signal of the plant;
-outputs: every observation signal, under its name in :mod:`downhole.signals`; the default step
-size is the plant's ``dt``.
+outputs: every observation signal, under its name in :mod:`downhole.signals` (the plant's
+simulated time as ``sim_time``: no FMU variable is named ``time``), each with its SI unit and
+description; the default experiment runs from 0 s to the scenario's duration at the plant's
+``dt``.
 
 :func:`simulate_fmu` runs an FMU open loop with FMPy's high-level ``simulate_fmu``;
 :func:`run_fmu_closed_loop` runs the closed loop through FMPy's low-level API (instantiate,
@@ -45,6 +47,8 @@ __all__ = [
 
 #: Prefix of the FMU input that carries command signal ``name``.
 COMMAND_PREFIX = "command_"
+#: FMU output that carries the plant's observation ``time`` (see :mod:`downhole.sil.fmu_slave`).
+TIME_OUTPUT = "sim_time"
 
 
 def _check_out(out) -> Path:
@@ -122,7 +126,8 @@ def _check_plant(plant) -> None:
 
 def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
                      set_point: Mapping[str, float] | None = None,
-                     command_start: Mapping[str, float] | None = None) -> Path:
+                     command_start: Mapping[str, float] | None = None,
+                     stop_time: float = 10.0) -> Path:
     """Build ``out`` (an ``.fmu``) wrapping ``plant``, a plant of the Plant contract.
 
     The plant is pickled into the FMU's resources as it is now (model, step ``dt``, options such
@@ -147,6 +152,8 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
     command_start : mapping, optional
         Start values of the inputs ``command_<name>`` (default: the plant's default command);
         the command an importing tool applies until it sets the inputs.
+    stop_time : float
+        Stop time of the FMU's default experiment, s (start 0, step the plant's ``dt``).
 
     Returns
     -------
@@ -178,6 +185,10 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
         if why is not None:
             raise DownholeInputError(f"command_start: {why}")
     command_start = {k: float(v) for k, v in command_start.items()}
+    if isinstance(stop_time, bool) or not isinstance(stop_time, (int, float)) \
+            or not math.isfinite(stop_time) or stop_time <= 0:
+        raise DownholeInputError(f"stop_time must be a positive number of seconds, got "
+                                 f"{stop_time!r}")
     try:
         blob = pickle.dumps(plant)
     except Exception as exc:  # noqa: BLE001 - any pickling failure, named
@@ -190,7 +201,7 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
         (res / "plant.pkl").write_bytes(blob)
         (res / "start.json").write_text(json.dumps({
             "start": start, "set_point": set_point, "command_start": command_start,
-            "plant": type(plant).__name__,
+            "stop_time": float(stop_time), "plant": type(plant).__name__,
             "downhole_version": downhole.__version__}))
         return [res / "plant.pkl", res / "start.json"]
 
@@ -257,7 +268,7 @@ def export_system_fmu(scenario, out="plant.fmu", *, fidelity: str | None = None)
     command = {"top_drive_axial_velocity": rop, "top_drive_angular_velocity": op.surface_speed}
     return export_plant_fmu(plant, out, start=sim.start,
                             set_point=None if sim.start == "rest" else command,
-                            command_start=command)
+                            command_start=command, stop_time=float(sim.duration))
 
 
 def simulate_fmu(fmu, stop_time: float, step_size: float, start_values: dict | None = None
@@ -267,9 +278,20 @@ def simulate_fmu(fmu, stop_time: float, step_size: float, start_values: dict | N
 
     rec = fmpy.simulate_fmu(str(fmu), stop_time=stop_time, output_interval=step_size,
                             start_values=start_values or {}, fmi_type="CoSimulation")
-    names = [n for n in rec.dtype.names if n != "time"]
+    names = [n for n in rec.dtype.names if n not in ("time", TIME_OUTPUT)]
+    attrs = {"runner": "fmpy", "fmu": str(fmu)}
+    attrs.update(_constants(_model_description(Path(fmu))))
     return Result(np.asarray(rec["time"]), {n: np.asarray(rec[n], float) for n in names},
-                  attrs={"runner": "fmpy", "fmu": str(fmu)})
+                  attrs=attrs)
+
+
+def _constants(md) -> dict:
+    """The FMU's exported constants that Results keep as attributes (``bit_radius``)."""
+    out = {}
+    for v in md.modelVariables:
+        if v.name == "bit_radius" and v.variability == "constant" and v.start is not None:
+            out["bit_radius"] = float(v.start)
+    return out
 
 
 def _model_description(fmu: Path):
@@ -393,7 +415,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
     observed, taken = sig["observations"], sig["commands"]
     cname = type(controller).__name__
     needs = tuple(getattr(controller, "needs", None) or ())
-    missing = [n for n in needs if n not in observed and n != "time"]
+    missing = [n for n in needs if n not in observed and n not in ("time", TIME_OUTPUT)]
     if missing:
         raise DownholeInputError(f"{cname} needs {missing}, which the FMU {fmu.name} does not "
                                  f"output (outputs: {observed})")
@@ -418,6 +440,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
     ref_fn = reference if callable(reference) else (lambda t, r=dict(reference or {}): r)
     vr = {v.name: v.valueReference for v in md.modelVariables}
     out_vr = [vr[n_] for n_ in observed]
+    obs_keys = ["time" if n_ == TIME_OUTPUT else n_ for n_ in observed]  # the plant's names
     in_names = list(taken)
     in_vr = [sig["input_references"][c] for c in in_names]
     held = dict(taken)
@@ -451,7 +474,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
         j = 0
         for k in range(n + 1):
             t = k * dt
-            obs = dict(zip(observed, slave.getReal(out_vr)))
+            obs = dict(zip(obs_keys, slave.getReal(out_vr)))
             obs.setdefault("time", t)
             out = controller.command(t, obs, ref_fn(t))
             unknown = [c for c in out if c not in held]
@@ -460,7 +483,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
                                          f"{fmu.name} takes {sorted(taken)}")
             held.update(out)
             if j < len(keep) and keep[j] == k:
-                rows[j] = [obs[c] for c in observed]
+                rows[j] = [obs[c] for c in obs_keys]
                 cmds[j] = [held[c] for c in in_names]
                 j += 1
             if k == n:
@@ -482,7 +505,8 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
         if instantiated:
             slave.freeInstance()
         shutil.rmtree(unzip, ignore_errors=True)
-    channels = {c: rows[:, i] for i, c in enumerate(observed) if c != "time"}
+    channels = {c: rows[:, i] for i, c in enumerate(obs_keys) if c != "time"}
     channels.update({COMMAND_PREFIX + c: cmds[:, i] for i, c in enumerate(in_names)})
-    return Result(np.asarray(keep, float) * dt, channels,
-                  attrs={"runner": "fmu", "fmu": str(fmu), "dt": float(dt)})
+    attrs = {"runner": "fmu", "fmu": str(fmu), "dt": float(dt)}
+    attrs.update(_constants(md))
+    return Result(np.asarray(keep, float) * dt, channels, attrs=attrs)

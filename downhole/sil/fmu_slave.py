@@ -8,9 +8,15 @@ its start mode in ``start.json``) as ``DownholePlant``'s script.
 Inputs are the plant's command signals (:mod:`downhole.signals`), named ``command_<name>`` (start
 value: the plant's default command; the prefix keeps a command apart from the observation of the
 same name, e.g. ``top_drive_angular_velocity``); outputs are the plant's observation signals
-under their registry names. ``do_step`` advances ``round(step_size / dt)`` plant steps holding
-the inputs (the communication step must be a whole multiple of the plant's ``dt``, the FMU's
-default step size); a rejected command (non-finite, out of its range) fails the step with the
+under their registry names, except the plant's simulated time, output as ``sim_time`` (a
+variable named ``time`` clashes with the importer's own time column). Every variable carries
+its SI unit and description from :mod:`downhole.signals` (the units declared in
+``<UnitDefinitions>`` with their SI base-unit exponents), the constant ``bit_radius`` (m, for
+the MSE) is exported when the plant's bit is known, and the default experiment runs from 0 to
+the scenario's duration (or the ``stop_time`` of ``export_plant_fmu``) at the plant's step.
+``do_step`` advances ``round(step_size / dt)`` plant steps holding the inputs (the
+communication step must be a whole multiple of the plant's ``dt``, the FMU's default step
+size); a rejected command (non-finite, out of its range) fails the step with the
 plant's reason in the FMU log and is never applied. The FMU imports downhole from the Python
 environment that runs it (the pickled plant needs the downhole version that exported it).
 """
@@ -18,9 +24,60 @@ environment that runs it (the pickled plant needs the downhole version that expo
 import json
 import pickle
 from pathlib import Path
+from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
-from pythonfmu.enums import Fmi2Status
+from pythonfmu.enums import Fmi2Initial, Fmi2Status
+
+#: FMU output name of the plant's observation ``time`` (the simulated time).
+TIME_OUTPUT = "sim_time"
+#: Default experiment stop time when the resources give none, s.
+DEFAULT_STOP_TIME = 10.0
+_BASE = {"kilogram": "kg", "meter": "m", "second": "s", "ampere": "A", "kelvin": "K",
+         "mole": "mol", "candela": "cd", "radian": "rad"}
+
+
+class UnitReal(Real):
+    """A Real variable with a ``unit`` (pythonfmu 0.7 writes no units of its own)."""
+
+    def __init__(self, name, unit=None, **kwargs):
+        super().__init__(name, **kwargs)
+        self.unit = unit or None
+
+    def to_xml(self):
+        node = super().to_xml()
+        if self.unit:
+            node.find("Real").set("unit", self.unit)
+        return node
+
+
+def unit_definition(unit: str) -> Element:
+    """``<Unit name=...><BaseUnit .../></Unit>`` of a pint unit string (SI base exponents)."""
+    from downhole.units import _registry
+
+    node = Element("Unit", {"name": unit})
+    base = _registry().Quantity(1.0, unit).to_base_units()
+    attrib = {}
+    for name, power in base.units._units.items():
+        attrib[_BASE[name]] = str(int(power))
+    if float(base.magnitude) != 1.0:
+        attrib["factor"] = f"{float(base.magnitude):.16g}"
+    SubElement(node, "BaseUnit", attrib)
+    return node
+
+
+def _signal(name: str, plant=None):
+    """``(unit, description)`` of a plant signal: the registry's, else the plant's own unit
+    (a design-model state of the DHP ``state`` interface)."""
+    from downhole.signals import SIGNALS
+
+    sig = SIGNALS.get(name)
+    if sig is not None:
+        return sig.unit, sig.description
+    unit = (getattr(plant, "units", None) or {}).get(name, "")
+    if name in tuple(getattr(plant, "state_names", ()) or ()):
+        return unit, f"state {name} of the controller's design model"
+    return unit, ""
 
 
 def _load_plant(resources: Path):
@@ -36,7 +93,8 @@ def _load_plant(resources: Path):
 
     sc = load_sil_scenario(resources / "scenario.toml")
     plant, _ = build_from_scenario(sc, with_controller=False)
-    return plant, {"start": "rest", "set_point": None, "command_start": {}}
+    return plant, {"start": "rest", "set_point": None, "command_start": {},
+                   "stop_time": float(sc.simulation.duration)}
 
 
 class DownholePlant(Fmi2Slave):
@@ -47,25 +105,58 @@ class DownholePlant(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        from downhole.sim.plant import plant_bit_radius
+
         self._plant, settings = _load_plant(Path(self.resources))
         self._reset = {"start": settings["start"], "set_point": settings["set_point"]}
         self._dt = float(self._plant.dt)
-        self.default_experiment = DefaultExperiment(start_time=0.0, step_size=self._dt)
+        self.default_experiment = DefaultExperiment(
+            start_time=0.0, stop_time=float(settings.get("stop_time") or DEFAULT_STOP_TIME),
+            step_size=self._dt)
         self._in = [f"command_{c}" for c in self._plant.command_names]
         start_values = dict(self._plant.default_command(), **settings.get("command_start", {}))
         for c, v in start_values.items():
             setattr(self, f"command_{c}", float(v))
-            self.register_variable(Real(f"command_{c}", causality=Fmi2Causality.input,
-                                        variability=Fmi2Variability.continuous))
-        self._out = list(self._plant.observation_names)
+            unit, desc = _signal(c)
+            self.register_variable(UnitReal(f"command_{c}", unit=unit,
+                                            description=f"command: {desc}" if desc else
+                                            f"command {c}",
+                                            causality=Fmi2Causality.input,
+                                            variability=Fmi2Variability.continuous))
+        #: (FMU variable name, observation key)
+        self._out = [(TIME_OUTPUT if n == "time" else n, n)
+                     for n in self._plant.observation_names]
         self._set_outputs(self._plant.reset(**self._reset))
-        for n in self._out:
-            self.register_variable(Real(n, causality=Fmi2Causality.output,
-                                        variability=Fmi2Variability.continuous))
+        for var, n in self._out:
+            unit, desc = _signal(n, self._plant)
+            self.register_variable(UnitReal(var, unit=unit, description=desc or n,
+                                            causality=Fmi2Causality.output,
+                                            variability=Fmi2Variability.continuous))
+        radius = plant_bit_radius(self._plant)
+        if radius is not None:
+            self.bit_radius = radius
+            self.register_variable(UnitReal("bit_radius", unit="m",
+                                            description="bit radius (for the mechanical "
+                                            "specific energy)",
+                                            causality=Fmi2Causality.local,
+                                            variability=Fmi2Variability.constant,
+                                            initial=Fmi2Initial.exact))
+
+    def to_xml(self, model_options=None):
+        root = super().to_xml(model_options or {})
+        units = sorted({v.unit for v in self.vars.values() if getattr(v, "unit", None)})
+        if units:
+            defs = Element("UnitDefinitions")
+            for u in units:
+                defs.append(unit_definition(u))
+            children = list(root)
+            at = children.index(root.find("CoSimulation")) + 1  # the FMI 2.0 element order
+            root.insert(at, defs)
+        return root
 
     def _set_outputs(self, obs):
-        for n in self._out:
-            setattr(self, n, float(obs.get(n, 0.0)))
+        for var, n in self._out:
+            setattr(self, var, float(obs.get(n, 0.0)))
 
     def exit_initialization_mode(self):
         self._set_outputs(self._plant.reset(**self._reset))

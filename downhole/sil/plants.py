@@ -44,6 +44,7 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.signals import SIGNALS, range_reason
+from downhole.sim.plant import plant_bit_radius
 
 __all__ = ["SilPlant", "build_plant", "SIGNAL_UNITS", "COMMAND_RANGES", "REFERENCE_RANGES",
            "check_range", "resolve_ranges"]
@@ -143,6 +144,9 @@ class SilPlant:
         self.name = name
         self.state_names = tuple(state_names or ())
         self.info = dict(info or {})
+        radius = plant_bit_radius(plant)
+        if radius is not None:  # recorded in the Result's attributes, for the MSE
+            self.info.setdefault("bit_radius", radius)
         #: The start of a bare ``reset()`` (the runtime's): ``{"start": "steady"}``, ... of
         #: :meth:`downhole.sim.plant.Plant.reset`; empty: from rest.
         self.default_start: dict = {}
@@ -334,8 +338,10 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         dm = design_model if design_model is not None else _design_model(design)
         p = DirectionalStatePlant(dmodel, dm, dt, depth_of_cut=depth_of_cut)
         info["design"] = design
-        return SilPlant(p, ("slack_off_force", "surface_torque"),
-                        {"slack_off_force": wob, "surface_torque": surface_torque},
-                        {"slack_off_force": 0.0, "surface_torque": 0.0},
-                        name=dmodel.name, state_names=dm.state_names, info=info)
+        sp = SilPlant(p, ("slack_off_force", "surface_torque"),
+                      {"slack_off_force": wob, "surface_torque": surface_torque},
+                      {"slack_off_force": 0.0, "surface_torque": 0.0},
+                      name=dmodel.name, state_names=dm.state_names, info=info)
+        sp.units.update(zip(dm.state_names, dm.state_units()))  # m, rad, m/s, rad/s by kind
+        return sp
     raise DownholeInputError(f"interface must be 'surface' or 'state', got {interface!r}")

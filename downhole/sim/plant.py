@@ -41,7 +41,7 @@ import numpy as np
 from downhole.errors import DownholeInputError
 from downhole.signals import SIGNALS, check_command_value
 
-__all__ = ["Plant", "START_MODES", "check_start"]
+__all__ = ["Plant", "START_MODES", "check_start", "plant_bit_radius"]
 
 #: The ways a run can start (see the module docstring).
 START_MODES = ("rest", "off_bottom", "steady")
@@ -140,6 +140,29 @@ class Plant:
 
     def _step(self, command: np.ndarray) -> dict:  # pragma: no cover
         raise NotImplementedError
+
+
+def plant_bit_radius(plant) -> float | None:
+    """Radius, m, of the bit of the model ``plant`` simulates, or None when it cannot be found.
+
+    Results record it as the ``bit_radius`` attribute, which the mechanical specific energy
+    (``Result.summary()["mse"]``) needs. Looked up, on the plant and on the plants it wraps
+    (``plant``, ``inner``, ``hp`` attributes), as ``bit_radius``, ``model.bit.radius``,
+    ``dmodel.bit.radius``, ``bit.radius`` or ``rig_bit.radius``.
+    """
+    obj, seen = plant, set()
+    while obj is not None and id(obj) not in seen:
+        seen.add(id(obj))
+        r = obj.__dict__.get("bit_radius") if hasattr(obj, "__dict__") else None
+        candidates = [r] + [getattr(getattr(getattr(obj, a, None), "bit", None), "radius", None)
+                            for a in ("model", "dmodel")]
+        candidates += [getattr(getattr(obj, a, None), "radius", None) for a in ("bit", "rig_bit")]
+        for c in candidates:
+            if isinstance(c, (int, float)) and math.isfinite(c) and c > 0:
+                return float(c)
+        obj = next((getattr(obj, a) for a in ("plant", "inner", "hp")
+                    if getattr(obj, a, None) is not None), None)
+    return None
 
 
 def steady_depth_of_cut(v: float, omega: float) -> float:

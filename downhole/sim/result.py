@@ -131,15 +131,47 @@ class Result:
         return summarize(self, window)
 
     def plot(self, path: str | os.PathLike | None = None, title: str | None = None):
-        """Overview figure (bit velocities, WOB/TOB, surface signals); saved (atomically) if
-        ``path``."""
+        """Overview figure (bit velocities, WOB/TOB, surface signals).
+
+        Returns the :class:`matplotlib.figure.Figure`. With ``path`` it is also saved
+        (atomically, PNG at 120 dpi) and released from pyplot's figure manager, so that a loop
+        that saves many plots keeps no figures open; the returned figure stays usable
+        (``fig.savefig``, ``fig.axes``).
+        """
         from downhole.analysis.plots import plot_overview
 
-        if path is None:
-            return plot_overview(self, None, title)
-        with atomic_path(path) as tmp:
-            fig = plot_overview(self, tmp, title)
+        fig = plot_overview(self, None, title)
+        if path is not None:
+            import matplotlib.pyplot as plt
+
+            with atomic_path(path) as tmp:
+                fig.savefig(tmp, dpi=120, bbox_inches="tight")
+            plt.close(fig)
         return fig
+
+    def to_pandas(self):
+        """The channels as a :class:`pandas.DataFrame` indexed by ``time`` (s), one column per
+        signal; a 2-D channel (per node, ...) gives one column per component, named
+        ``NAME[i]``. Column units are in ``df.attrs["units"]`` and the Result's metadata in
+        ``df.attrs["result"]``."""
+        import pandas as pd
+
+        cols: dict[str, np.ndarray] = {}
+        units: dict[str, str] = {}
+        for name in self.channels:
+            values = self.dataset[name].values
+            if values.ndim == 1:
+                cols[name] = values
+                units[name] = self.units(name)
+            else:
+                flat = values.reshape(values.shape[0], -1)
+                for i in range(flat.shape[1]):
+                    cols[f"{name}[{i}]"] = flat[:, i]
+                    units[f"{name}[{i}]"] = self.units(name)
+        df = pd.DataFrame(cols, index=pd.Index(self.time, name="time"))
+        df.attrs["units"] = units
+        df.attrs["result"] = self.attrs
+        return df
 
     def to_csv(self, path: str | os.PathLike, units=None) -> Path:
         """Write the 1-D channels as CSV with a ``time`` column (atomically).

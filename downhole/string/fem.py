@@ -33,7 +33,7 @@ from downhole.sim.plant import Plant
 from downhole.sim.result import Result
 from downhole.sim.wave import WaveParams
 from downhole.string.drillstring import DrillString
-from downhole.string.zoh import zoh
+from downhole.string.zoh import StateSpace, zoh
 from downhole.units import si_or_number
 from downhole.well import WellPath
 
@@ -200,7 +200,7 @@ class DirectionalModel:
         return A, B, names, Minv
 
     def linear_model(self, dt: float, top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA):
-        """Discrete linear model ``(A_d, B_d)`` at step ``dt`` by exact zero-order hold (expm).
+        """Discrete linear model at step ``dt`` by exact zero-order hold (expm).
 
         Replaces the seed's truncated Taylor series (Eq. 4.15), which diverges with beta0 = 0.03
         (|lambda dt| up to ~78 at dt = 1e-3 on fine meshes). See :meth:`continuous_linear_model`
@@ -208,13 +208,18 @@ class DirectionalModel:
 
         Returns
         -------
-        A_d : ndarray (4N, 4N)
-        B_d : ndarray (4N, 2)
+        StateSpace
+            :class:`downhole.string.zoh.StateSpace` with ``A`` (4N, 4N), ``B`` (4N, 2), the
+            whole state as output (``C = I``, ``D = 0``), ``dt`` and the state names
+            (``x_1, alpha_1, ..., v_1, omega_1, ...``) and input names (``slack_off_force``,
+            ``surface_torque``). It unpacks as the pair ``A_d, B_d``; ``.to_control()`` gives
+            python-control's ``ss`` when ``control`` is installed.
         """
         if not dt > 0:
             raise DownholeInputError(f"dt must be > 0 s, got {dt!r}")
-        A, B, _, _ = self.continuous_linear_model(top_drive_inertia)
-        return zoh(A, B, dt)
+        A, B, names, _ = self.continuous_linear_model(top_drive_inertia)
+        A_d, B_d = zoh(A, B, dt)
+        return StateSpace.full_state(A_d, B_d, dt, names, ("slack_off_force", "surface_torque"))
 
     def nodal_force_map(self, dt: float,
                         top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA) -> np.ndarray:

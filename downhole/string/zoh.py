@@ -18,12 +18,102 @@ model, the DHP directional exporter and the hardware-in-the-loop string plant al
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["zoh"]
+__all__ = ["zoh", "StateSpace"]
+
+
+@dataclass(frozen=True, eq=False)
+class StateSpace:
+    """A discrete-time linear model ``x[k+1] = A x[k] + B u[k]``, ``y[k] = C x[k] + D u[k]``
+    with named states, inputs and outputs, and its step ``dt`` (s).
+
+    It unpacks like the ``(A, B)`` pair that ``linear_model`` used to return
+    (``A_d, B_d = model.linear_model(dt)`` keeps working; ``ss[0]``, ``ss[1]``, ``len(ss) == 2``
+    as well). :meth:`to_control` gives a python-control ``StateSpace`` when the optional
+    ``control`` package is installed.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    dt: float
+    state_names: tuple[str, ...] = field(default=())
+    input_names: tuple[str, ...] = field(default=())
+    output_names: tuple[str, ...] = field(default=())
+
+    def __post_init__(self):
+        n, m = self.A.shape[0], self.B.shape[1]
+        p = self.C.shape[0]
+        if self.A.shape != (n, n) or self.B.shape[0] != n or self.C.shape != (p, n) \
+                or self.D.shape != (p, m):
+            raise DownholeInputError(
+                f"StateSpace: inconsistent shapes A {self.A.shape}, B {self.B.shape}, "
+                f"C {self.C.shape}, D {self.D.shape}")
+        for attr, size in (("state_names", n), ("input_names", m), ("output_names", p)):
+            names = tuple(getattr(self, attr))
+            if names and len(names) != size:
+                raise DownholeInputError(f"StateSpace: {attr} has {len(names)} names, "
+                                         f"expected {size}")
+            object.__setattr__(self, attr, names)
+
+    @classmethod
+    def full_state(cls, A, B, dt: float, state_names=(), input_names=()) -> "StateSpace":
+        """The model whose output is the whole state: ``C = I``, ``D = 0``, outputs named as
+        the states."""
+        A = np.asarray(A, float)
+        B = np.asarray(B, float)
+        n, m = A.shape[0], B.shape[1]
+        return cls(A, B, np.eye(n), np.zeros((n, m)), float(dt), tuple(state_names),
+                   tuple(input_names), tuple(state_names))
+
+    @property
+    def n_states(self) -> int:
+        return self.A.shape[0]
+
+    @property
+    def n_inputs(self) -> int:
+        return self.B.shape[1]
+
+    @property
+    def n_outputs(self) -> int:
+        return self.C.shape[0]
+
+    # --- the old (A, B) tuple ------------------------------------------------------------------
+    def __iter__(self):
+        return iter((self.A, self.B))
+
+    def __len__(self) -> int:
+        return 2
+
+    def __getitem__(self, i):
+        return (self.A, self.B)[i]
+
+    def to_control(self):
+        """This model as :func:`control.ss` (python-control, optional: ``pip install control``)
+        with the step ``dt`` and the state, input and output names."""
+        try:
+            import control
+        except ImportError:
+            raise ImportError("StateSpace.to_control needs python-control: "
+                              "pip install control") from None
+        kw = {}
+        if self.state_names:
+            kw["states"] = list(self.state_names)
+        if self.input_names:
+            kw["inputs"] = list(self.input_names)
+        if self.output_names:
+            kw["outputs"] = list(self.output_names)
+        return control.ss(self.A, self.B, self.C, self.D, self.dt, **kw)
+
+    def __repr__(self) -> str:
+        return (f"StateSpace({self.n_states} states, {self.n_inputs} inputs "
+                f"{list(self.input_names)}, {self.n_outputs} outputs, dt={self.dt:g} s)")
 
 
 def zoh(A, B, dt: float, *, gamma: bool = False):

@@ -262,6 +262,10 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
         _store(batch, [([math.nan] * len(metrics), err, math.nan)] * len(batch))
 
     args = (base, source, names)
+    if (scheduler is None and workers != 1) or scheduler in ("local", "local-cluster"):
+        from downhole._workers import check_main_guarded
+
+        check_main_guarded(f"run_sweep(processes={workers})", "processes=1")
     if on_start is not None:
         on_start()
     executor_desc = _execute(args, cases, batches, metrics, window, scheduler, processes,
@@ -302,6 +306,9 @@ def _execute(args, cases, batches, metrics, window, scheduler, processes, worker
     if scheduler is None:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed
+        from concurrent.futures.process import BrokenProcessPool
+
+        from downhole._workers import broken_pool_error
 
         saved = _limit_threads_env()
         try:
@@ -312,7 +319,12 @@ def _execute(args, cases, batches, metrics, window, scheduler, processes, worker
                 for f in as_completed(futs):
                     try:
                         store(futs[f], f.result())
-                    except Exception as exc:  # a worker died: its batch is reported failed
+                    except BrokenProcessPool as exc:  # every batch left would fail: stop
+                        for other in futs:
+                            other.cancel()
+                        raise broken_pool_error(f"run_sweep(processes={workers})",
+                                                "processes=1", exc) from None
+                    except Exception as exc:  # the batch's task raised: reported failed
                         fail_batch(futs[f], exc)
         finally:
             _restore_env(saved)

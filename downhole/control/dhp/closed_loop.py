@@ -20,6 +20,7 @@ import numpy as np
 from downhole.control.affine import INPUT_UNITS, ControlAffineModel
 from downhole.control.dhp.controller import DHPController
 from downhole.errors import DownholeInputError, SimulationDiverged
+from downhole.sim.plant import plant_bit_radius
 from downhole.sim.result import Result
 
 __all__ = ["run_design_model", "run_on_plant", "channels_from_states"]
@@ -196,6 +197,9 @@ def run_on_plant(controller: DHPController, plant, duration: float, *, adapter=N
         units[name] = INPUT_UNITS.get(name, "")
     meta = {"plant": type(plant).__name__, "controller": "dhp", "dt": dt,
             "reference": controller.reference.kind, "trained_horizon": controller.horizon}
+    radius = plant_bit_radius(plant)
+    if radius is not None:  # for the MSE of Result.summary()
+        meta["bit_radius"] = radius
     meta.update(attrs or {})
     return Result(t, ch, units=units, attrs=meta)
 

@@ -290,8 +290,13 @@ class DHPController:
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike) -> tuple[Path, Path]:
-        """Write ``path.npz`` and ``path.json`` (no pickle). Returns both paths."""
+        """Write ``path.npz`` and ``path.json`` (no pickle; the folder is created if missing).
+        Returns both paths."""
         path = Path(path)
+        if path.parent.exists() and not path.parent.is_dir():
+            raise DownholeInputError(f"cannot save the controller under {path.parent}: it is "
+                                     f"a file, not a folder")
+        path.parent.mkdir(parents=True, exist_ok=True)
         stem = path.with_suffix("") if path.suffix in (".npz", ".json") else path
         npz, js = stem.with_suffix(".npz"), stem.with_suffix(".json")
         arrays = {"kc": self.kc, "kd": self.kd, "reference_nd": self.reference_nd,
