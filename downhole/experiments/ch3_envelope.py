@@ -76,8 +76,8 @@ def _plot(points, omegas, rops, path):
                   "linearized closed loop is stable and at none where it grows faster than "
                   "0.05 1/s, so every reachable point settles except those where no candidate "
                   "design is linearly stable (named, with their margins); it settles wherever the "
-                  "open-loop bit/rock mode decays faster than 0.5 1/s (where it does not settle the "
-                  "open-loop mode is unstable or within 0.5 1/s of it), and at both operating "
+                  "open-loop bit/rock mode decays faster than 0.5 1/s (where it does not settle "
+                  "the open-loop mode is unstable or within 0.5 1/s of it), and at both operating "
                   "points of issue 17 (12 and 16 rad/s at 15 mm/s)",
             caption="Where the EID settles: the regenerative bit/rock mode over the envelope")
 def eid_envelope(out_dir, quick):

@@ -115,8 +115,8 @@ def make_neutral_runner(cp, damper=None):
         dh, ds, xbuf, pbuf = damper_arrays(dp)
         sigout = np.zeros((out.shape[0], len(EID_CHANNELS)))
         status, kfail, cfail = run_neutral_eid(*plant_args, cp, cs, ch, cpos, dp, dh, ds, xbuf,
-                                               pbuf, bpc, ref, mnoise, fnoise, nsteps, dt, every, out,
-                                               sigout)
+                                               pbuf, bpc, ref, mnoise, fnoise, nsteps, dt, every,
+                                               out, sigout)
         return status, kfail, cfail, {name: sigout[:, j] for j, name in enumerate(EID_CHANNELS)}
 
     return runner
