@@ -209,8 +209,11 @@ def _predict_torsional(dh, n, cap, dp, bp, v, pbuf):
 
     with T the bit law's torque at the depth of cut of the *predicted* angle (the blade ahead
     passed theta - 2 pi/n when the bit was at the X looked up in the measured history or, for
-    angles reached within the horizon, in the predicted one ``pbuf``), the axial velocity held
-    at ``v``. Implicit in the torque's omega dependence (stiff friction regularization)."""
+    angles reached within the horizon, in the predicted one ``pbuf``). The axial motion is
+    predicted with it (Eq. 3.9 with the WOB at the same depth of cut; the torque on bit is as
+    sensitive to the bit position as to the angle, 2.5e6 N m per m of depth with Table 3.1),
+    with the axial commands after the last one stored held at it. Implicit in the forces'
+    velocity dependence (stiff friction regularization)."""
     nt = dp.tau_t_steps
     nh = dp.h_t_steps
     stride = dp.stride_t
@@ -221,6 +224,7 @@ def _predict_torsional(dh, n, cap, dp, bp, v, pbuf):
     th = dh[_TH, k0]
     x = dh[_X, k0]
     th_n = th
+    u_last = dh[_U, (n - 1) % cap] if n > 0 else 0.0
     for i in range(nsub):
         steps = stride if i < nsub - 1 else nt - (nsub - 1) * stride
         h = steps * dp.dt
@@ -231,6 +235,15 @@ def _predict_torsional(dh, n, cap, dp, bp, v, pbuf):
         td = dh[_T, kh % cap] if kh >= 0 else 0.0
         ku = k - nt
         ud = dh[_UT, ku % cap] if ku >= 0 else 0.0
+        kha = k - dp.h_steps
+        vd = dh[_V, kha % cap] if kha >= 0 else 0.0
+        dvd = dh[_DV, kha % cap] if kha >= 0 else 0.0
+        wbd = dh[_W, kha % cap] if kha >= 0 else 0.0
+        kua = k - dp.tau_steps
+        if kua >= n:
+            uad = u_last
+        else:
+            uad = dh[_U, kua % cap] if kua >= 0 else 0.0
         pbuf[0, i] = th
         pbuf[1, i] = x
         target = th - pitch
@@ -252,9 +265,11 @@ def _predict_torsional(dh, n, cap, dp, bp, v, pbuf):
         sl = bit_forces_and_slopes(d, v, w, bp)
         dw = (dp.a0t * w + dp.a1t * wd + dp.g1t * dwd + dp.bt * ud
               - (sl[1] - dp.g1t * td) / dp.bit_inertia)
+        dv = dp.a0 * v + dp.a1 * vd + dp.g1 * dvd + dp.b * uad - (sl[0] - dp.g1 * wbd) / dp.bit_mass
         th += h * w
         x += h * v
         w += h * dw / (1.0 + h * (max(sl[6], 0.0) / dp.bit_inertia - dp.a0t))
+        v += h * dv / (1.0 + h * (max(sl[3], 0.0) / dp.bit_mass - dp.a0))
     return w
 
 
@@ -273,8 +288,10 @@ def torsional_damper_step(dp, dh, ds, pbuf, bp, v, w, r_w, u_t):
     dh[_OM, k] = w
     dh[_TH, k] = th
     dh[_X, k] = x
+    dh[_V, k] = v
     if n > 0:
         dh[_DOM, (n - 1) % cap] = (w - dh[_OM, (n - 1) % cap]) / dp.dt
+        dh[_DV, (n - 1) % cap] = (v - dh[_V, (n - 1) % cap]) / dp.dt
     xs = _surface_at(dh[_TH], dh[_X], n, cap, th - 2.0 * math.pi / dp.n_blades)
     d = dp.n_blades * (x - xs)
     if d < 0.0:
