@@ -36,17 +36,18 @@ def schedule(model):
 
 
 def _winding_count(controller, model, rop, omega, re_min=0.02, re_max=20.0, im_max=250.0,
-                   n=24000):
+                   n=24000, kd=0.0, kt=0.0, bf_t=0.0):
     """Number of roots of the characteristic determinant of the EID loop with the linearized
     delayed depth of cut in the rectangle re_min < Re s < re_max, |Im s| < im_max, by the argument
     principle (winding number of det along the boundary): independent of the Newton root finder
     of regenerative_closed_loop. The characteristic matrix is written out here from the channel
-    loops and the bit/rock slopes."""
+    loops and the bit/rock slopes; ``kd``, ``kt``: exact predictive dampers on the axial and
+    torsional plant rows (b k_d, b_T k_t bf_t/(s + bf_t), no filter with bf_t = 0)."""
     mats = [channel_loop_matrices(controller.model_coeffs[i], controller.gains[i],
                                   predictor=controller.predictor,
                                   delayed_input_observer=controller.delayed_input_observer)
             for i in range(2)]
-    kw, kt, c, tn = _bit_rock_gains(model, rop, omega)
+    kw, k_t, c, tn = _bit_rock_gains(model, rop, omega)
     p = model.params
     g1, u1 = model.gammas[0], model.upsilons[0]
 
@@ -59,10 +60,12 @@ def _winding_count(controller, model, rop, omega, re_min=0.02, re_max=20.0, im_m
         e = (1 - np.exp(-s * tn)) / s
         fa = (1 - g1 * np.exp(-2 * s * model.tau1)) / p.bit_mass * e
         ft = (1 - u1 * np.exp(-2 * s * model.tau2)) / p.bit_inertia * e
-        M[:, 0, 0] += fa * kw
+        M[:, 0, 0] += fa * kw + controller.model_coeffs[0]["b"] * kd
         M[:, 0, 5] -= fa * kw * c
-        M[:, 5, 0] += ft * kt
-        M[:, 5, 5] -= ft * kt * c
+        M[:, 5, 0] += ft * k_t
+        M[:, 5, 5] -= ft * k_t * c
+        filt = bf_t / (s + bf_t) if bf_t > 0 else 1.0
+        M[:, 5, 5] += controller.model_coeffs[1]["b"] * kt * filt
         return np.linalg.det(M)
 
     k = n // 4
@@ -101,7 +104,28 @@ def test_startup_reference_profile():
     np.testing.assert_allclose(r[0], [0.0, 0.0, 0.0, 0.0075, 0.015, 0.015])
 
 
+def test_startup_reference_from_above_profile():
+    """Approach from 20 rad/s: spin up to 20 rad/s (10 s), ramp the ROP in there (2 s), hold
+    (1 s), then lower the speed to 5 rad/s in 15 s (1 rad/s per s) linearly in 1/omega, i.e.
+    the depth of cut 2 pi rop/omega grows linearly (hand values: 1/omega at mid-descent is
+    (1/20 + 1/5)/2, omega = 8 rad/s)."""
+    ref = startup_reference(0.011, 5.0, spin_up=10.0, ramp_time=2.0, approach_omega=20.0)
+    t = np.array([0.0, 5.0, 10.0, 11.0, 12.0, 13.0, 20.5, 28.0, 60.0])
+    r = ref.sample(t)
+    np.testing.assert_allclose(r[1], [0.0, 10.0, 20.0, 20.0, 20.0, 20.0, 8.0, 5.0, 5.0])
+    np.testing.assert_allclose(r[0], [0.0, 0.0, 0.0, 0.0055, 0.011, 0.011, 0.011, 0.011, 0.011])
+    d = 2 * math.pi * r[0, 5:8] / r[1, 5:8]
+    assert d[1] - d[0] == pytest.approx(d[2] - d[1], rel=1e-12)
+    # an approach speed at or below the set point: the plain start-up
+    np.testing.assert_allclose(startup_reference(0.011, 30.0, 10.0, 2.0,
+                                                 approach_omega=20.0).sample(t),
+                               startup_reference(0.011, 30.0, 10.0, 2.0).sample(t))
+
+
 @pytest.mark.parametrize("call", [
+    lambda: startup_reference(0.01, 5.0, approach_omega=-20.0),
+    lambda: startup_reference(0.01, 5.0, approach_omega=20.0, descent_rate=0.0),
+    lambda: startup_reference(0.01, 5.0, approach_omega=20.0, hold=float("nan")),
     lambda: rotate_then_drill(constant_reference(0.01, 10.0), 20.0, horizon=50.0),
     lambda: rotate_then_drill(constant_reference(0.01, 20.0), -1.0),
     lambda: rotate_then_drill(constant_reference(0.01, 20.0), 10.0, ramp_time=0.0),
@@ -225,6 +249,70 @@ def test_predictive_damper_settles_where_the_open_loop_is_unstable(model):
     np.testing.assert_allclose(py["command_axial"], short["command_axial"], rtol=0, atol=1e-12)
     with pytest.raises(DownholeInputError, match="damping_gain"):
         PredictiveEID(eid, model, -1.0)
+
+
+@pytest.mark.slow
+def test_low_speed_point_settles_when_approached_from_above(model, schedule):
+    """5 rad/s, 15 mm/s (quick settings, dt = 2e-4): the linearized scheduled loop is stable,
+    but the run that ramps the ROP in at 5 rad/s does not settle (the torque step stalls the
+    bit: stick-slip); approached from 20 rad/s (ROP ramped in there, then the speed lowered
+    with the depth of cut growing linearly) it settles, and the loop is linearly stable at every
+    checked speed of the descent."""
+    direct = envelope_point(model, schedule, 0.015, 5.0, approach_omega=None)
+    assert direct["closed_loop_abscissa"] < 0 and not direct["settled"], direct
+    p = envelope_point(model, schedule, 0.015, 5.0)
+    assert p["approach_omega"] == 20.0 and p["path_abscissa"] < 0
+    assert p["settled"] and p["reason"] == "settled", p
+    assert p["rms_axial"] < 0.01 and p["min_axial_velocity"] > 0
+
+
+def test_torsional_damper_linear_margin_and_loops(model):
+    """The torsional half of the predictive damper: with an exact prediction (linear check) it
+    stabilizes the low-frequency torsional mode at 5 rad/s, 20 mm/s that no candidate of the
+    schedule holds (Newton roots and the argument-principle count agree); k_t = 0 is the
+    axial-only loop; the compiled and the Python loops agree with it on."""
+    eid = EIDSchedule(model, candidates=(ENVELOPE_CANDIDATES[7],)).controllers[0].eid
+    off = predictive_closed_loop(eid, model, 0.020, 5.0, 3.0)
+    assert off["spectral_abscissa"] > 0.5 and abs(off["dominant_root"][1]) < 5.0
+    assert _winding_count(eid, model, 0.020, 5.0, kd=3.0) >= 1
+    assert predictive_closed_loop(eid, model, 0.020, 5.0, 3.0, torsional_gain=0.0,
+                                  torsional_filter=20.0)["spectral_abscissa"] == pytest.approx(
+        off["spectral_abscissa"], abs=1e-9)
+    on = predictive_closed_loop(eid, model, 0.020, 5.0, 3.0, torsional_gain=0.5,
+                                torsional_filter=20.0)
+    assert on["stable"] and on["spectral_abscissa"] < -0.1
+    assert _winding_count(eid, model, 0.020, 5.0, kd=3.0, kt=0.5, bf_t=20.0) == 0
+    c = PredictiveEID(eid, model, 3.0, torsional_gain=0.5)
+    ref = startup_reference(0.015, 12.0, spin_up=1.0, ramp_time=1.0)
+    short = simulate_neutral(model, duration=3.0, dt=2e-4, controller=c, reference=ref)
+    py = simulate_neutral(model, duration=3.0, dt=2e-4, controller=c, python_loop=True,
+                          reference=ref)
+    np.testing.assert_allclose(py["bit_angular_velocity"], short["bit_angular_velocity"],
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(py["command_angular"], short["command_angular"], rtol=0,
+                               atol=1e-12)
+    plain = simulate_neutral(model, duration=3.0, dt=2e-4, controller=PredictiveEID(eid, model,
+                                                                                   3.0),
+                             reference=ref)
+    assert np.abs(plain["command_angular"] - short["command_angular"]).max() > 1e-6
+    for bad in ({"torsional_gain": -1.0}, {"torsional_filter": float("inf")}):
+        with pytest.raises(DownholeInputError, match="torsional"):
+            PredictiveEID(eid, model, 3.0, **bad)
+
+
+@pytest.mark.slow
+def test_torsional_damper_keeps_a_settling_low_speed_point(model):
+    """5 rad/s, 14 mm/s approached from 20 rad/s settles with candidate 5 alone (full grid); with
+    the torsional half on (k_t = 0.5) it still settles: its prediction of the bit angular
+    velocity includes the axial motion (holding the axial velocity constant, it broke this
+    point into stick-slip)."""
+    c5 = EIDSchedule(model, candidates=(ENVELOPE_CANDIDATES[5],)).controllers[0]
+    c = PredictiveEID(c5.eid, model, c5.damping_gain, torsional_gain=0.5)
+    res = simulate_neutral(model, duration=60.0, dt=2e-4, controller=c,
+                           reference=startup_reference(0.014, 5.0, 10.0, 2.0,
+                                                       approach_omega=20.0))
+    s = settle_metrics(res, 0.014, 5.0)
+    assert s["settled"] and s["rms_axial"] < 0.01 and s["min_axial_velocity"] > 0, s
 
 
 def test_fig3_6_tracking_bound_quick():

@@ -17,10 +17,10 @@ QUICK_OMEGAS = (5.0, 12.0, 16.0, 20.0, 30.0, 40.0)
 QUICK_ROPS = (0.002, 0.008, 0.015, 0.020)
 #: The operating points of the issue where the default design keeps bouncing.
 ISSUE_POINTS = ((0.015, 12.0), (0.015, 16.0))
-#: The claim expects a settled run where the linearized closed loop decays faster than
-#: STABLE_MARGIN (1/s) and none where it grows faster than UNSTABLE_MARGIN; in between (slow
-#: modes, or a linear margin that the nonlinear start-up does not keep) it is not called.
-STABLE_MARGIN = 0.2
+#: The claim expects a settled run at every reachable point where the scheduled linearized
+#: closed loop is stable (any negative spectral abscissa) and none where it grows faster than
+#: UNSTABLE_MARGIN (1/s); a slower growth (e^(0.05 x 40 s) = 7x over the run after the start-up)
+#: is not called.
 UNSTABLE_MARGIN = 0.05
 #: Open-loop decay rate (1/s) from which the claim expects the loop to settle.
 OPEN_LOOP_MARGIN = 0.5
@@ -68,15 +68,17 @@ def _plot(points, omegas, rops, path):
 @experiment("eid-envelope", title="EID over the drilling envelope with the delayed depth of cut",
             chapter=3,
             claim="grid rotary speed 5-40 rad/s x ROP 2-20 mm/s, true plant with the delayed depth "
-                  "of cut, from rest (rotate, then drill), EID (and the predictive bit damper) "
-                  "scheduled over the operating point by the linearized regenerative margin: "
-                  "every steady state is reachable (hook load > 0); the run settles (last 10 s of "
-                  "60 s: RMS errors < 2 %, no bounce) at every point where the linearized closed "
-                  "loop decays faster than 0.2 1/s and at none where it grows faster than "
-                  "0.05 1/s; it settles wherever the open-loop bit/rock mode decays faster than "
-                  "0.5 1/s, and at both operating points of issue 17 (12 and 16 rad/s at "
-                  "15 mm/s); where it does not settle the open-loop bit/rock mode is unstable or "
-                  "within 0.5 1/s of it",
+                  "of cut, from rest (rotate, then drill; a set point below 20 rad/s approached "
+                  "from 20 rad/s with the ROP on), EID (and the predictive bit damper) scheduled "
+                  "over the operating point by the linearized regenerative margin: every steady "
+                  "state is reachable (hook load > 0); the run settles (last 10 s of 60 s: RMS "
+                  "errors < 2 %, no bounce) at every reachable point where the scheduled "
+                  "linearized closed loop is stable and at none where it grows faster than "
+                  "0.05 1/s, so every reachable point settles except those where no candidate "
+                  "design is linearly stable (named, with their margins); it settles wherever the "
+                  "open-loop bit/rock mode decays faster than 0.5 1/s (where it does not settle "
+                  "the open-loop mode is unstable or within 0.5 1/s of it), and at both operating "
+                  "points of issue 17 (12 and 16 rad/s at 15 mm/s)",
             caption="Where the EID settles: the regenerative bit/rock mode over the envelope")
 def eid_envelope(out_dir, quick):
     from downhole.control.eid.envelope import EIDSchedule, envelope_map
@@ -93,15 +95,15 @@ def eid_envelope(out_dir, quick):
     _plot(points, omegas, rops, out_dir / "eid-envelope.png")
     (out_dir / "envelope.json").write_text(json.dumps(points, indent=1))
     reach = [p for p in points if p["reachable"]]
-    agree_stable = all(p["settled"] for p in reach
-                       if p["closed_loop_abscissa"] < -STABLE_MARGIN)
+    agree_stable = all(p["settled"] for p in reach if p["closed_loop_abscissa"] < 0)
     agree_unstable = not any(p["settled"] for p in reach
                              if p["closed_loop_abscissa"] > UNSTABLE_MARGIN)
     uncalled = [f"{p['omega']:g} rad/s, {1e3 * p['rop']:g} mm/s: abscissa "
                 f"{p['closed_loop_abscissa']:+.2f} 1/s, "
                 f"{'settled' if p['settled'] else 'not settled'}"
-                for p in reach
-                if -STABLE_MARGIN <= p["closed_loop_abscissa"] <= UNSTABLE_MARGIN]
+                for p in reach if 0 <= p["closed_loop_abscissa"] <= UNSTABLE_MARGIN]
+    unsettled_stable = [f"{p['omega']:g} rad/s, {1e3 * p['rop']:g} mm/s: {p['reason']}"
+                        for p in reach if not p["settled"] and p["closed_loop_abscissa"] < 0]
     ol_stable_settle = all(p["settled"] for p in reach
                            if p["open_loop_abscissa"] < -OPEN_LOOP_MARGIN)
     fail_ol_unstable = all(p["open_loop_abscissa"] > -OPEN_LOOP_MARGIN for p in reach
@@ -116,11 +118,16 @@ def eid_envelope(out_dir, quick):
                         for p in reach if not p["settled"]],
         "unreachable": [f"{p['omega']:g} rad/s, {1e3 * p['rop']:g} mm/s: {p['reason']}"
                         for p in points if not p["reachable"]],
-        "settles_where_linear_margin_above_0.2": agree_stable,
+        "every_reachable_point_settles": len(reach) == len(points) and all(
+            p["settled"] for p in reach),
+        "settles_wherever_the_scheduled_linear_loop_is_stable": agree_stable,
+        "stable_linear_loop_but_not_settled": unsettled_stable,
         "no_settle_where_linear_growth_above_0.05": agree_unstable,
-        "not_called_by_the_linear_margin": uncalled,
+        "not_called_linear_growth_0_to_0.05": uncalled,
         "settles_wherever_open_loop_decays_faster_than_0.5": ol_stable_settle,
         "every_failure_open_loop_unstable_or_within_0.5": fail_ol_unstable,
+        "approached_from_above": [f"{p['omega']:g} rad/s, {1e3 * p['rop']:g} mm/s"
+                                  for p in reach if p.get("approach_omega")],
         "settled_although_open_loop_unstable": [
             f"{p['omega']:g} rad/s, {1e3 * p['rop']:g} mm/s" for p in reach
             if p["settled"] and p["open_loop_abscissa"] > 0],

@@ -14,7 +14,8 @@ from numba import njit
 
 from downhole.bit.law import bit_forces, bit_forces_and_slopes
 
-__all__ = ["DamperParams", "damper_step", "damper_arrays", "PREDICTION_STEP"]
+__all__ = ["DamperParams", "damper_step", "torsional_damper_step", "damper_arrays",
+           "PREDICTION_STEP"]
 
 
 @njit(cache=True)
@@ -80,6 +81,21 @@ class DamperParams(NamedTuple):
         Control step, s.
     stride : int
         Control steps per Euler step of the prediction.
+    k_t : float
+        Torsional damping gain on the predicted bit angular-velocity error (0: off).
+    tau_t_steps, h_t_steps : int
+        The torsional channel's delays in steps of ``dt``.
+    a0t, a1t, g1t, bt : float
+        The torsional design-model coefficients.
+    bit_inertia : float
+        Bit (BHA) moment of inertia, kg m^2.
+    stride_t : int
+        Control steps per Euler step of the torsional prediction (the last step is shorter).
+    filter_t : float
+        Bandwidth (rad/s) of the first-order low-pass filter on the torsional damping command
+        (0: none). The discretized prediction integral of a finite-spectrum-assignment law is
+        unstable at high frequency without one (Van Assche et al. 1999; Mondie & Michiels
+        2003).
     """
 
     k_d: float
@@ -93,6 +109,16 @@ class DamperParams(NamedTuple):
     n_blades: float
     dt: float
     stride: int
+    k_t: float = 0.0
+    tau_t_steps: int = 1
+    h_t_steps: int = 1
+    a0t: float = 0.0
+    a1t: float = 0.0
+    g1t: float = 0.0
+    bt: float = 0.0
+    bit_inertia: float = 1.0
+    stride_t: int = 1
+    filter_t: float = 0.0
 
 #: Target step of the prediction's Euler integration, s (the largest whole number of control
 #: steps up to it that divides the prediction horizon).
@@ -141,6 +167,147 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
     return du
 
 
+#: Rows of the damper's history array ``dh``: axial v, v', W, X, u; torsional omega, omega', T,
+#: theta, u_T.
+_V, _DV, _W, _X, _U, _OM, _DOM, _T, _TH, _UT = range(10)
+
+
+@njit(cache=True)
+def _surface_at(th_row, x_row, n, cap, target):
+    """Bit position X at the past time when the measured bit angle was ``target`` (the surface
+    the blade ahead left, Eq. 2.10), by bisection on the stored angles (monotone while the bit
+    turns forward) and linear interpolation; 0 before the start; the oldest stored X if the
+    angle is older than the history."""
+    lo = n - cap + 1
+    if lo < 0:
+        lo = 0
+    if th_row[lo % cap] > target:
+        return 0.0 if lo == 0 else x_row[lo % cap]
+    hi = n
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if th_row[mid % cap] <= target:
+            lo = mid
+        else:
+            hi = mid
+    t0 = th_row[lo % cap]
+    t1 = th_row[hi % cap]
+    if t1 > t0:
+        f = (target - t0) / (t1 - t0)
+        if f > 1.0:
+            f = 1.0
+        return (1.0 - f) * x_row[lo % cap] + f * x_row[hi % cap]
+    return x_row[lo % cap]
+
+
+@njit(cache=True)
+def _predict_torsional(dh, n, cap, dp, bp, v, pbuf):
+    """Predicted bit angular velocity at t_n + tau_t from the stored histories: Euler steps of
+    the torsional neutral equation
+
+        omega' = a0 omega + a1 omega(t-h) + g1 omega'(t-h) + b u_T(t - tau) - (T - g1 T(t-h))/I
+
+    with T the bit law's torque at the depth of cut of the *predicted* angle (the blade ahead
+    passed theta - 2 pi/n when the bit was at the X looked up in the measured history or, for
+    angles reached within the horizon, in the predicted one ``pbuf``). The axial motion is
+    predicted with it (Eq. 3.9 with the WOB at the same depth of cut; the torque on bit is as
+    sensitive to the bit position as to the angle, 2.5e6 N m per m of depth with Table 3.1),
+    with the axial commands after the last one stored held at it. Implicit in the forces'
+    velocity dependence (stiff friction regularization)."""
+    nt = dp.tau_t_steps
+    nh = dp.h_t_steps
+    stride = dp.stride_t
+    nsub = (nt + stride - 1) // stride
+    pitch = 2.0 * math.pi / dp.n_blades
+    k0 = n % cap
+    w = dh[_OM, k0]
+    th = dh[_TH, k0]
+    x = dh[_X, k0]
+    th_n = th
+    u_last = dh[_U, (n - 1) % cap] if n > 0 else 0.0
+    for i in range(nsub):
+        steps = stride if i < nsub - 1 else nt - (nsub - 1) * stride
+        h = steps * dp.dt
+        k = n + i * stride
+        kh = k - nh
+        wd = dh[_OM, kh % cap] if kh >= 0 else 0.0
+        dwd = dh[_DOM, kh % cap] if kh >= 0 else 0.0
+        td = dh[_T, kh % cap] if kh >= 0 else 0.0
+        ku = k - nt
+        ud = dh[_UT, ku % cap] if ku >= 0 else 0.0
+        kha = k - dp.h_steps
+        vd = dh[_V, kha % cap] if kha >= 0 else 0.0
+        dvd = dh[_DV, kha % cap] if kha >= 0 else 0.0
+        wbd = dh[_W, kha % cap] if kha >= 0 else 0.0
+        kua = k - dp.tau_steps
+        if kua >= n:
+            uad = u_last
+        else:
+            uad = dh[_U, kua % cap] if kua >= 0 else 0.0
+        pbuf[0, i] = th
+        pbuf[1, i] = x
+        target = th - pitch
+        if target <= th_n:
+            xs = _surface_at(dh[_TH], dh[_X], n, cap, target)
+        else:
+            j = 0
+            while j + 1 < i and pbuf[0, j + 1] <= target:
+                j += 1
+            t0 = pbuf[0, j]
+            t1 = pbuf[0, j + 1]
+            f = (target - t0) / (t1 - t0) if t1 > t0 else 0.0
+            if f > 1.0:
+                f = 1.0
+            xs = (1.0 - f) * pbuf[1, j] + f * pbuf[1, j + 1]
+        d = dp.n_blades * (x - xs)
+        if d < 0.0:
+            d = 0.0
+        sl = bit_forces_and_slopes(d, v, w, bp)
+        dw = (dp.a0t * w + dp.a1t * wd + dp.g1t * dwd + dp.bt * ud
+              - (sl[1] - dp.g1t * td) / dp.bit_inertia)
+        dv = dp.a0 * v + dp.a1 * vd + dp.g1 * dvd + dp.b * uad - (sl[0] - dp.g1 * wbd) / dp.bit_mass
+        th += h * w
+        x += h * v
+        w += h * dw / (1.0 + h * (max(sl[6], 0.0) / dp.bit_inertia - dp.a0t))
+        v += h * dv / (1.0 + h * (max(sl[3], 0.0) / dp.bit_mass - dp.a0))
+    return w
+
+
+@njit(cache=True)
+def torsional_damper_step(dp, dh, ds, pbuf, bp, v, w, r_w, u_t):
+    """The torsional half of the predictive damper at t_n (n = ds[1], to be called *before*
+    :func:`damper_step`, which advances n): stores omega, omega', theta, the torque on bit at
+    the measured angle-based depth of cut and the torsional command; returns
+    ``du_T = -k_t (omegahat(t + tau_t) - r_w)`` through the low-pass filter of bandwidth
+    ``filter_t`` (0 with ``k_t = 0``)."""
+    cap = dh.shape[1]
+    n = int(ds[1])
+    k = n % cap
+    th = ds[2]
+    x = ds[0]
+    dh[_OM, k] = w
+    dh[_TH, k] = th
+    dh[_X, k] = x
+    dh[_V, k] = v
+    if n > 0:
+        dh[_DOM, (n - 1) % cap] = (w - dh[_OM, (n - 1) % cap]) / dp.dt
+        dh[_DV, (n - 1) % cap] = (v - dh[_V, (n - 1) % cap]) / dp.dt
+    xs = _surface_at(dh[_TH], dh[_X], n, cap, th - 2.0 * math.pi / dp.n_blades)
+    d = dp.n_blades * (x - xs)
+    if d < 0.0:
+        d = 0.0
+    dh[_T, k] = bit_forces(d, v, w, bp)[1]
+    du = 0.0
+    if dp.k_t > 0.0:
+        du = -dp.k_t * (_predict_torsional(dh, n, cap, dp, bp, v, pbuf) - r_w)
+        if dp.filter_t > 0.0:
+            du = ds[3] + (1.0 - math.exp(-dp.filter_t * dp.dt)) * (du - ds[3])
+            ds[3] = du
+    dh[_UT, k] = u_t + du
+    ds[2] = th + dp.dt * w
+    return du
+
+
 def _stride(nt: int, target: float) -> int:
     """Largest divisor of ``nt`` not above ``target`` (the prediction's Euler steps then end
     exactly at t + tau)."""
@@ -149,6 +316,12 @@ def _stride(nt: int, target: float) -> int:
 
 
 def damper_arrays(dp: DamperParams):
-    """Fresh ``(dh, ds, xbuf)`` (histories, state, prediction buffer) for parameters ``dp``."""
+    """Fresh ``(dh, ds, xbuf, pbuf)`` (histories, state [X, n, theta, filtered du_T], axial and
+    torsional
+    prediction buffers) for parameters ``dp``."""
     cap = dp.tau_steps + dp.h_steps + 8
-    return np.zeros((5, cap)), np.zeros(2), np.zeros(dp.tau_steps // dp.stride + 2)
+    if dp.k_t > 0.0:
+        cap = max(cap, dp.tau_t_steps + dp.h_t_steps + 8)
+    nsub_t = (dp.tau_t_steps + dp.stride_t - 1) // dp.stride_t
+    return (np.zeros((10, cap)), np.zeros(4), np.zeros(dp.tau_steps // dp.stride + 2),
+            np.zeros((2, nsub_t + 2)))

@@ -34,7 +34,7 @@ from downhole.errors import DownholeInputError
 
 __all__ = ["ENVELOPE_CANDIDATES", "OperatingPoint", "operating_point", "EIDSchedule",
            "settle_metrics", "SETTLE_TOLERANCE", "open_loop_abscissa", "envelope_point",
-           "envelope_map"]
+           "envelope_map", "APPROACH_OMEGA", "DESCENT_RATE"]
 
 #: Candidate tunings of the axial channel (the torsional channel keeps the default): keyword
 #: arguments of :func:`~downhole.control.eid.design.synthesize_channel`, plus ``damping_gain``
@@ -238,11 +238,47 @@ def settle_metrics(res, rop: float, omega: float, window: float = 10.0,
             "settled": bool(ra < tolerance and rw < tolerance and vmin > -tolerance * rop)}
 
 
+#: Rotary speed (rad/s) from which a set point below it is approached (drill there, then slow
+#: down; :func:`~downhole.control.eid.references.startup_reference`), and the descent rate
+#: (rad/s per s).
+APPROACH_OMEGA = 20.0
+DESCENT_RATE = 1.0
+#: Largest spacing (rad/s) of the rotary speeds at which the descent path is checked.
+PATH_STEP = 2.5
+
+
+def _path_speeds(omega, approach):
+    n = max(1, int(math.ceil((approach - omega) / PATH_STEP)))
+    return [omega + (approach - omega) * k / n for k in range(1, n + 1)]
+
+
+def _path_abscissa(schedule, k, rop, speeds):
+    """Largest spectral abscissa of candidate ``k`` at (rop, w) over ``speeds``."""
+    from downhole.control.eid.predictor import PredictiveEID, predictive_closed_loop
+    from downhole.control.eid.stability import regenerative_closed_loop
+
+    c, m = schedule.controllers[k], schedule.model
+    return max((predictive_closed_loop(c.eid, m, rop, w, c.damping_gain)
+                if isinstance(c, PredictiveEID) else
+                regenerative_closed_loop(c, m, rop, w))["spectral_abscissa"] for w in speeds)
+
+
 def envelope_point(model, schedule: EIDSchedule, rop: float, omega: float, *, dt: float = 2e-4,
                    duration: float = 60.0, spin_up: float = 10.0, ramp_time: float = 2.0,
-                   max_depth_of_cut: float | None = None) -> dict:
+                   max_depth_of_cut: float | None = None,
+                   approach_omega: float | None = APPROACH_OMEGA,
+                   descent_rate: float = DESCENT_RATE) -> dict:
     """One grid point: reachability, open-loop and scheduled closed-loop margins, a run from rest
-    (rotate-then-drill start-up) with the scheduled design, the settle criterion and why."""
+    with the scheduled design, the settle criterion and why.
+
+    Start-up: rotate, then drill (:func:`~downhole.control.eid.references.startup_reference`).
+    A set point below ``approach_omega`` is approached from above: the rate of penetration is
+    ramped in at ``approach_omega``, then the rotary speed is lowered to ``omega`` at
+    ``descent_rate`` rad/s per s. The candidate is then the one with the most negative abscissa
+    at the set point among those whose loop is also stable (linearized) at ``rop`` at every
+    speed of the descent (checked every :data:`PATH_STEP` rad/s); if none is, the set point is
+    approached directly with the best candidate there. ``approach_omega=None``: always directly.
+    """
     from downhole.control.eid.references import startup_reference
     from downhole.string.neutral import simulate_neutral
 
@@ -254,13 +290,25 @@ def envelope_point(model, schedule: EIDSchedule, rop: float, omega: float, *, dt
         return out
     ol = open_loop_abscissa(model, rop, omega)
     margins = schedule.margins(rop, omega)
-    k = int(np.argmin([x["spectral_abscissa"] for x in margins]))
+    order = [int(i) for i in np.argsort([x["spectral_abscissa"] for x in margins], kind="stable")]
+    k, approach, path = order[0], None, None
+    if approach_omega is not None and approach_omega > omega:
+        speeds = _path_speeds(omega, float(approach_omega))
+        for j in order:
+            if margins[j]["spectral_abscissa"] >= 0:
+                break
+            pa = _path_abscissa(schedule, j, rop, speeds)
+            if pa < 0:
+                k, approach, path = j, float(approach_omega), pa
+                break
     ctrl, cl = schedule.controllers[k], margins[k]
-    res = simulate_neutral(model, duration=duration, dt=dt, controller=ctrl,
-                           reference=startup_reference(rop, omega, spin_up, ramp_time))
+    ref = startup_reference(rop, omega, spin_up, ramp_time, approach_omega=approach,
+                            descent_rate=descent_rate)
+    res = simulate_neutral(model, duration=duration, dt=dt, controller=ctrl, reference=ref)
     s = settle_metrics(res, rop, omega)
     sa = cl["spectral_abscissa"]
     osc = cl["rightmost_oscillatory_root"]
+    dom = cl["dominant_root"]
     if s["settled"] and sa < 0:
         reason = "settled"
     elif s["settled"]:
@@ -268,8 +316,8 @@ def envelope_point(model, schedule: EIDSchedule, rop: float, omega: float, *, dt
                   f"(abscissa {sa:+.2f} 1/s)")
     elif sa >= 0 and ol[0] > 0:
         reason = (f"open-loop bit/rock mode unstable ({ol[0]:+.2f} 1/s at {ol[1]:.0f} rad/s); "
-                  f"no candidate design stabilizes it (best {sa:+.2f} 1/s at "
-                  f"{osc[1]:.0f} rad/s)")
+                  f"no candidate design stabilizes it (best {sa:+.2f} 1/s, rightmost root at "
+                  f"{abs(dom[1]):.1f} rad/s)")
     elif sa >= 0:
         reason = (f"closed loop unstable ({sa:+.2f} 1/s) although the open-loop bit/rock mode "
                   f"is stable ({ol[0]:+.2f} 1/s)")
@@ -278,7 +326,9 @@ def envelope_point(model, schedule: EIDSchedule, rop: float, omega: float, *, dt
                   f"(RMS {100 * s['rms_axial']:.1f} % / {100 * s['rms_angular']:.1f} %)")
     out.update(open_loop_abscissa=ol[0], open_loop_frequency=ol[1],
                default_abscissa=margins[0]["spectral_abscissa"], candidate=k,
-               closed_loop_abscissa=sa, closed_loop_regenerative_root=osc, **s, reason=reason)
+               closed_loop_abscissa=sa, closed_loop_dominant_root=dom,
+               closed_loop_regenerative_root=osc, approach_omega=approach,
+               path_abscissa=path, **s, reason=reason)
     return out
 
 

@@ -38,10 +38,16 @@ import numpy as np
 
 from downhole.bit.law import bit_forces, bit_forces_and_slopes  # noqa: F401
 from downhole.control.eid.damper import (PREDICTION_STEP, DamperParams,  # noqa: F401
-                                         _stride, damper_arrays, damper_step)
+                                         _stride, damper_arrays, damper_step,
+                                         torsional_damper_step)
 from downhole.errors import DownholeInputError
 
-__all__ = ["PredictiveEID", "predictive_closed_loop", "damper_step", "DamperParams"]
+__all__ = ["PredictiveEID", "predictive_closed_loop", "damper_step", "DamperParams",
+           "TORSIONAL_FILTER"]
+
+#: Bandwidth (rad/s) of the low-pass filter on the torsional damping command: well above the
+#: low-frequency torsional mode it damps (1-3 rad/s), well below the Euler step of its prediction.
+TORSIONAL_FILTER = 20.0
 
 
 class PredictiveEID:
@@ -58,18 +64,35 @@ class PredictiveEID:
         The plant model the prediction uses (string coefficients, bit mass, bit law).
     damping_gain : float
         k_d (the bit sees M_B b k_d N s/m; 2.0 gives about 8.8e5 N s/m = 2.5 Z with Table 3.1).
+    torsional_gain : float
+        k_t of the torsional half (0: off): ``du_T = -k_t (omegahat(t + tau_2) - r_w)`` from a
+        prediction of the bit angular velocity over the torsional delay (the torsional neutral
+        equation with the bit law's torque at the angle-based depth of cut, the axial velocity
+        held); with an exact prediction the bit sees a rotary damper I_B b_T k_t N m s (about
+        600 N m s = 1.25 Z_T at k_t = 1 with Table 3.1). It holds the low-frequency torsional
+        mode that the delayed depth of cut destabilizes at low rotary speed and high rate of
+        penetration (torque on bit ~ 1/omega at a given rate of penetration).
+    torsional_filter : float
+        Bandwidth (rad/s) of the low-pass filter on the torsional damping command (see
+        :class:`DamperParams`; 0: none).
     """
 
     needs = ("bit_axial_velocity", "bit_angular_velocity")
     commands = ("top_drive_axial_velocity", "top_drive_angular_velocity")
     label = "eid+predictive-damper"
 
-    def __init__(self, eid, model, damping_gain: float = 2.0):
-        k = float(damping_gain)
-        if not (math.isfinite(k) and k >= 0):
-            raise DownholeInputError(f"PredictiveEID: damping_gain must be >= 0 and finite, "
-                                     f"got {damping_gain!r}")
-        self.eid, self.model, self.damping_gain = eid, model, k
+    def __init__(self, eid, model, damping_gain: float = 2.0, torsional_gain: float = 0.0,
+                 torsional_filter: float = TORSIONAL_FILTER):
+        gains = []
+        for name, val in (("damping_gain", damping_gain), ("torsional_gain", torsional_gain),
+                          ("torsional_filter", torsional_filter)):
+            k = float(val)
+            if not (math.isfinite(k) and k >= 0):
+                raise DownholeInputError(f"PredictiveEID: {name} must be >= 0 and finite, "
+                                         f"got {val!r}")
+            gains.append(k)
+        self.eid, self.model = eid, model
+        self.damping_gain, self.torsional_gain, self.torsional_filter = gains
         self.reference = eid.reference
         self.dt = eid.dt
 
@@ -77,16 +100,24 @@ class PredictiveEID:
         """The damper's parameters (:class:`DamperParams`) at step ``dt``."""
         ch = self.eid.model_coeffs[0]
         tau = max(1, int(round(ch["tau"] / dt)))
+        ct = self.eid.model_coeffs[1]
+        tau_t = max(1, int(round(ct["tau"] / dt)))
         return DamperParams(k_d=float(self.damping_gain), tau_steps=tau,
                             h_steps=max(1, int(round(ch["h"] / dt))), a0=float(ch["a0"]),
                             a1=float(ch["a1"]), g1=float(ch["g1"]), b=float(ch["b"]),
                             bit_mass=float(self.model.params.bit_mass),
                             n_blades=float(self.model.bit.n_blades), dt=float(dt),
-                            stride=int(_stride(tau, PREDICTION_STEP / dt)))
+                            stride=int(_stride(tau, PREDICTION_STEP / dt)),
+                            k_t=float(self.torsional_gain), tau_t_steps=tau_t,
+                            h_t_steps=max(1, int(round(ct["h"] / dt))), a0t=float(ct["a0"]),
+                            a1t=float(ct["a1"]), g1t=float(ct["g1"]), bt=float(ct["b"]),
+                            bit_inertia=float(self.model.params.bit_inertia),
+                            stride_t=max(1, int(round(PREDICTION_STEP / dt))),
+                            filter_t=float(self.torsional_filter))
 
     @staticmethod
     def damper_arrays(dp: DamperParams):
-        """Fresh ``(dh, ds, xbuf)`` for parameters ``dp``."""
+        """Fresh ``(dh, ds, xbuf, pbuf)`` for parameters ``dp``."""
         return damper_arrays(dp)
 
     def neutral_runner(self, dt: float):
@@ -103,7 +134,7 @@ class PredictiveEID:
         self.eid.dt = self.dt
         self.eid.reset()
         self._dp = self.damper_params(float(self.dt))
-        self._dh, self._ds, self._xbuf = self.damper_arrays(self._dp)
+        self._dh, self._ds, self._xbuf, self._pbuf = self.damper_arrays(self._dp)
         self._bp = self.model.bit.kernel_params()
 
     def command(self, t: float, observation: dict, reference=None) -> dict:
@@ -118,18 +149,28 @@ class PredictiveEID:
         else:
             r = np.asarray(reference, float).reshape(2)
         u = out["top_drive_axial_velocity"]
-        du = damper_step(self._dp, self._dh, self._ds, self._xbuf, self._bp,
-                         float(observation["bit_axial_velocity"]),
-                         float(observation["bit_angular_velocity"]), float(r[0]), u)
+        ut = out["top_drive_angular_velocity"]
+        v = float(observation["bit_axial_velocity"])
+        w = float(observation["bit_angular_velocity"])
+        dut = 0.0
+        if self._dp.k_t > 0:
+            dut = torsional_damper_step(self._dp, self._dh, self._ds, self._pbuf, self._bp, v, w,
+                                        float(r[1]), ut)
+        du = damper_step(self._dp, self._dh, self._ds, self._xbuf, self._bp, v, w, float(r[0]),
+                         u)
         return {"top_drive_axial_velocity": float(u + du),
-                "top_drive_angular_velocity": out["top_drive_angular_velocity"]}
+                "top_drive_angular_velocity": float(ut + dut)}
 
 
 def predictive_closed_loop(controller, model, rop: float, omega: float,
-                           damping_gain: float = 2.0, im_max: float = 200.0) -> dict:
-    """Spectral abscissa of the EID loop with an exact predictive damper (plant row + b k_d) and
-    the linearized delayed depth of cut: :func:`regenerative_closed_loop`'s characteristic matrix
-    with that one term added. Returns the same keys."""
+                           damping_gain: float = 2.0, im_max: float = 200.0,
+                           torsional_gain: float = 0.0,
+                           torsional_filter: float = TORSIONAL_FILTER) -> dict:
+    """Spectral abscissa of the EID loop with an exact predictive damper (axial plant row
+    + b k_d, torsional plant row + b_T k_t bf/(s + bf) with the filter bandwidth bf, or
+    + b_T k_t without a filter) and the linearized delayed depth of cut:
+    :func:`regenerative_closed_loop`'s characteristic matrix with those terms added. Returns the
+    same keys."""
     from downhole.control.eid.stability import (_bit_rock_gains, _newton_roots,
                                                 channel_loop_matrices)
 
@@ -141,6 +182,7 @@ def predictive_closed_loop(controller, model, rop: float, omega: float,
     p = model.params
     g1, u1 = model.gammas[0], model.upsilons[0]
     b = controller.model_coeffs[0]["b"]
+    bt = controller.model_coeffs[1]["b"]
     n = 5
 
     def char(s):
@@ -157,7 +199,8 @@ def predictive_closed_loop(controller, model, rop: float, omega: float,
         M[:, 0, 0] += fa * kw + b * damping_gain
         M[:, 0, n] += -fa * kw * c
         M[:, n, 0] += ft * kt
-        M[:, n, n] += -ft * kt * c
+        filt = torsional_filter / (s + torsional_filter) if torsional_filter > 0 else 1.0
+        M[:, n, n] += -ft * kt * c + bt * torsional_gain * filt
         return np.linalg.det(M)
 
     roots = _newton_roots(char, im_max=im_max, n_re=3, d_im=3.0, iters=40)

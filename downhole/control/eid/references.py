@@ -98,22 +98,44 @@ def startup_time(reference, omega_on: float, horizon: float = 1.0e4,
 
 
 def startup_reference(rop: float, omega: float, spin_up: float = 5.0,
-                      ramp_time: float = 2.0) -> Reference:
+                      ramp_time: float = 2.0, approach_omega: float | None = None,
+                      descent_rate: float = 1.0, hold: float = 1.0) -> Reference:
     """Set point (``rop`` m/s, ``omega`` rad/s) reached from rest by rotating first: the angular
     reference ramps linearly from 0 to ``omega`` over ``spin_up`` s with the axial reference at 0,
-    then the axial reference ramps from 0 to ``rop`` over ``ramp_time`` s."""
+    then the axial reference ramps from 0 to ``rop`` over ``ramp_time`` s.
+
+    With ``approach_omega`` above ``omega`` the set point is approached *from above* (drill
+    fast, then slow down): the rotation ramps to ``approach_omega`` over ``spin_up`` s, the rate
+    of penetration is ramped in there (depth of cut 2 pi rop/approach_omega, smaller than at the
+    set point), held ``hold`` s, then the rotary-speed reference is lowered to ``omega`` in
+    (approach_omega - omega)/descent_rate s with the rate of penetration held, linearly in
+    1/omega, so that the depth of cut grows linearly. The torque on bit then grows
+    slowly to its (large) low-speed value instead of arriving as a step that the torsional loop
+    cannot hold (see docs/neutral-eid.md, "Envelope")."""
     rop = _positive("rop", rop, allow_zero=True)
     omega = _positive("omega", omega)
     spin = _positive("spin_up", spin_up)
     ramp = _positive("ramp_time", ramp_time)
+    top = omega
+    if approach_omega is not None:
+        top = max(omega, _positive("approach_omega", approach_omega))
+    rate = _positive("descent_rate", descent_rate)
+    t_down = spin + ramp + _positive("hold", hold, allow_zero=True)
+    t_end = t_down + (top - omega) / rate
 
     def w(t):
-        return omega * np.clip(np.asarray(t, float) / spin, 0.0, 1.0)
+        t = np.asarray(t, float)
+        if top == omega:
+            return omega * np.clip(t / spin, 0.0, 1.0)
+        f = np.clip((t - t_down) / (t_end - t_down), 0.0, 1.0)
+        # linear in 1/omega: the depth of cut 2 pi rop/omega (and the bit forces) grow linearly
+        down = 1.0 / (1.0 / top + (1.0 / omega - 1.0 / top) * f)
+        return np.where(t < t_down, top * np.clip(t / spin, 0.0, 1.0), down)
 
     def a(t):
         return rop * np.clip((np.asarray(t, float) - spin) / ramp, 0.0, 1.0)
 
-    return Reference(a, w, "startup")
+    return Reference(a, w, "startup" if top == omega else "startup-from-above")
 
 
 def envelope_tracking_reference(omega_on: float = 18.0, ramp_time: float = 2.0,
