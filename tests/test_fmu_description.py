@@ -117,3 +117,42 @@ def test_state_interface_fmu_gives_the_design_states_their_units(tmp_path):
         assert v.unit and v.description, v.name
     assert "time" not in byname
     assert float(md.defaultExperiment.stopTime) > 0
+
+
+def test_oilfield_display_units_are_declared_for_the_importing_tool(tmp_path):
+    """``export-fmu --units oilfield``: the values stay SI (unit rad/s, N, N*m) and every variable
+    names its display unit, declared in <UnitDefinitions> with the factor an importer applies
+    (display = factor * value), checked against an independent pint registry; FMI 2.0 schema
+    valid; the SI export has no display units."""
+    import pint
+
+    ureg = pint.UnitRegistry()
+    fmu = tmp_path / "ft.fmu"
+    assert main(["export-fmu", "examples/table_5_1.toml", "--fidelity", "lumped4",
+                 "--units", "oilfield", "--unit", "wob=kN", "--out", str(fmu)]) == 0
+    md = fmpy.read_model_description(str(fmu), validate=True)
+    _check_description(md, 10.0, 5e-4)
+    byname = {v.name: v for v in md.modelVariables}
+    display = {(u.name, d.name): d for u in md.unitDefinitions for d in u.displayUnits}
+    expect = {"command_top_drive_angular_velocity": "rpm", "bit_angular_velocity": "rpm",
+              "bit_axial_velocity": "ft/h", "surface_torque": "kft*lbf", "tob": "kft*lbf",
+              "hook_load": "klbf", "wob": "kN", "bit_radius": "in"}
+    for name, disp in expect.items():
+        if name not in byname:
+            continue
+        v = byname[name]
+        assert v.displayUnit == disp, name
+        names = {"kft*lbf": "kilofoot * force_pound", "klbf": "kip", "ft/h": "foot / hour",
+                 "rpm": "revolution / minute", "in": "inch", "kN": "kilonewton"}
+        ref = ureg.Quantity(1.0, v.unit.replace("*", " * ")).to(names[disp]).magnitude
+        assert display[(v.unit, disp)].factor == pytest.approx(ref, rel=1e-12), name
+    assert sum(n in byname for n in expect) >= 5
+    si = tmp_path / "si.fmu"
+    assert main(["export-fmu", "examples/table_5_1.toml", "--fidelity", "lumped4",
+                 "--out", str(si)]) == 0
+    md = fmpy.read_model_description(str(si), validate=True)
+    assert all(not v.displayUnit for v in md.modelVariables)
+    assert not any(u.displayUnits for u in md.unitDefinitions)
+    assert main(["export-fmu", "examples/table_5_1.toml", "--fidelity", "lumped4", "--units",
+                 "furlongs", "--out", str(tmp_path / "bad.fmu")]) == 2
+    assert not (tmp_path / "bad.fmu").exists()

@@ -424,8 +424,13 @@ def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML, or 
                out: Path = typer.Option(Path("plant.fmu"), "--out", help="FMU file to write"),
                fidelity: Optional[str] = typer.Option(
                    None, "--fidelity", help="system scenarios: lumped4 | lumped12 | neutral | "
-                   "fem | hybrid (default: the file's model.fidelity)")):
+                   "fem | hybrid (default: the file's model.fidelity)"),
+               units: str = UNITS_OPTION, unit: Optional[List[str]] = UNIT_OPTION):
     """Build an FMI 2.0 co-simulation FMU of the scenario's plant (pythonfmu).
+
+    Every variable carries its SI unit and description; --units/--unit add FMI display units
+    (e.g. rpm, klbf, kft*lbf with --units oilfield) that an importing tool shows; the values it
+    exchanges stay SI.
 
     A SIL scenario's plant is its model.fidelity and model.preset; a scenario that describes
     the system ([well], [string]) is exported at its model.fidelity or --fidelity, velocity-driven at every fidelity (inputs
@@ -437,12 +442,13 @@ def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML, or 
     from downhole.sil.fmu import export_system_fmu
 
     check_output_path(out, kind="file")
+    display = resolve_units(units, unit)
     data, source, _ = read_scenario(scenario)
     if ("well" in data or "string" in data) and model_type(data, source) == "system":
-        path = export_system_fmu(scenario, out, fidelity=fidelity)
+        path = export_system_fmu(scenario, out, fidelity=fidelity, units=display)
     elif fidelity is not None:
         fail(f"{source}: --fidelity applies to a scenario that describes the system ([well], "
              "[string]); a SIL scenario's plant is its [model] fidelity and preset")
     else:
-        path = _export(scenario, out)
+        path = _export(scenario, out, units=display)
     typer.echo(f"wrote {path}")

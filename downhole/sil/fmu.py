@@ -58,13 +58,28 @@ def _check_out(out) -> Path:
     return out
 
 
-def _build(out: Path, resources: Callable[[Path], list]) -> Path:
+def _display_json(units) -> str | None:
+    """The display unit system of ``units`` (a name, overrides or a
+    :class:`~downhole.units.UnitSystem`) as the FMU's ``display.json``; None for SI."""
+    if units is None:
+        return None
+    from downhole.units import display_units
+
+    system = display_units(units)  # DownholeInputError on a bad name or override
+    if system.name == "si" and not system.overrides:
+        return None
+    return json.dumps({"system": system.name, "overrides": dict(system.overrides)})
+
+
+def _build(out: Path, resources: Callable[[Path], list], units=None) -> Path:
     """Build the FMU ``out`` from :mod:`downhole.sil.fmu_slave` and the resource files that
-    ``resources(tmp)`` writes into ``tmp`` (their paths)."""
+    ``resources(tmp)`` writes into ``tmp`` (their paths); ``units``: the display unit system of
+    the variables (FMI ``DisplayUnit``, the values stay SI)."""
     from pythonfmu.builder import FmuBuilder
 
     from downhole._atomic import atomic_path
 
+    display = _display_json(units)
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="downhole_fmu_") as tmp:
         tmp = Path(tmp)
@@ -73,14 +88,18 @@ def _build(out: Path, resources: Callable[[Path], list]) -> Path:
         res = tmp / "resources"
         res.mkdir()
         files = resources(res)
+        if display is not None:
+            (res / "display.json").write_text(display)
+            files.append(res / "display.json")
         built = FmuBuilder.build_FMU(script, dest=tmp / "out", project_files=files)
         with atomic_path(out) as part:  # the build is in /tmp: copy, fsync, rename
             shutil.copyfile(built, part)
     return out
 
 
-def export_fmu(scenario, out="plant.fmu") -> Path:
-    """Build ``out`` (an ``.fmu``) from a SIL scenario file (validated first).
+def export_fmu(scenario, out="plant.fmu", *, units=None) -> Path:
+    """Build ``out`` (an ``.fmu``) from a SIL scenario file (validated first); ``units``: the
+    display unit system of its variables (``"oilfield"``, ``docs/units.md``; values stay SI).
 
     The plant is the scenario's ``[plant]`` (``model`` selects the fidelity: ``lumped`` with
     ``order = 4 | 12``, ``fem``, ``hybrid24 | hybrid68 | hybrid108``); for a plant built in
@@ -105,7 +124,7 @@ def export_fmu(scenario, out="plant.fmu") -> Path:
         shutil.copy2(scenario, res / "scenario.toml")
         return [res / "scenario.toml"]
 
-    return _build(out, resources)
+    return _build(out, resources, units)
 
 
 def _check_plant(plant) -> None:
@@ -127,7 +146,7 @@ def _check_plant(plant) -> None:
 def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
                      set_point: Mapping[str, float] | None = None,
                      command_start: Mapping[str, float] | None = None,
-                     stop_time: float = 10.0) -> Path:
+                     stop_time: float = 10.0, units=None) -> Path:
     """Build ``out`` (an ``.fmu``) wrapping ``plant``, a plant of the Plant contract.
 
     The plant is pickled into the FMU's resources as it is now (model, step ``dt``, options such
@@ -154,6 +173,9 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
         the command an importing tool applies until it sets the inputs.
     stop_time : float
         Stop time of the FMU's default experiment, s (start 0, step the plant's ``dt``).
+    units : str or UnitSystem, optional
+        Display units of the variables (FMI 2.0 ``DisplayUnit`` and ``displayUnit``, e.g.
+        ``"oilfield"``: rpm, klbf, kft*lbf, ft/h); the values an importer exchanges stay SI.
 
     Returns
     -------
@@ -205,7 +227,7 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
             "downhole_version": downhole.__version__}))
         return [res / "plant.pkl", res / "start.json"]
 
-    return _build(out, resources)
+    return _build(out, resources, units)
 
 
 def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: float = 10.0,
@@ -240,7 +262,8 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
     return DirectionalPlant(model, dt, top_drive=top, hook=hook, depth_of_cut=depth_of_cut)
 
 
-def export_system_fmu(scenario, out="plant.fmu", *, fidelity: str | None = None) -> Path:
+def export_system_fmu(scenario, out="plant.fmu", *, fidelity: str | None = None,
+                      units=None) -> Path:
     """Build ``out`` from a scenario that describes the system (``[model] fidelity``) at
     ``fidelity`` (default: the file's): the plant of :func:`system_plant` with the scenario's
     ``[simulation] dt`` (default: the fidelity's), ``depth_of_cut``, ``integrator`` and
@@ -268,7 +291,7 @@ def export_system_fmu(scenario, out="plant.fmu", *, fidelity: str | None = None)
     command = {"top_drive_axial_velocity": rop, "top_drive_angular_velocity": op.surface_speed}
     return export_plant_fmu(plant, out, start=sim.start,
                             set_point=None if sim.start == "rest" else command,
-                            command_start=command, stop_time=float(sim.duration))
+                            command_start=command, stop_time=float(sim.duration), units=units)
 
 
 def simulate_fmu(fmu, stop_time: float, step_size: float, start_values: dict | None = None

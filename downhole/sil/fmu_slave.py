@@ -40,19 +40,24 @@ _BASE = {"kilogram": "kg", "meter": "m", "second": "s", "ampere": "A", "kelvin":
 class UnitReal(Real):
     """A Real variable with a ``unit`` (pythonfmu 0.7 writes no units of its own)."""
 
-    def __init__(self, name, unit=None, **kwargs):
+    def __init__(self, name, unit=None, display_unit=None, **kwargs):
         super().__init__(name, **kwargs)
         self.unit = unit or None
+        self.display_unit = display_unit if (unit and display_unit and display_unit != unit) \
+            else None
 
     def to_xml(self):
         node = super().to_xml()
         if self.unit:
             node.find("Real").set("unit", self.unit)
+        if self.display_unit:
+            node.find("Real").set("displayUnit", self.display_unit)
         return node
 
 
-def unit_definition(unit: str) -> Element:
-    """``<Unit name=...><BaseUnit .../></Unit>`` of a pint unit string (SI base exponents)."""
+def unit_definition(unit: str, display_units=()) -> Element:
+    """``<Unit name=...><BaseUnit .../><DisplayUnit .../></Unit>`` of a pint unit string (SI
+    base exponents); each display unit with its FMI factor (display = factor * value, pint)."""
     from downhole.units import _registry
 
     node = Element("Unit", {"name": unit})
@@ -63,7 +68,21 @@ def unit_definition(unit: str) -> Element:
     if float(base.magnitude) != 1.0:
         attrib["factor"] = f"{float(base.magnitude):.16g}"
     SubElement(node, "BaseUnit", attrib)
+    for d in sorted(set(display_units)):
+        factor = float(_registry().Quantity(1.0, unit).to(d).magnitude)
+        SubElement(node, "DisplayUnit", {"name": d, "factor": f"{factor:.16g}"})
     return node
+
+
+def _display_system(resources: Path):
+    """The display :class:`~downhole.units.UnitSystem` of ``display.json`` (None: SI)."""
+    f = resources / "display.json"
+    if not f.is_file():
+        return None
+    from downhole.units import display_units
+
+    d = json.loads(f.read_text())
+    return display_units(d["system"], d.get("overrides") or {})
 
 
 def _signal(name: str, plant=None):
@@ -108,6 +127,11 @@ class DownholePlant(Fmi2Slave):
         from downhole.sim.plant import plant_bit_radius
 
         self._plant, settings = _load_plant(Path(self.resources))
+        system = _display_system(Path(self.resources))
+
+        def shown(name, unit):  # the display unit of a signal (None: its SI unit)
+            return system.unit_of(name, unit) if (system is not None and unit) else None
+
         self._reset = {"start": settings["start"], "set_point": settings["set_point"]}
         self._dt = float(self._plant.dt)
         self.default_experiment = DefaultExperiment(
@@ -119,6 +143,7 @@ class DownholePlant(Fmi2Slave):
             setattr(self, f"command_{c}", float(v))
             unit, desc = _signal(c)
             self.register_variable(UnitReal(f"command_{c}", unit=unit,
+                                            display_unit=shown(c, unit),
                                             description=f"command: {desc}" if desc else
                                             f"command {c}",
                                             causality=Fmi2Causality.input,
@@ -129,13 +154,16 @@ class DownholePlant(Fmi2Slave):
         self._set_outputs(self._plant.reset(**self._reset))
         for var, n in self._out:
             unit, desc = _signal(n, self._plant)
-            self.register_variable(UnitReal(var, unit=unit, description=desc or n,
+            self.register_variable(UnitReal(var, unit=unit, display_unit=shown(n, unit),
+                                            description=desc or n,
                                             causality=Fmi2Causality.output,
                                             variability=Fmi2Variability.continuous))
         radius = plant_bit_radius(self._plant)
         if radius is not None:
             self.bit_radius = radius
             self.register_variable(UnitReal("bit_radius", unit="m",
+                                            display_unit=system.kind_unit("diameter")
+                                            if system is not None else None,
                                             description="bit radius (for the mechanical "
                                             "specific energy)",
                                             causality=Fmi2Causality.local,
@@ -148,7 +176,9 @@ class DownholePlant(Fmi2Slave):
         if units:
             defs = Element("UnitDefinitions")
             for u in units:
-                defs.append(unit_definition(u))
+                defs.append(unit_definition(u, [v.display_unit for v in self.vars.values()
+                                                if getattr(v, "unit", None) == u
+                                                and getattr(v, "display_unit", None)]))
             children = list(root)
             at = children.index(root.find("CoSimulation")) + 1  # the FMI 2.0 element order
             root.insert(at, defs)
