@@ -84,6 +84,13 @@ COMMANDS: dict[str, dict[str, str]] = {
         "running in another process or host (tests/test_sil_cli.py runs both ends)",
         "downhole sil scenario.toml --remote --link-key-file": "skip: needs two hosts and a "
         "shared key file (tests/test_sil_security.py covers the authenticated link)",
+        "downhole sil examples/sil_dashboard_lumped.toml --dashboard": "skip: waits for Start "
+        "on the page and serves until Ctrl-C (tests/test_dashboard_operator.py drives it with "
+        "Chromium and runs the command in a subprocess)",
+        "downhole sil examples/sil_pi_hybrid68.toml --dashboard --http-port": "skip: serves "
+        "until Ctrl-C after the run (tests/test_dashboard_operator.py: the server stays up)",
+        "downhole sil examples/sil_pi_hybrid68.toml --dashboard --autostart --exit-after-run":
+        "slow",
         "downhole sil examples/sil_pi_hybrid68.toml --controller": "slow",
         "downhole export-fmu": "slow",
     },
