@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 __all__ = ["DownholeError", "DownholeInputError", "ScenarioError", "SimulationDiverged",
-           "WorkerProcessError"]
+           "WorkerProcessError", "positive_number"]
 
 
 class DownholeError(Exception):
@@ -45,3 +45,18 @@ class WorkerProcessError(DownholeError, RuntimeError):
     """A pool of worker processes broke (a worker died: killed by the system, out of memory, or
     a script that starts workers without the ``if __name__ == "__main__":`` guard); raised
     instead of reporting every remaining task as failed (see :mod:`downhole._workers`)."""
+
+
+def positive_number(name: str, value, allow_zero: bool = False) -> float:
+    """``value`` as a finite float > 0 (>= 0 with ``allow_zero``); DownholeInputError naming
+    ``name`` otherwise."""
+    import math
+
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise DownholeInputError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
+        raise DownholeInputError(f"{name} must be {'>= 0' if allow_zero else '> 0'} and "
+                                 f"finite, got {value!r}")
+    return x

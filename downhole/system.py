@@ -36,6 +36,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from downhole.errors import DownholeInputError
+from downhole.errors import positive_number as _positive
 from downhole.params import BitParams, LumpedParams
 from downhole.params.rig import Hook, TopDrive
 from downhole.params.strings import NeutralStringParams
@@ -91,17 +92,6 @@ class LumpedDerivation:
     mass: tuple
     string_mass: tuple
     damping_ratio: tuple
-
-
-def _positive(name, value, allow_zero=False):
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise DownholeInputError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
-        raise DownholeInputError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got "
-                                 f"{value!r}")
-    return x
 
 
 @dataclass(frozen=True)

@@ -674,19 +674,10 @@ def _number(body: dict, name: str, unit: str):
 def _setpoint(body: dict, name: str, limits: dict):
     from fastapi import HTTPException
 
-    v = body.get(name)
+    unit = _UNITS[name]
+    v = _number(body, name, unit)
     if v is None:
         return None
-    unit = _UNITS[name]
-    if isinstance(v, bool) or not isinstance(v, Real):
-        raise HTTPException(status_code=422, detail=f"{name} must be a number ({unit}), got "
-                                                    f"{json.dumps(v)[:40]}")
-    try:
-        v = float(v)
-    except OverflowError:
-        v = math.inf
-    if not math.isfinite(v):
-        raise HTTPException(status_code=422, detail=f"{name} must be finite ({unit}), got {v}")
     lo, hi = limits[name]
     if not lo <= v <= hi:
         raise HTTPException(status_code=422, detail=f"{name} = {v:g} {unit} is outside the "

@@ -38,6 +38,7 @@ from numba import njit
 
 from downhole.contact.softstring import normal_force_per_length, normal_weight
 from downhole.errors import DownholeInputError
+from downhole.errors import positive_number as _finite_positive
 from downhole.string.drillstring import DrillString
 from downhole.well.path import WellPath
 
@@ -106,17 +107,6 @@ def md_nodes(well: WellPath, step: float, extra=()) -> np.ndarray:
     md = np.concatenate(nodes)
     keep = np.concatenate([[True], np.diff(md) > 1e-9 * max(1.0, td)])
     return md[keep]
-
-
-def _finite_positive(name, value, allow_zero=False):
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise DownholeInputError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
-        raise DownholeInputError(f"{name} must be {'>= 0' if allow_zero else '> 0'} and "
-                                 f"finite, got {value!r}")
-    return x
 
 
 def _frictions(friction) -> tuple:
