@@ -42,6 +42,22 @@ def test_design_dhp_writes_controller_report_and_result(tmp_path, capsys):
     assert ctrl.kd.shape == (8000, 2, 24)
     assert (tmp_path / "o" / "closed_loop.nc").exists()
     assert np.isfinite(ctrl.kc).all()
+    assert rep["simulation"]["units"]["mean_rop"] == "m/s"
+    # --units oilfield: the same run's summary in ft/h and rpm (independent pint registry)
+    import pint
+
+    ureg = pint.UnitRegistry()
+    capsys.readouterr()
+    assert main(["design", "dhp", str(sc), "--out", str(tmp_path / "f"), "--no-progress",
+                 "--units", "oilfield"]) == 0
+    printed = capsys.readouterr().out
+    f = json.loads((tmp_path / "f" / "report.json").read_text())["simulation"]
+    assert f["units"]["mean_rop"] == "ft/h" and f["units"]["mean_bit_angular_velocity"] == "rpm"
+    assert f["summary"]["mean_rop"] == pytest.approx(
+        ureg.Quantity(s["mean_rop"], "m/s").to("ft/hour").magnitude, rel=1e-9)
+    assert f["summary"]["mean_bit_angular_velocity"] == pytest.approx(
+        ureg.Quantity(s["mean_bit_angular_velocity"], "rad/s").to("rpm").magnitude, rel=1e-9)
+    assert "ft/h" in printed and "rpm" in printed
 
 
 @pytest.mark.parametrize("text, msg", [

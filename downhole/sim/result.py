@@ -130,8 +130,11 @@ class Result:
 
         return summarize(self, window)
 
-    def plot(self, path: str | os.PathLike | None = None, title: str | None = None):
-        """Overview figure (bit velocities, WOB/TOB, surface signals).
+    def plot(self, path: str | os.PathLike | None = None, title: str | None = None,
+             units=None):
+        """Overview figure (velocities, rotary speeds and stick-slip, WOB/TOB, hook load and
+        surface torque, depth), in the display ``units`` (``"oilfield"``, ``"metric"`` or a
+        :class:`~downhole.units.UnitSystem`; default SI with kN, kN m and rpm).
 
         Returns the :class:`matplotlib.figure.Figure`. With ``path`` it is also saved
         (atomically, PNG at 120 dpi) and released from pyplot's figure manager, so that a loop
@@ -140,7 +143,7 @@ class Result:
         """
         from downhole.analysis.plots import plot_overview
 
-        fig = plot_overview(self, None, title)
+        fig = plot_overview(self, None, title, **({} if units is None else {"units": units}))
         if path is not None:
             import matplotlib.pyplot as plt
 
