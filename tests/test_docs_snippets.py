@@ -55,6 +55,9 @@ COMMANDS: dict[str, dict[str, str]] = {
         "downhole design eid": "slow",
         "downhole compare-controllers --suite smoke": "slow",
         "downhole bench --quick": "slow",
+        "downhole sil examples/sil_dashboard_lumped.toml --dashboard": "skip: waits for Start "
+        "on the page and serves until Ctrl-C (tests/test_dashboard_operator.py drives it with "
+        "Chromium and runs the command in a subprocess)",
     },
     "docs/compare-controllers.md": {
         "downhole compare-controllers": "slow",
