@@ -91,26 +91,38 @@ TREND_CHANNELS = ("time", "top_drive_angular_velocity", "bit_angular_velocity",
 _SI_UNITS = {"rotary_speed": "rad/s", "torque": "N*m", "force": "N", "rop": "m/s",
              "depth": "m"}
 
-#: Display units of the dashboard, by unit system: quantity -> pint unit. A unit system is
-#: just such a mapping: :func:`make_app` takes a name or a mapping of its own.
-UNIT_SYSTEMS = {
-    "metric": {"rotary_speed": "rpm", "torque": "kN*m", "force": "kN", "rop": "m/h",
-               "depth": "m"},
-    "field": {"rotary_speed": "rpm", "torque": "kft*lbf", "force": "klbf", "rop": "ft/h",
-              "depth": "ft"},
-}
 #: A signal of each displayed quantity, by which a :class:`downhole.units.UnitSystem` names
-#: its display unit.
+#: its display unit (depth: the system's unit of length).
 _SIGNAL_OF = {"rotary_speed": "top_drive_angular_velocity", "torque": "surface_torque",
               "force": "wob", "rop": "mean_rop", "depth": None}
-_LABELS = {"kN*m": "kN\u00b7m", "kft*lbf": "kft\u00b7lbf", "N*m": "N\u00b7m"}
-_UREG = None
+#: The dashboard's names of the display systems of :mod:`downhole.units` ("field" is oilfield).
+_SYSTEM_NAMES = {"metric": "metric", "field": "oilfield", "oilfield": "oilfield", "si": "si"}
+
+
+def _quantity_units(system) -> dict:
+    """quantity -> pint unit of a :class:`downhole.units.UnitSystem`."""
+    return {q: (system.unit_of(sig) if sig else system.kind_unit("length")) or _SI_UNITS[q]
+            for q, sig in _SIGNAL_OF.items()}
+
+
+def _named_systems() -> dict:
+    from downhole.units import display_units as units_system
+
+    return {name: _quantity_units(units_system(base)) for name, base in _SYSTEM_NAMES.items()}
+
+
+#: Display units of the dashboard, by unit system: quantity -> pint unit, the views of the
+#: display systems of :mod:`downhole.units` (``metric``: rpm, kN*m, kN, m/h, m; ``field`` =
+#: ``oilfield``: rpm, kft*lbf, klbf, ft/h, ft). A unit system is just such a mapping:
+#: :func:`make_app` takes a name, a mapping of its own or a UnitSystem (``--units``).
+UNIT_SYSTEMS = _named_systems()
 
 
 def display_units(system="metric") -> dict:
     """``{quantity: {"unit": label, "pint": unit, "factor": f}}`` of a unit system (a name of
-    :data:`UNIT_SYSTEMS` or a mapping quantity -> pint unit): a value in SI times ``factor`` is
-    the value in the display unit (factors from pint).
+    :data:`UNIT_SYSTEMS`, a mapping quantity -> pint unit, or a
+    :class:`downhole.units.UnitSystem`): a value in SI times ``factor`` is the value in the
+    display unit (factors from pint, downhole's registry).
 
     Raises
     ------
@@ -119,12 +131,10 @@ def display_units(system="metric") -> dict:
     """
     import pint
 
-    global _UREG
-    if _UREG is None:
-        _UREG = pint.UnitRegistry()
+    from downhole.units import registry, unit_label
+
     if hasattr(system, "unit_of"):  # a downhole.units.UnitSystem (``--units``, docs/units.md)
-        system = {q: (system.unit_of(_SIGNAL_OF[q]) if _SIGNAL_OF[q] else system.kind_unit(
-            "length")) or si for q, si in _SI_UNITS.items()}
+        system = _quantity_units(system)
     if isinstance(system, str):
         if system not in UNIT_SYSTEMS:
             raise DownholeInputError(f"unknown unit system {system!r}; expected one of "
@@ -137,11 +147,11 @@ def display_units(system="metric") -> dict:
     for q, si in _SI_UNITS.items():
         unit = system[q]
         try:
-            f = float(_UREG.Quantity(1.0, si).to(unit).magnitude)
+            f = float(registry().Quantity(1.0, si).to(unit).magnitude)
         except (pint.errors.PintError, AttributeError, TypeError, ValueError) as exc:
             raise DownholeInputError(f"unit system: {q} = {unit!r} is not a unit of {si} "
                                      f"({type(exc).__name__})") from None
-        out[q] = {"unit": _LABELS.get(unit, unit), "pint": unit, "factor": f}
+        out[q] = {"unit": unit_label(unit), "pint": unit, "factor": f}
     return out
 
 

@@ -200,7 +200,7 @@ class DashboardSection(_Strict):
     publish_hz: float = Field(20.0, gt=0, le=100)
     allowed_origins: list[str] = []
     allowed_hosts: list[str] = []
-    units: Literal["metric", "field"] = "metric"  # display units of trends and set-points
+    units: Literal["metric", "field", "oilfield", "si"] = "metric"  # trends and set-points
 
 
 class SilScenario(_Strict):
