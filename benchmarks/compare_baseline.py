@@ -36,8 +36,12 @@ def _git(*args: str, cwd: Path = ROOT) -> str:
                           text=True).stdout.strip()
 
 
-def _bench(tree: Path, out: Path, args: argparse.Namespace) -> dict:
-    """One ``downhole bench`` run of ``tree`` (its package first on the path)."""
+def _bench(tree: Path, out: Path, args: argparse.Namespace, cache: Path) -> dict:
+    """One ``downhole bench`` run of ``tree`` (its package first on the path), with numba's
+    cache in ``cache`` (one per tree, empty at the first round: both trees compile in round 1
+    and load their cache in later rounds, so neither runs from an older cache of its own; a
+    kernel loaded from numba's cache can run at another speed than a fresh compile, e.g. the
+    2-thread DHP trainer)."""
     cmd = [sys.executable, "-c", "from downhole.cli import main; main()", "bench",
            "--out", str(out)]
     if args.quick:
@@ -46,7 +50,7 @@ def _bench(tree: Path, out: Path, args: argparse.Namespace) -> dict:
         cmd += ["--group", g]
     for c in args.case:
         cmd += ["--case", c]
-    env = dict(os.environ, PYTHONPATH=str(tree))
+    env = dict(os.environ, PYTHONPATH=str(tree), NUMBA_CACHE_DIR=str(cache))
     proc = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
     if proc.returncode != 0 or not out.exists():
         raise SystemExit(f"bench failed in {tree}:\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
@@ -121,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
             for r in range(args.rounds):
                 for label, tree in (("baseline", wt), ("current", ROOT)):
                     print(f"round {r + 1}/{args.rounds}: {label}", flush=True)
-                    runs[label].append(_bench(tree, Path(tmp) / f"{label}{r}.json", args))
+                    runs[label].append(_bench(tree, Path(tmp) / f"{label}{r}.json", args,
+                                              Path(tmp) / f"numba-cache-{label}"))
         finally:
             _git("worktree", "remove", "--force", str(wt))
     base, cur = _best(runs["baseline"]), _best(runs["current"])
