@@ -72,6 +72,27 @@ def test_vertical_well_hook_load_is_the_buoyed_weight():
     assert res.hook_load["trip_out"][0, -1] == pytest.approx(res.tension["trip_out"][0, 0])
 
 
+def test_wob_tob_and_step_take_unit_strings_and_pint_quantities():
+    """``wob="20 klbf"``, ``tob`` as a pint quantity and ``step="30 ft"`` give the same loads as
+    the SI numbers converted by an independent pint registry; a wrong dimension is refused."""
+    import pint
+
+    ureg = pint.UnitRegistry()
+    well = WellPath.from_sections([Vertical(500.0), Arc(600.0, 0.7)])
+    string = DrillString.uniform(well.total_depth, pipe_section(0.127, 0.108))
+    wob = ureg.Quantity(20.0, "kip").to("N").magnitude
+    tob = ureg.Quantity(5.0, "kilofoot * force_pound").to("N * m").magnitude
+    step = ureg.Quantity(30.0, "ft").to("m").magnitude
+    si = torque_drag(well, string, friction=0.25, wob=wob, tob=tob, step=step)
+    q = torque_drag(well, string, friction=0.25, wob="20 klbf", tob=ureg.Quantity(5.0, "kft*lbf"),
+                    step="30 ft")
+    for c in CASES:
+        np.testing.assert_allclose(q.tension[c], si.tension[c], rtol=1e-12)
+        np.testing.assert_allclose(q.torque[c], si.torque[c], rtol=1e-12, atol=1e-9)
+    with pytest.raises(DownholeInputError, match="wob"):
+        torque_drag(well, string, wob="20 m")
+
+
 @pytest.mark.parametrize("inc_deg", [30.0, 60.0, 89.0])
 def test_straight_inclined_well_matches_the_closed_form(inc_deg):
     """Straight inclined hole: N = w sin I, T = w L (cos I +- mu sin I), M = mu w sin I L r."""

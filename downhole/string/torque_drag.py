@@ -40,6 +40,7 @@ from downhole.contact.softstring import normal_force_per_length, normal_weight
 from downhole.errors import DownholeInputError
 from downhole.errors import positive_number as _finite_positive
 from downhole.string.drillstring import DrillString
+from downhole.units import si_or_number
 from downhole.well.path import WellPath
 
 __all__ = ["CASES", "CASE_LABELS", "TorqueDrag", "torque_drag", "md_nodes"]
@@ -200,10 +201,12 @@ def torque_drag(well: WellPath, string: DrillString, *, friction=(0.1, 0.2, 0.3)
         to the bit (its length is the well's).
     friction : float or sequence of float
         Friction factor(s) mu (0..10).
-    wob, tob : float
-        Weight on bit (N, >= 0) and torque on bit (N m) of the drilling case.
-    step : float
-        Largest element length, m; every survey station and segment joint is a node.
+    wob, tob : float, str or pint Quantity
+        Weight on bit (N, >= 0) and torque on bit (N m) of the drilling case (``"20 klbf"``,
+        ``"10 kft*lbf"``: unit strings and quantities are accepted).
+    step : float, str or pint Quantity
+        Largest element length, m (``"30 ft"``); every survey station and segment joint is a
+        node.
     hook_load : bool
         Also compute hook load and surface torque against bit depth (one integration per node).
 
@@ -231,7 +234,9 @@ def torque_drag(well: WellPath, string: DrillString, *, friction=(0.1, 0.2, 0.3)
     if not isinstance(string, DrillString):
         raise DownholeInputError(f"string must be a DrillString, got {type(string).__name__}")
     mus = _frictions(friction)
-    wob = _finite_positive("wob", wob, allow_zero=True)
+    wob = _finite_positive("wob", si_or_number(wob, "force", "wob"), allow_zero=True)
+    tob = si_or_number(tob, "torque", "tob")
+    step = si_or_number(step, "length", "step")
     try:
         tob = float(tob)
     except (TypeError, ValueError):
