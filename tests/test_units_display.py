@@ -501,3 +501,38 @@ def test_overview_of_a_result_without_depth_or_surface_channels():
     _axis(fig, "WOB [klbf]")
     _axis(fig, "TOB [kft·lbf]")
     assert fig.axes[4].get_xlabel() == "time [s]"
+
+
+def test_plants_take_unit_strings_and_quantities_for_dt_set_points_and_commands():
+    """The Plant contract in driller units: ``dt="0.5 ms"``, ``set_point`` and ``step`` commands
+    as unit strings or pint quantities give exactly the run of the SI numbers converted by an
+    independent pint registry; a wrong dimension is refused with the signal's name."""
+    import pint
+
+    from downhole.errors import DownholeInputError
+    from downhole.sim import LumpedPlant
+    from downhole.sim.lumped_model import lumped_model
+    from downhole.string.neutral import NeutralPlant
+
+    u = pint.UnitRegistry()
+    v = u.Quantity(30.0, "ft/hour").to("m/s").magnitude
+    w = u.Quantity(60.0, "rpm").to("rad/s").magnitude
+    for make, dt_text, dt in ((lambda d: LumpedPlant(lumped_model("table_2_1"), dt=d),
+                               "0.5 ms", 5e-4),
+                              (lambda d: NeutralPlant("table_3_1", dt=d), "0.1 ms", 1e-4)):
+        a, b = make(dt), make(dt_text)
+        assert b.dt == pytest.approx(dt, rel=1e-15)
+        oa = a.reset(start="steady", set_point={"top_drive_axial_velocity": v,
+                                                "top_drive_angular_velocity": w})
+        ob = b.reset(start="steady", set_point={"top_drive_axial_velocity": "30 ft/h",
+                                                "top_drive_angular_velocity": "60 rpm"})
+        assert ob["bit_angular_velocity"] == pytest.approx(oa["bit_angular_velocity"], rel=1e-12)
+        for _ in range(5):
+            oa = a.step({"top_drive_axial_velocity": v, "top_drive_angular_velocity": w})
+            ob = b.step({"top_drive_axial_velocity": u.Quantity(30.0, "ft/hour"),
+                         "top_drive_angular_velocity": "60 rpm"})
+        assert ob["bit_axial_velocity"] == pytest.approx(oa["bit_axial_velocity"], rel=1e-12)
+        with pytest.raises(DownholeInputError, match="top_drive_axial_velocity"):
+            b.step({"top_drive_axial_velocity": "30 ft", "top_drive_angular_velocity": 1.0})
+        with pytest.raises(DownholeInputError, match="dt"):
+            make("3 m")

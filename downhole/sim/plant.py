@@ -40,6 +40,7 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.signals import SIGNALS, check_command_value
+from downhole.units import as_si
 
 __all__ = ["Plant", "START_MODES", "check_start", "plant_bit_radius"]
 
@@ -52,6 +53,20 @@ def check_start(start: str) -> str:
     if start not in START_MODES:
         raise DownholeInputError(f"start must be one of {START_MODES}, got {start!r}")
     return start
+
+
+def _si_value(name: str, value) -> float:
+    """``value`` of signal ``name`` in SI: numbers as they are, unit strings (``"60 rpm"``) and
+    pint quantities converted to the signal's declared dimension (:mod:`downhole.signals`)."""
+    if isinstance(value, str) or hasattr(value, "magnitude"):
+        sig = SIGNALS.get(name)
+        if sig is None:
+            raise DownholeInputError(f"{name}: a quantity needs a declared signal; give a number")
+        return float(as_si(value, sig.dimension, name))
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise DownholeInputError(f"{name}: expected a number, got {value!r}") from None
 
 
 class Plant:
@@ -92,7 +107,7 @@ class Plant:
             if unknown:
                 raise DownholeInputError(f"set_point names {sorted(unknown)} are not commands of "
                                          f"this plant; commands: {self.command_names}")
-            sp.update({k: float(v) for k, v in set_point.items()})
+            sp.update({k: _si_value(k, v) for k, v in set_point.items()})
         self.command_vector(sp)  # validates the set-point like any command
         return self._reset(start, sp, **options)
 
@@ -125,7 +140,13 @@ class Plant:
         for i, (name, v) in enumerate(zip(self.command_names, values)):
             why = check_command_value(name, v)
             if why is not None:
-                raise DownholeInputError(f"command refused: {why}")
+                if not isinstance(v, str) and not hasattr(v, "magnitude"):
+                    raise DownholeInputError(f"command refused: {why}")
+                # a unit string or pint quantity ("60 rpm"): converted off the hot path
+                v = _si_value(name, v)
+                why = check_command_value(name, v)
+                if why is not None:
+                    raise DownholeInputError(f"command refused: {why}")
             out[i] = float(v)
         return out
 

@@ -211,6 +211,7 @@ class LumpedPlant(Plant):
 
     def __init__(self, model: ChainModel, dt: float = 5e-4, mode: str = "velocity",
                  depth_of_cut: str = "delayed", integrator: str = "euler"):
+        dt = si_or_number(dt, "time", "dt")  # "0.5 ms" or a pint quantity
         _check(1.0, min(dt, 1.0), depth_of_cut, integrator, None)
         if mode not in ("velocity", "force"):
             raise DownholeInputError(f"mode must be 'velocity' or 'force', got {mode!r}")

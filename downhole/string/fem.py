@@ -1110,6 +1110,7 @@ class DirectionalPlant(Plant):
     def __init__(self, model: DirectionalModel, dt: float = 1e-3, *,
                  top_drive: TopDrive | None = None, hook: Hook | None = None,
                  depth_of_cut: str = "delayed"):
+        dt = si_or_number(dt, "time", "dt")  # "0.5 ms" or a pint quantity
         self.model = model
         self.top_drive = top_drive or TopDrive()
         self.hook = hook or Hook()

@@ -494,6 +494,7 @@ class NeutralPlant(Plant):
 
     def __init__(self, model: "NeutralModel | str" = "table_3_1", dt: float = 1e-4,
                  depth_of_cut: str = "delayed", rock_points_per_pitch: int = 512):
+        dt = si_or_number(dt, "time", "dt")  # "0.5 ms" or a pint quantity
         if not isinstance(model, NeutralModel):
             model = neutral_model(model)
         self.model = model

@@ -28,6 +28,7 @@ from downhole.control.dhp.riccati import _draw_one, _fit_one
 from downhole.errors import DownholeInputError
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 from downhole.sim.plant import Plant
+from downhole.units import si_or_number
 
 __all__ = ["directional_affine_model", "DirectionalStatePlant", "table_5_1_models"]
 
@@ -264,6 +265,7 @@ class DirectionalStatePlant(Plant):
     def __init__(self, dmodel, design: ControlAffineModel, dt: float = 1e-3, *,
                  depth_of_cut: str = "delayed",
                  top_drive_inertia: float = DEFAULT_TOP_DRIVE_INERTIA):
+        dt = si_or_number(dt, "time", "dt")  # "0.5 ms" or a pint quantity
         from downhole.control.topdrive import Hook, TopDrive
         from downhole.string.fem import DirectionalPlant
 
