@@ -3,7 +3,6 @@ values update, clicks stop, start, controller off/on and a reference change, and
 screenshot."""
 
 import shutil
-import threading
 import time
 from pathlib import Path
 
@@ -12,7 +11,7 @@ import pytest
 from downhole.errors import DownholeInputError
 from downhole.sil import RealTimeRunner, build_plant, pi_controller_for
 from downhole.sil.dashboard import DashboardSession, is_loopback, make_app, serve_dashboard
-from downhole.sil.testing import free_port
+from downhole.sil.testing import ServerThread, free_port
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
@@ -50,25 +49,7 @@ def test_binding_off_loopback_needs_a_token_and_requests_must_carry_it():
         {"axial": 0.02, "angular": 25.0}
 
 
-class _Server:
-    def __init__(self, app, port):
-        import uvicorn
-
-        self.server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port,
-                                                    log_level="warning"))
-        self.thread = threading.Thread(target=self.server.run, daemon=True)
-
-    def __enter__(self):
-        self.thread.start()
-        end = time.monotonic() + 20
-        while not self.server.started and time.monotonic() < end:
-            time.sleep(0.05)
-        assert self.server.started, "uvicorn did not start"
-        return self
-
-    def __exit__(self, *exc):
-        self.server.should_exit = True
-        self.thread.join(10)
+_Server = ServerThread  # uvicorn in a thread (downhole.sil.testing)
 
 
 @pytest.mark.skipif(shutil.which(CHROMIUM) is None, reason="Debian chromium not installed "

@@ -13,7 +13,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 import urllib.request
 from pathlib import Path
@@ -29,7 +28,7 @@ from downhole.sil.controllers import (ManualFill, plant_stick_slip_frequency,
                                       plant_torsional_impedance)
 from downhole.sil.dashboard import (UNIT_SYSTEMS, DashboardSession, display_units, make_app,
                                     rolling_severity)
-from downhole.sil.testing import free_port
+from downhole.sil.testing import ServerThread, free_port
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
@@ -399,25 +398,7 @@ def test_dashboard_options_need_the_dashboard(capsys):
 
 
 # ------------------------------------------------------------------ the browser
-class _Server:
-    def __init__(self, app, port):
-        import uvicorn
-
-        self.server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port,
-                                                    log_level="warning"))
-        self.thread = threading.Thread(target=self.server.run, daemon=True)
-
-    def __enter__(self):
-        self.thread.start()
-        end = time.monotonic() + 20
-        while not self.server.started and time.monotonic() < end:
-            time.sleep(0.05)
-        assert self.server.started, "uvicorn did not start"
-        return self
-
-    def __exit__(self, *exc):
-        self.server.should_exit = True
-        self.thread.join(10)
+_Server = ServerThread  # uvicorn in a thread (downhole.sil.testing)
 
 
 def _hex(color):

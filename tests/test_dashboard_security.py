@@ -9,7 +9,6 @@ never printed in full; and a real browser on a foreign origin that cannot drive 
 import json
 import math
 import shutil
-import threading
 import time
 
 import pytest
@@ -20,7 +19,7 @@ from downhole.cli import main
 from downhole.errors import DownholeInputError
 from downhole.sil import RealTimeRunner, build_plant, pi_controller_for
 from downhole.sil.dashboard import TOKEN_COOKIE, DashboardSession, make_app
-from downhole.sil.testing import free_port
+from downhole.sil.testing import ServerThread, free_port
 
 PORT = 8765
 BASE = f"http://127.0.0.1:{PORT}"
@@ -320,25 +319,7 @@ def test_token_file_errors_name_the_file(tmp_path, capsys):
         assert word in capsys.readouterr().err
 
 
-class _Server:
-    def __init__(self, app, port):
-        import uvicorn
-
-        self.server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port,
-                                                    log_level="warning"))
-        self.thread = threading.Thread(target=self.server.run, daemon=True)
-
-    def __enter__(self):
-        self.thread.start()
-        end = time.monotonic() + 20
-        while not self.server.started and time.monotonic() < end:
-            time.sleep(0.05)
-        assert self.server.started, "uvicorn did not start"
-        return self
-
-    def __exit__(self, *exc):
-        self.server.should_exit = True
-        self.thread.join(10)
+_Server = ServerThread  # uvicorn in a thread (downhole.sil.testing)
 
 
 def test_real_server_refuses_a_cross_origin_websocket():

@@ -91,3 +91,32 @@ class ControllerProcess:
         self.kill()
         if self._log is not subprocess.DEVNULL:
             self._log.close()
+
+
+class ServerThread:
+    """An ASGI ``app`` served by uvicorn on 127.0.0.1:``port`` in a daemon thread, as a context
+    manager (for the dashboard's browser and HTTP tests): started on enter (20 s at most),
+    stopped on exit."""
+
+    def __init__(self, app, port: int):
+        import threading
+
+        import uvicorn
+
+        self.server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port,
+                                                    log_level="warning"))
+        self.thread = threading.Thread(target=self.server.run, daemon=True)
+
+    def __enter__(self):
+        import time
+
+        self.thread.start()
+        end = time.monotonic() + 20
+        while not self.server.started and time.monotonic() < end:
+            time.sleep(0.05)
+        assert self.server.started, "uvicorn did not start"
+        return self
+
+    def __exit__(self, *exc):
+        self.server.should_exit = True
+        self.thread.join(10)
