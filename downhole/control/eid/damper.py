@@ -15,7 +15,7 @@ from numba import njit
 from downhole.bit.law import bit_forces, bit_forces_and_slopes
 
 __all__ = ["DamperParams", "damper_step", "torsional_damper_step", "damper_arrays",
-           "PREDICTION_STEP"]
+           "PREDICTION_STEP", "coupled_axial_reference"]
 
 
 @njit(cache=True)
@@ -96,6 +96,22 @@ class DamperParams(NamedTuple):
         (0: none). The discretized prediction integral of a finite-spectrum-assignment law is
         unstable at high frequency without one (Van Assche et al. 1999; Mondie & Michiels
         2003).
+    k_c : float
+        Depth-of-cut coupling of the axial reference (0: off): the axial reference becomes
+        ``r_a (1 + k_c (omega / r_w - 1))`` with the measured bit angular velocity ``omega``
+        (:func:`coupled_axial_reference`); at k_c = 1 the loop asks for a constant depth of cut
+        2 pi r_a / r_w per revolution instead of a constant rate of penetration.
+    angle_doc : bool
+        The axial prediction's depth of cut from the measured bit *angle* (the surface the
+        blade ahead left when the bit was at theta - 2 pi/n, Eq. 2.10, with the angle advanced
+        at the current rotary speed over the horizon) instead of the time delay 2 pi/(n omega)
+        at the current speed. The time delay errs by d/omega per rad/s of speed deviation
+        (dWOB/domega = -k_w d/omega, 1.9e4 N per rad/s at 5 rad/s, 14 mm/s with Table 3.1),
+        which is what the depth-of-cut coupling feeds back.
+    filter_a : float
+        Bandwidth (rad/s) of a first-order low-pass filter on the axial damping command (0:
+        none). At high gain (k_d = 4) the discretized prediction loop oscillates near the
+        Nyquist frequency without one, as the torsional one does.
     """
 
     k_d: float
@@ -119,6 +135,76 @@ class DamperParams(NamedTuple):
     bit_inertia: float = 1.0
     stride_t: int = 1
     filter_t: float = 0.0
+    k_c: float = 0.0
+    angle_doc: bool = False
+    filter_a: float = 0.0
+
+@njit(cache=True)
+def _predict_angle(dh, n, cap, dp, bp, omega, xbuf):
+    """As :func:`_predict`, with the depth of cut looked up by angle (``angle_doc``): at the
+    prediction step i the bit angle is theta_n + omega i h, the blade ahead passed
+    theta_n + omega i h - 2 pi/n when the bit was at the X found in the measured angle history
+    (:func:`_surface_at`) or, for angles reached within the horizon, in the predicted X of
+    ``xbuf``."""
+    nt = dp.tau_steps
+    nh = dp.h_steps
+    stride = dp.stride
+    nbl = dp.n_blades
+    pitch = 2.0 * math.pi / nbl
+    k0 = n % cap
+    v = dh[_V, k0]
+    x = dh[_X, k0]
+    th_n = dh[_TH, k0]
+    nsub = nt // stride
+    h = dp.dt * stride
+    for i in range(nsub + 1):
+        xbuf[i] = x
+        if i == nsub:
+            break
+        k = n + i * stride
+        kh = k - nh
+        vd = dh[_V, kh % cap] if kh >= 0 else 0.0
+        dvd = dh[_DV, kh % cap] if kh >= 0 else 0.0
+        wd = dh[_W, kh % cap] if kh >= 0 else 0.0
+        ku = k - nt
+        ud = dh[_U, ku % cap] if ku >= 0 else 0.0
+        target = th_n + omega * i * h - pitch
+        if target <= th_n:
+            xb = _surface_at(dh[_TH], dh[_X], n, cap, target)
+        else:
+            q = (target - th_n) / (omega * h)
+            i0 = int(q)
+            f = q - i0
+            xb = xbuf[i0] if i0 + 1 > i else (1.0 - f) * xbuf[i0] + f * xbuf[i0 + 1]
+        d = nbl * (x - xb)
+        if d < 0.0:
+            d = 0.0
+        sl = bit_forces_and_slopes(d, v, omega, bp)
+        dv = dp.a0 * v + dp.a1 * vd + dp.g1 * dvd + dp.b * ud - (sl[0] - dp.g1 * wd) / dp.bit_mass
+        x += h * v
+        v += h * dv / (1.0 + h * (max(sl[3], 0.0) / dp.bit_mass - dp.a0))
+    return v
+
+
+@njit(cache=True)
+def coupled_axial_reference(k_c, r_a, r_w, w):
+    """The axial reference with the depth-of-cut coupling ``k_c`` (:class:`DamperParams`):
+    ``r_a (1 + k_c (w / r_w - 1))`` clipped to [0, 2 r_a]; ``r_a`` itself when ``k_c`` is 0,
+    ``r_a`` or ``r_w`` is not positive. At a given rate of penetration the torque on bit grows as
+    1/omega (the depth of cut is 2 pi rop/omega): a slowing bit cuts deeper and is slowed further,
+    a negative damping -T/omega that at low rotary speed and high rate of penetration exceeds the
+    string's (docs/neutral-eid.md, "Envelope"). With the reference scaled by the measured rotary
+    speed the depth of cut, and with it the torque on bit, no longer grows when the bit slows;
+    at the set point (w = r_w) the reference is unchanged."""
+    if k_c == 0.0 or r_a <= 0.0 or r_w <= 0.0:
+        return r_a
+    f = 1.0 + k_c * (w / r_w - 1.0)
+    if f < 0.0:
+        f = 0.0
+    elif f > 2.0:
+        f = 2.0
+    return r_a * f
+
 
 #: Target step of the prediction's Euler integration, s (the largest whole number of control
 #: steps up to it that divides the prediction horizon).
@@ -147,7 +233,23 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
     if ntn < 1:
         ntn = 1
     du = 0.0
-    if ntn < cap:
+    if dp.angle_doc:
+        if dp.k_t > 0.0:  # torsional_damper_step stored theta_n and advanced ds[2]
+            th = dh[_TH, k]
+        else:
+            th = ds[2]
+            dh[_TH, k] = th
+            ds[2] = th + dt * w
+        d = nbl * (x - _surface_at(dh[_TH], dh[_X], n, cap, th - 2.0 * math.pi / nbl))
+        if d < 0.0:
+            d = 0.0
+        dh[2, k] = bit_forces(d, v, om, bp)[0]
+        if dp.k_d > 0.0:
+            du = -dp.k_d * (_predict_angle(dh, n, cap, dp, bp, om, xbuf) - r_a)
+            if dp.filter_a > 0.0:
+                du = ds[4] + (1.0 - math.exp(-dp.filter_a * dt)) * (du - ds[4])
+                ds[4] = du
+    elif ntn < cap:
         xb = dh[3, (n - ntn) % cap] if n - ntn >= 0 else 0.0
         d = nbl * (x - xb)
         if d < 0.0:
@@ -316,12 +418,11 @@ def _stride(nt: int, target: float) -> int:
 
 
 def damper_arrays(dp: DamperParams):
-    """Fresh ``(dh, ds, xbuf, pbuf)`` (histories, state [X, n, theta, filtered du_T], axial and
-    torsional
-    prediction buffers) for parameters ``dp``."""
+    """Fresh ``(dh, ds, xbuf, pbuf)`` (histories, state [X, n, theta, filtered du_T, filtered
+    du], axial and torsional prediction buffers) for parameters ``dp``."""
     cap = dp.tau_steps + dp.h_steps + 8
     if dp.k_t > 0.0:
         cap = max(cap, dp.tau_t_steps + dp.h_t_steps + 8)
     nsub_t = (dp.tau_t_steps + dp.stride_t - 1) // dp.stride_t
-    return (np.zeros((10, cap)), np.zeros(4), np.zeros(dp.tau_steps // dp.stride + 2),
+    return (np.zeros((10, cap)), np.zeros(5), np.zeros(dp.tau_steps // dp.stride + 2),
             np.zeros((2, nsub_t + 2)))

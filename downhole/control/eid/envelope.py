@@ -37,10 +37,14 @@ __all__ = ["ENVELOPE_CANDIDATES", "OperatingPoint", "operating_point", "EIDSched
            "envelope_map", "APPROACH_OMEGA", "DESCENT_RATE"]
 
 #: Candidate tunings of the axial channel (the torsional channel keeps the default): keyword
-#: arguments of :func:`~downhole.control.eid.design.synthesize_channel`, plus ``damping_gain``
-#: k_d > 0 for the predictive bit damper of :class:`~downhole.control.eid.predictor.PredictiveEID`
-#: on top of that EID. Index 0 is the default of :func:`~downhole.control.eid.controller.
-#: design_eid`.
+#: arguments of :func:`~downhole.control.eid.design.synthesize_channel`, plus, for the
+#: predictive bit damper of :class:`~downhole.control.eid.predictor.PredictiveEID` on top of
+#: that EID, ``damping_gain`` k_d > 0, ``angle_doc`` (the prediction's depth of cut looked up by
+#: the measured bit angle), ``axial_filter`` (rad/s, a low-pass filter on the damping command)
+#: and ``depth_of_cut_gain`` k_c (the axial reference scaled with the measured rotary speed).
+#: Index 0 is the default of :func:`~downhole.control.eid.controller.design_eid`; 8 holds the
+#: low rates of penetration below d* (k_d = 4, which chatters unfiltered), 9 the low speeds at
+#: high rates of penetration (k_c = 1; docs/neutral-eid.md, "Envelope").
 ENVELOPE_CANDIDATES = (
     {"br": 10.0, "bf": 20.0, "observer_gain": 20.0, "gain_bound": 5.0},
     {"br": 3.0, "bf": 5.0, "observer_gain": 20.0, "gain_bound": 2.0},
@@ -50,8 +54,14 @@ ENVELOPE_CANDIDATES = (
     {"br": 3.0, "bf": 5.0, "observer_gain": 20.0, "gain_bound": 2.0, "damping_gain": 2.0},
     {"br": 10.0, "bf": 20.0, "observer_gain": 20.0, "gain_bound": 5.0, "damping_gain": 3.0},
     {"br": 3.0, "bf": 5.0, "observer_gain": 20.0, "gain_bound": 2.0, "damping_gain": 3.0},
+    {"br": 10.0, "bf": 20.0, "observer_gain": 20.0, "gain_bound": 5.0, "damping_gain": 4.0,
+     "angle_doc": True, "axial_filter": 200.0},
+    {"br": 3.0, "bf": 5.0, "observer_gain": 20.0, "gain_bound": 2.0, "damping_gain": 2.0,
+     "angle_doc": True, "depth_of_cut_gain": 1.0},
 )
-_CANDIDATE_KEYS = {"br", "bf", "observer_gain", "gain_bound", "damping_gain"}
+_CANDIDATE_KEYS = {"br", "bf", "observer_gain", "gain_bound", "damping_gain",
+                   "depth_of_cut_gain", "angle_doc", "axial_filter"}
+_ADDON_KEYS = ("damping_gain", "depth_of_cut_gain", "angle_doc", "axial_filter")
 
 #: Settle criterion: over the last ``window`` seconds, RMS error of each bit velocity below this
 #: fraction of its reference, and the bit never leaves the rock (axial velocity > -tolerance x rop).
@@ -154,6 +164,20 @@ def open_loop_abscissa(model, rop: float, omega: float) -> tuple[float, float]:
     return float(r[0].real), float(r[0].imag)
 
 
+def _margin(c, model, rop, omega):
+    """Linearized closed loop with the delayed depth of cut of an EID or PredictiveEID."""
+    from downhole.control.eid.predictor import PredictiveEID, predictive_closed_loop
+    from downhole.control.eid.stability import regenerative_closed_loop
+
+    if isinstance(c, PredictiveEID):
+        return predictive_closed_loop(c.eid, model, rop, omega, c.damping_gain,
+                                      torsional_gain=c.torsional_gain,
+                                      torsional_filter=c.torsional_filter,
+                                      depth_of_cut_gain=c.depth_of_cut_gain,
+                                      axial_filter=c.axial_filter)
+    return regenerative_closed_loop(c, model, rop, omega)
+
+
 @dataclass
 class EIDSchedule:
     """EID designs for a set of candidate axial tunings, scheduled over the operating point.
@@ -197,21 +221,22 @@ class EIDSchedule:
             base = design_eid(self.model)
             ch = base.model_coeffs[0]
             for cand in self.candidates:
-                lmi = {k: v for k, v in cand.items() if k != "damping_gain"}
+                lmi = {k: v for k, v in cand.items() if k not in _ADDON_KEYS}
                 g, rep = synthesize_channel(ch, "axial", **lmi)
                 c = replace(base, gains=(g, base.gains[1]), reports=[rep, base.reports[1]])
                 kd = float(cand.get("damping_gain", 0.0))
-                self.controllers.append(PredictiveEID(c, self.model, kd) if kd > 0 else c)
+                kc = float(cand.get("depth_of_cut_gain", 0.0))
+                ang = bool(cand.get("angle_doc", False))
+                self.controllers.append(PredictiveEID(c, self.model, kd, depth_of_cut_gain=kc,
+                                                      angle_doc=ang,
+                                                      axial_filter=float(
+                                                          cand.get("axial_filter", 0.0)))
+                                        if kd > 0 or kc > 0 else c)
 
     def margins(self, rop: float, omega: float) -> list:
         """:func:`regenerative_closed_loop` of every candidate at (rop, omega)."""
-        from downhole.control.eid.predictor import PredictiveEID, predictive_closed_loop
-        from downhole.control.eid.stability import regenerative_closed_loop
-
         rop, omega = _check_point(rop, omega)
-        return [predictive_closed_loop(c.eid, self.model, rop, omega, c.damping_gain)
-                if isinstance(c, PredictiveEID) else
-                regenerative_closed_loop(c, self.model, rop, omega) for c in self.controllers]
+        return [_margin(c, self.model, rop, omega) for c in self.controllers]
 
     def at(self, rop: float, omega: float):
         """(controller, candidate index, its regenerative_closed_loop dict) with the most
@@ -254,13 +279,8 @@ def _path_speeds(omega, approach):
 
 def _path_abscissa(schedule, k, rop, speeds):
     """Largest spectral abscissa of candidate ``k`` at (rop, w) over ``speeds``."""
-    from downhole.control.eid.predictor import PredictiveEID, predictive_closed_loop
-    from downhole.control.eid.stability import regenerative_closed_loop
-
     c, m = schedule.controllers[k], schedule.model
-    return max((predictive_closed_loop(c.eid, m, rop, w, c.damping_gain)
-                if isinstance(c, PredictiveEID) else
-                regenerative_closed_loop(c, m, rop, w))["spectral_abscissa"] for w in speeds)
+    return max(_margin(c, m, rop, w)["spectral_abscissa"] for w in speeds)
 
 
 def envelope_point(model, schedule: EIDSchedule, rop: float, omega: float, *, dt: float = 2e-4,

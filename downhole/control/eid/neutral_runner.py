@@ -16,8 +16,8 @@ import numpy as np
 from numba import njit
 
 from downhole.control.eid._kernel import eid_arrays, eid_step
-from downhole.control.eid.damper import (DamperParams, damper_arrays, damper_step,
-                                         torsional_damper_step)
+from downhole.control.eid.damper import (DamperParams, coupled_axial_reference,
+                                         damper_arrays, damper_step, torsional_damper_step)
 from downhole.string.neutral import (neutral_advance, neutral_record, neutral_top_and_bit,
                                      neutral_wave_start)
 
@@ -58,8 +58,8 @@ def run_neutral_eid(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp
     for k in range(nsteps + 1):
         y[0] = v + noise[0, k]
         y[1] = w + noise[1, k]
-        r[0] = ref[0, k]
         r[1] = ref[1, k]
+        r[0] = coupled_axial_reference(dp.k_c, ref[0, k], r[1], y[1])
         eid_step(cp, cs, ch, cpos, y, r, dt, uvec, sig)
         ua = uvec[0]
         ut = uvec[1]

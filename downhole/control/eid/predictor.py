@@ -24,6 +24,14 @@ and W and of the commands u (the EID's plus the damper's). The EID itself is una
 estimator sees its effect as part of the disturbance and compensates only the part below its
 filter bandwidth).
 
+Options (all off by default): ``angle_doc`` looks the depth of cut of the prediction up by the
+measured bit angle (Eq. 2.10) instead of the time delay 2 pi/(n omega) at the current speed, which
+errs by d/omega per rad/s of speed deviation; ``axial_filter`` low-pass filters du (at k_d = 4 the
+discretized prediction loop chatters near the Nyquist frequency without it); ``depth_of_cut_gain``
+k_c scales the axial reference with the measured rotary speed, r_a (1 + k_c (omega/r_w - 1)), so
+that a slowing bit is not asked to cut deeper (at a given ROP the torque on bit grows as 1/omega,
+a negative damping that at 5 rad/s and 17-20 mm/s exceeds the string's).
+
 Linear check: :func:`predictive_closed_loop` is :func:`~downhole.control.eid.stability.
 regenerative_closed_loop` for this loop with an exact prediction (the plant row gains b k_d).
 The controller runs compiled in :func:`~downhole.string.neutral.simulate_neutral` (its
@@ -38,8 +46,8 @@ import numpy as np
 
 from downhole.bit.law import bit_forces, bit_forces_and_slopes  # noqa: F401
 from downhole.control.eid.damper import (PREDICTION_STEP, DamperParams,  # noqa: F401
-                                         _stride, damper_arrays, damper_step,
-                                         torsional_damper_step)
+                                         _stride, coupled_axial_reference, damper_arrays,
+                                         damper_step, torsional_damper_step)
 from downhole.errors import DownholeInputError
 
 __all__ = ["PredictiveEID", "predictive_closed_loop", "damper_step", "DamperParams",
@@ -75,6 +83,18 @@ class PredictiveEID:
     torsional_filter : float
         Bandwidth (rad/s) of the low-pass filter on the torsional damping command (see
         :class:`DamperParams`; 0: none).
+    depth_of_cut_gain : float
+        k_c of the depth-of-cut coupling in [0, 2] (0: off): the axial reference, of the EID
+        and of the damper, becomes ``r_a (1 + k_c (omega / r_w - 1))`` with the measured bit
+        angular velocity (:func:`~downhole.control.eid.damper.coupled_axial_reference`; 1:
+        constant depth of cut while the bit speed deviates). It removes the negative damping
+        -T/omega that a rate-of-penetration set point gives the torsional mode at low rotary
+        speed; the steady state is unchanged. Use it with ``angle_doc``: with the time-delay
+        prediction the coupled loop grows at ~0.4 1/s in simulation although linearly stable.
+    angle_doc : bool
+        Depth of cut of the prediction from the measured bit angle (see :class:`DamperParams`).
+    axial_filter : float
+        Bandwidth (rad/s) of a low-pass filter on the axial damping command (0: none).
     """
 
     needs = ("bit_axial_velocity", "bit_angular_velocity")
@@ -82,17 +102,28 @@ class PredictiveEID:
     label = "eid+predictive-damper"
 
     def __init__(self, eid, model, damping_gain: float = 2.0, torsional_gain: float = 0.0,
-                 torsional_filter: float = TORSIONAL_FILTER):
+                 torsional_filter: float = TORSIONAL_FILTER, depth_of_cut_gain: float = 0.0,
+                 angle_doc: bool = False, axial_filter: float = 0.0):
         gains = []
         for name, val in (("damping_gain", damping_gain), ("torsional_gain", torsional_gain),
-                          ("torsional_filter", torsional_filter)):
+                          ("torsional_filter", torsional_filter),
+                          ("depth_of_cut_gain", depth_of_cut_gain)):
             k = float(val)
             if not (math.isfinite(k) and k >= 0):
                 raise DownholeInputError(f"PredictiveEID: {name} must be >= 0 and finite, "
                                          f"got {val!r}")
             gains.append(k)
         self.eid, self.model = eid, model
-        self.damping_gain, self.torsional_gain, self.torsional_filter = gains
+        if gains[3] > 2.0:
+            raise DownholeInputError(f"PredictiveEID: depth_of_cut_gain must be in [0, 2] "
+                                     f"(1: constant depth of cut), got {depth_of_cut_gain!r}")
+        (self.damping_gain, self.torsional_gain, self.torsional_filter,
+         self.depth_of_cut_gain) = gains
+        self.angle_doc = bool(angle_doc)
+        self.axial_filter = float(axial_filter)
+        if not (math.isfinite(self.axial_filter) and self.axial_filter >= 0):
+            raise DownholeInputError(f"PredictiveEID: axial_filter must be >= 0 and finite, "
+                                     f"got {axial_filter!r}")
         self.reference = eid.reference
         self.dt = eid.dt
 
@@ -113,7 +144,9 @@ class PredictiveEID:
                             a1t=float(ct["a1"]), g1t=float(ct["g1"]), bt=float(ct["b"]),
                             bit_inertia=float(self.model.params.bit_inertia),
                             stride_t=max(1, int(round(PREDICTION_STEP / dt))),
-                            filter_t=float(self.torsional_filter))
+                            filter_t=float(self.torsional_filter),
+                            k_c=float(self.depth_of_cut_gain), angle_doc=self.angle_doc,
+                            filter_a=self.axial_filter)
 
     @staticmethod
     def damper_arrays(dp: DamperParams):
@@ -138,20 +171,27 @@ class PredictiveEID:
         self._bp = self.model.bit.kernel_params()
 
     def command(self, t: float, observation: dict, reference=None) -> dict:
-        """One step: the EID's commands with ``du`` added to the axial one."""
+        """One step: the EID's commands with ``du`` added to the axial one (the axial
+        reference coupled to the measured bit speed when ``depth_of_cut_gain`` > 0)."""
         if not hasattr(self, "_dh"):
             self.reset()
-        out = self.eid.command(t, observation, reference)
         if reference is None:
             r = self.reference.sample(np.array([t]))[:, 0]
         elif hasattr(reference, "keys"):
-            r = (reference["reference_axial_velocity"], reference["reference_angular_velocity"])
+            try:
+                r = (reference["reference_axial_velocity"],
+                     reference["reference_angular_velocity"])
+            except KeyError as exc:
+                raise DownholeInputError(f"reference lacks {exc.args[0]!r}") from None
         else:
             r = np.asarray(reference, float).reshape(2)
-        u = out["top_drive_axial_velocity"]
-        ut = out["top_drive_angular_velocity"]
         v = float(observation["bit_axial_velocity"])
         w = float(observation["bit_angular_velocity"])
+        r = np.array([coupled_axial_reference(self._dp.k_c, float(r[0]), float(r[1]), w),
+                      float(r[1])])
+        out = self.eid.command(t, observation, r)
+        u = out["top_drive_axial_velocity"]
+        ut = out["top_drive_angular_velocity"]
         dut = 0.0
         if self._dp.k_t > 0:
             dut = torsional_damper_step(self._dp, self._dh, self._ds, self._pbuf, self._bp, v, w,
@@ -165,12 +205,15 @@ class PredictiveEID:
 def predictive_closed_loop(controller, model, rop: float, omega: float,
                            damping_gain: float = 2.0, im_max: float = 200.0,
                            torsional_gain: float = 0.0,
-                           torsional_filter: float = TORSIONAL_FILTER) -> dict:
+                           torsional_filter: float = TORSIONAL_FILTER,
+                           depth_of_cut_gain: float = 0.0, axial_filter: float = 0.0) -> dict:
     """Spectral abscissa of the EID loop with an exact predictive damper (axial plant row
     + b k_d, torsional plant row + b_T k_t bf/(s + bf) with the filter bandwidth bf, or
     + b_T k_t without a filter) and the linearized delayed depth of cut:
-    :func:`regenerative_closed_loop`'s characteristic matrix with those terms added. Returns the
-    same keys."""
+    :func:`regenerative_closed_loop`'s characteristic matrix with those terms added. With the
+    depth-of-cut coupling k_c the axial reference perturbation is k_c (rop/omega) times the bit
+    angular velocity: it enters the internal model (x_R' = B_R (r - x_p)) and the damper,
+    whose command acts on the bit tau1 later (a factor exp(-s tau1)). Returns the same keys."""
     from downhole.control.eid.stability import (_bit_rock_gains, _newton_roots,
                                                 channel_loop_matrices)
 
@@ -183,6 +226,7 @@ def predictive_closed_loop(controller, model, rop: float, omega: float,
     g1, u1 = model.gammas[0], model.upsilons[0]
     b = controller.model_coeffs[0]["b"]
     bt = controller.model_coeffs[1]["b"]
+    br = controller.gains[0].br
     n = 5
 
     def char(s):
@@ -196,11 +240,16 @@ def predictive_closed_loop(controller, model, rop: float, omega: float,
         e = np.where(small, tn, (1 - np.exp(-s * tn)) / np.where(small, 1.0, s))
         fa = (1 - g1 * np.exp(-2 * s * model.tau1)) / p.bit_mass * e
         ft = (1 - u1 * np.exp(-2 * s * model.tau2)) / p.bit_inertia * e
-        M[:, 0, 0] += fa * kw + b * damping_gain
+        fil_a = axial_filter / (s + axial_filter) if axial_filter > 0 else 1.0
+        M[:, 0, 0] += fa * kw + b * damping_gain * fil_a
         M[:, 0, n] += -fa * kw * c
         M[:, n, 0] += ft * kt
         filt = torsional_filter / (s + torsional_filter) if torsional_filter > 0 else 1.0
         M[:, n, n] += -ft * kt * c + bt * torsional_gain * filt
+        if depth_of_cut_gain > 0:
+            kap = depth_of_cut_gain * rop / omega
+            M[:, 3, n] += -br * kap
+            M[:, 0, n] += -b * damping_gain * fil_a * kap * np.exp(-s * model.tau1)
         return np.linalg.det(M)
 
     roots = _newton_roots(char, im_max=im_max, n_re=3, d_im=3.0, iters=40)
