@@ -18,50 +18,6 @@ __all__ = ["DamperParams", "damper_step", "torsional_damper_step", "damper_array
            "PREDICTION_STEP", "coupled_axial_reference"]
 
 
-@njit(cache=True)
-def _predict(vh, dvh, wh, xh, uh, n, cap, dt, nt, nh, ntn, a0, a1, g1, b, m_b, nbl, omega, bp,
-             xbuf, stride):
-    """Predicted bit axial velocity at t_n + nt dt from the histories (ring buffers of ``cap``
-    samples, index k % cap) of v, v', W, X and u, by Euler steps of ``stride`` samples (a
-    divisor of ``nt``) (implicit in
-    the velocity terms: the wear-flat force's velocity dependence is stiff near v = 0);
-    ``xbuf`` holds the predicted X at those steps."""
-    v = vh[n % cap]
-    x = xh[n % cap]
-    nsub = nt // stride
-    h = dt * stride
-    for i in range(nsub + 1):
-        xbuf[i] = x
-        if i == nsub:
-            break
-        k = n + i * stride
-        kh = k - nh
-        vd = vh[kh % cap] if kh >= 0 else 0.0
-        dvd = dvh[kh % cap] if kh >= 0 else 0.0
-        wd = wh[kh % cap] if kh >= 0 else 0.0
-        ku = k - nt
-        ud = uh[ku % cap] if ku >= 0 else 0.0
-        kb = k - ntn
-        if kb >= n:
-            q = (kb - n) / stride
-            i0 = int(q)
-            f = q - i0
-            xb = xbuf[i0] if i0 + 1 > i else (1.0 - f) * xbuf[i0] + f * xbuf[i0 + 1]
-        elif kb >= 0:
-            xb = xh[kb % cap]
-        else:
-            xb = 0.0
-        d = nbl * (x - xb)
-        if d < 0.0:
-            d = 0.0
-        sl = bit_forces_and_slopes(d, v, omega, bp)
-        dv = a0 * v + a1 * vd + g1 * dvd + b * ud - (sl[0] - g1 * wd) / m_b
-        x += h * v
-        # the velocity dependence of the wear-flat force is stiff near v = 0: implicit in v
-        v += h * dv / (1.0 + h * (max(sl[3], 0.0) / m_b - a0))
-    return v
-
-
 class DamperParams(NamedTuple):
     """The compiled damper's parameters (built by :meth:`PredictiveEID.damper_params`).
 
@@ -140,12 +96,24 @@ class DamperParams(NamedTuple):
     filter_a: float = 0.0
 
 @njit(cache=True)
-def _predict_angle(dh, n, cap, dp, bp, omega, xbuf):
-    """As :func:`_predict`, with the depth of cut looked up by angle (``angle_doc``): at the
-    prediction step i the bit angle is theta_n + omega i h, the blade ahead passed
-    theta_n + omega i h - 2 pi/n when the bit was at the X found in the measured angle history
-    (:func:`_surface_at`) or, for angles reached within the horizon, in the predicted X of
-    ``xbuf``."""
+def _at(dh, row, k, cap):
+    """History ``row`` at step k (0 before the start)."""
+    return dh[row, k % cap] if k >= 0 else 0.0
+
+
+@njit(cache=True)
+def _predict(dh, n, cap, dp, bp, omega, xbuf, ntn):
+    """Predicted bit axial velocity at t_n + tau_steps dt from the histories ``dh`` (ring
+    buffers of ``cap`` samples, index k % cap, rows :data:`_V`, :data:`_DV`, :data:`_W`,
+    :data:`_X`, :data:`_U`, :data:`_TH`), by Euler steps of ``stride`` samples (a divisor of
+    ``tau_steps``), implicit in the velocity terms (the wear-flat force's velocity dependence is
+    stiff near v = 0); ``xbuf`` holds the predicted X at those steps. The depth of cut at step i
+    is n (X - X_b) with X_b the bit position when the blade ahead passed the same point:
+
+    * ``dp.angle_doc``: by angle, the bit angle at step i being theta_n + omega i h; X_b from the
+      measured angle history (:func:`_surface_at`) or, for angles reached within the horizon,
+      from ``xbuf``;
+    * otherwise by the time delay ``ntn`` steps (2 pi/(n omega) at the current speed)."""
     nt = dp.tau_steps
     nh = dp.h_steps
     stride = dp.stride
@@ -163,19 +131,31 @@ def _predict_angle(dh, n, cap, dp, bp, omega, xbuf):
             break
         k = n + i * stride
         kh = k - nh
-        vd = dh[_V, kh % cap] if kh >= 0 else 0.0
-        dvd = dh[_DV, kh % cap] if kh >= 0 else 0.0
-        wd = dh[_W, kh % cap] if kh >= 0 else 0.0
+        vd = _at(dh, _V, kh, cap)
+        dvd = _at(dh, _DV, kh, cap)
+        wd = _at(dh, _W, kh, cap)
         ku = k - nt
-        ud = dh[_U, ku % cap] if ku >= 0 else 0.0
-        target = th_n + omega * i * h - pitch
-        if target <= th_n:
-            xb = _surface_at(dh[_TH], dh[_X], n, cap, target)
-        else:
+        ud = _at(dh, _U, ku, cap)
+        target = 0.0
+        kb = 0
+        if dp.angle_doc:
+            target = th_n + omega * i * h - pitch
+            inside = target > th_n
             q = (target - th_n) / (omega * h)
+        else:
+            kb = k - ntn
+            inside = kb >= n
+            q = (kb - n) / stride
+        if inside:
             i0 = int(q)
             f = q - i0
             xb = xbuf[i0] if i0 + 1 > i else (1.0 - f) * xbuf[i0] + f * xbuf[i0 + 1]
+        elif dp.angle_doc:
+            xb = _surface_at(dh[_TH], dh[_X], n, cap, target)
+        elif kb >= 0:
+            xb = dh[_X, kb % cap]
+        else:
+            xb = 0.0
         d = nbl * (x - xb)
         if d < 0.0:
             d = 0.0
@@ -233,6 +213,7 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
     if ntn < 1:
         ntn = 1
     du = 0.0
+    known = True
     if dp.angle_doc:
         if dp.k_t > 0.0:  # torsional_damper_step stored theta_n and advanced ds[2]
             th = dh[_TH, k]
@@ -240,27 +221,23 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
             th = ds[2]
             dh[_TH, k] = th
             ds[2] = th + dt * w
-        d = nbl * (x - _surface_at(dh[_TH], dh[_X], n, cap, th - 2.0 * math.pi / nbl))
-        if d < 0.0:
-            d = 0.0
-        dh[2, k] = bit_forces(d, v, om, bp)[0]
-        if dp.k_d > 0.0:
-            du = -dp.k_d * (_predict_angle(dh, n, cap, dp, bp, om, xbuf) - r_a)
-            if dp.filter_a > 0.0:
-                du = ds[4] + (1.0 - math.exp(-dp.filter_a * dt)) * (du - ds[4])
-                ds[4] = du
+        xb = _surface_at(dh[_TH], dh[_X], n, cap, th - 2.0 * math.pi / nbl)
     elif ntn < cap:
         xb = dh[3, (n - ntn) % cap] if n - ntn >= 0 else 0.0
+    else:
+        known = False
+        xb = 0.0
+    if known:
         d = nbl * (x - xb)
         if d < 0.0:
             d = 0.0
         wob, _ = bit_forces(d, v, om, bp)
         dh[2, k] = wob
         if dp.k_d > 0.0:
-            vp = _predict(dh[0], dh[1], dh[2], dh[3], dh[4], n, cap, dt, dp.tau_steps,
-                          dp.h_steps, ntn, dp.a0, dp.a1, dp.g1, dp.b, dp.bit_mass, nbl, om, bp,
-                          xbuf, dp.stride)
-            du = -dp.k_d * (vp - r_a)
+            du = -dp.k_d * (_predict(dh, n, cap, dp, bp, om, xbuf, ntn) - r_a)
+            if dp.filter_a > 0.0:
+                du = ds[4] + (1.0 - math.exp(-dp.filter_a * dt)) * (du - ds[4])
+                ds[4] = du
     else:
         dh[2, k] = 0.0
     dh[4, k] = u_eid + du
@@ -332,20 +309,20 @@ def _predict_torsional(dh, n, cap, dp, bp, v, pbuf):
         h = steps * dp.dt
         k = n + i * stride
         kh = k - nh
-        wd = dh[_OM, kh % cap] if kh >= 0 else 0.0
-        dwd = dh[_DOM, kh % cap] if kh >= 0 else 0.0
-        td = dh[_T, kh % cap] if kh >= 0 else 0.0
+        wd = _at(dh, _OM, kh, cap)
+        dwd = _at(dh, _DOM, kh, cap)
+        td = _at(dh, _T, kh, cap)
         ku = k - nt
-        ud = dh[_UT, ku % cap] if ku >= 0 else 0.0
+        ud = _at(dh, _UT, ku, cap)
         kha = k - dp.h_steps
-        vd = dh[_V, kha % cap] if kha >= 0 else 0.0
-        dvd = dh[_DV, kha % cap] if kha >= 0 else 0.0
-        wbd = dh[_W, kha % cap] if kha >= 0 else 0.0
+        vd = _at(dh, _V, kha, cap)
+        dvd = _at(dh, _DV, kha, cap)
+        wbd = _at(dh, _W, kha, cap)
         kua = k - dp.tau_steps
         if kua >= n:
             uad = u_last
         else:
-            uad = dh[_U, kua % cap] if kua >= 0 else 0.0
+            uad = _at(dh, _U, kua, cap)
         pbuf[0, i] = th
         pbuf[1, i] = x
         target = th - pitch
