@@ -118,11 +118,14 @@ def _predict(dh, n, cap, dp, bp, omega, xbuf, ntn):
     nh = dp.h_steps
     stride = dp.stride
     nbl = dp.n_blades
+    a0, a1, g1, b, m_b = dp.a0, dp.a1, dp.g1, dp.b, dp.bit_mass
+    by_angle = dp.angle_doc
+    vh, dvh, wh, xh, uh, thh = dh[_V], dh[_DV], dh[_W], dh[_X], dh[_U], dh[_TH]
     pitch = 2.0 * math.pi / nbl
     k0 = n % cap
-    v = dh[_V, k0]
-    x = dh[_X, k0]
-    th_n = dh[_TH, k0]
+    v = vh[k0]
+    x = xh[k0]
+    th_n = thh[k0]
     nsub = nt // stride
     h = dp.dt * stride
     for i in range(nsub + 1):
@@ -131,14 +134,14 @@ def _predict(dh, n, cap, dp, bp, omega, xbuf, ntn):
             break
         k = n + i * stride
         kh = k - nh
-        vd = _at(dh, _V, kh, cap)
-        dvd = _at(dh, _DV, kh, cap)
-        wd = _at(dh, _W, kh, cap)
+        vd = vh[kh % cap] if kh >= 0 else 0.0
+        dvd = dvh[kh % cap] if kh >= 0 else 0.0
+        wd = wh[kh % cap] if kh >= 0 else 0.0
         ku = k - nt
-        ud = _at(dh, _U, ku, cap)
+        ud = uh[ku % cap] if ku >= 0 else 0.0
         target = 0.0
         kb = 0
-        if dp.angle_doc:
+        if by_angle:
             target = th_n + omega * i * h - pitch
             inside = target > th_n
             q = (target - th_n) / (omega * h)
@@ -150,19 +153,20 @@ def _predict(dh, n, cap, dp, bp, omega, xbuf, ntn):
             i0 = int(q)
             f = q - i0
             xb = xbuf[i0] if i0 + 1 > i else (1.0 - f) * xbuf[i0] + f * xbuf[i0 + 1]
-        elif dp.angle_doc:
-            xb = _surface_at(dh[_TH], dh[_X], n, cap, target)
+        elif by_angle:
+            xb = _surface_at(thh, xh, n, cap, target)
         elif kb >= 0:
-            xb = dh[_X, kb % cap]
+            xb = xh[kb % cap]
         else:
             xb = 0.0
         d = nbl * (x - xb)
         if d < 0.0:
             d = 0.0
         sl = bit_forces_and_slopes(d, v, omega, bp)
-        dv = dp.a0 * v + dp.a1 * vd + dp.g1 * dvd + dp.b * ud - (sl[0] - dp.g1 * wd) / dp.bit_mass
+        dv = a0 * v + a1 * vd + g1 * dvd + b * ud - (sl[0] - g1 * wd) / m_b
         x += h * v
-        v += h * dv / (1.0 + h * (max(sl[3], 0.0) / dp.bit_mass - dp.a0))
+        # the velocity dependence of the wear-flat force is stiff near v = 0: implicit in v
+        v += h * dv / (1.0 + h * (max(sl[3], 0.0) / m_b - a0))
     return v
 
 
