@@ -95,6 +95,7 @@ class DamperParams(NamedTuple):
     angle_doc: bool = False
     filter_a: float = 0.0
 
+
 @njit(cache=True)
 def _at(dh, row, k, cap):
     """History ``row`` at step k (0 before the start)."""

@@ -224,14 +224,10 @@ class EIDSchedule:
                 lmi = {k: v for k, v in cand.items() if k not in _ADDON_KEYS}
                 g, rep = synthesize_channel(ch, "axial", **lmi)
                 c = replace(base, gains=(g, base.gains[1]), reports=[rep, base.reports[1]])
-                kd = float(cand.get("damping_gain", 0.0))
-                kc = float(cand.get("depth_of_cut_gain", 0.0))
-                ang = bool(cand.get("angle_doc", False))
-                self.controllers.append(PredictiveEID(c, self.model, kd, depth_of_cut_gain=kc,
-                                                      angle_doc=ang,
-                                                      axial_filter=float(
-                                                          cand.get("axial_filter", 0.0)))
-                                        if kd > 0 or kc > 0 else c)
+                addons = {"damping_gain": 0.0,
+                          **{k: cand[k] for k in _ADDON_KEYS if k in cand}}
+                on = addons["damping_gain"] > 0 or addons.get("depth_of_cut_gain", 0.0) > 0
+                self.controllers.append(PredictiveEID(c, self.model, **addons) if on else c)
 
     def margins(self, rop: float, omega: float) -> list:
         """:func:`regenerative_closed_loop` of every candidate at (rop, omega)."""

@@ -107,7 +107,8 @@ class PredictiveEID:
         gains = []
         for name, val in (("damping_gain", damping_gain), ("torsional_gain", torsional_gain),
                           ("torsional_filter", torsional_filter),
-                          ("depth_of_cut_gain", depth_of_cut_gain)):
+                          ("depth_of_cut_gain", depth_of_cut_gain),
+                          ("axial_filter", axial_filter)):
             k = float(val)
             if not (math.isfinite(k) and k >= 0):
                 raise DownholeInputError(f"PredictiveEID: {name} must be >= 0 and finite, "
@@ -118,12 +119,8 @@ class PredictiveEID:
             raise DownholeInputError(f"PredictiveEID: depth_of_cut_gain must be in [0, 2] "
                                      f"(1: constant depth of cut), got {depth_of_cut_gain!r}")
         (self.damping_gain, self.torsional_gain, self.torsional_filter,
-         self.depth_of_cut_gain) = gains
+         self.depth_of_cut_gain, self.axial_filter) = gains
         self.angle_doc = bool(angle_doc)
-        self.axial_filter = float(axial_filter)
-        if not (math.isfinite(self.axial_filter) and self.axial_filter >= 0):
-            raise DownholeInputError(f"PredictiveEID: axial_filter must be >= 0 and finite, "
-                                     f"got {axial_filter!r}")
         self.reference = eid.reference
         self.dt = eid.dt
 
