@@ -21,13 +21,14 @@ run: $(STAMP)
 chromium:
 	@test -x /usr/bin/chromium || (apt-get update && apt-get install -y --no-install-recommends chromium)
 
-# The layering contracts of .importlinter (docs/architecture.md, "Layering") run before pytest.
+# ruff (the config in pyproject.toml) and the layering contracts of .importlinter (docs/architecture.md, "Layering") run before pytest.
 # Paced real-time tests (marker `realtime`) run alone after the parallel run: on a core shared
 # with another test they miss deadlines; `sync` first, so that the parallel run's writes are not
 # flushed to disk during them. A paced test that fails gets one more run (--lf): a deadline missed
 # because the machine was busy is not a defect of the loop; one that fails twice fails the target.
 # Pacing logic itself is tested deterministically on a virtual clock (tests/test_sil_runtime.py).
 test: $(STAMP) chromium
+	$(VENV)/bin/ruff check downhole tests benchmarks
 	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -q -n 2 -m "not slow and not realtime" --durations=15
 	sync

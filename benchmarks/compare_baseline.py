@@ -23,7 +23,7 @@ import os
 import subprocess
 import sys
 import tempfile
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -78,7 +78,7 @@ def _table(base: dict, cur: dict, args, commit: str, head: str) -> tuple[str, bo
         + "".join(f" --group {g}" for g in args.group)
         + "".join(f" --case '{c}'" for c in args.case) + "`; do not edit by hand.",
         "",
-        f"- {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC; baseline {commit[:7]}, current "
+        f"- {datetime.now(UTC):%Y-%m-%d %H:%M} UTC; baseline {commit[:7]}, current "
         f"{head[:7]}; best of {args.rounds} alternating runs per tree, same interpreter.",
         f"- speed = baseline seconds / current seconds; a case fails below {args.min_speed}.",
         "",

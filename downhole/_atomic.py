@@ -38,14 +38,27 @@ import json
 import os
 import sys
 import time
+from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Self
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["MARKER", "PAUSE_ENV", "temp_path", "atomic_path", "replace_atomic",
-           "write_bytes_atomic", "write_text_atomic", "write_json_atomic", "sync_files",
-           "check_output_path", "OutputFolder", "OutputFile", "is_incomplete"]
+__all__ = [
+    "MARKER",
+    "PAUSE_ENV",
+    "OutputFile",
+    "OutputFolder",
+    "atomic_path",
+    "check_output_path",
+    "is_incomplete",
+    "replace_atomic",
+    "sync_files",
+    "temp_path",
+    "write_bytes_atomic",
+    "write_json_atomic",
+    "write_text_atomic",
+]
 
 #: Name of the marker file of an output folder whose run has not finished.
 MARKER = "INCOMPLETE"
@@ -166,9 +179,8 @@ def atomic_path(final: str | os.PathLike, *, durable: bool = True) -> Iterator[P
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file, fsync, rename)."""
     path = Path(path)
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as f:
-            f.write(data)
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        f.write(data)
     return path
 
 
@@ -308,13 +320,13 @@ class OutputFolder:
                     entry.unlink()
         _fsync_dir(self.path)
 
-    def begin(self) -> "OutputFolder":
+    def begin(self) -> OutputFolder:
         """Before the work: mark an existing folder incomplete and remove its stale files."""
         if self.path.is_dir() and not self._marked:
             self._mark()
         return self
 
-    def writing(self) -> "OutputFolder":
+    def writing(self) -> OutputFolder:
         """Before the first file: create the folder (and the marker) if needed."""
         if not self._marked:
             self.path.mkdir(parents=True, exist_ok=True)
@@ -335,7 +347,7 @@ class OutputFolder:
         _fsync_dir(self.path)
         self._marked = False
 
-    def __enter__(self) -> "OutputFolder":
+    def __enter__(self) -> Self:
         return self.begin()
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -362,7 +374,7 @@ class OutputFile:
     def marker(self) -> Path:
         return self.path.with_name(self.path.name + "." + MARKER)
 
-    def begin(self) -> "OutputFile":
+    def begin(self) -> OutputFile:
         write_text_atomic(self.marker, _marker_text(self.command, f"writing {self.path.name}"))
         folder = self.path.parent
         stem = temp_path(self.path).name.rsplit(".part-", 1)[0]

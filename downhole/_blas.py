@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import get_cython_function_address
 
-__all__ = ["syrk_gram", "potrf_upper", "chol_solve_right"]
+__all__ = ["chol_solve_right", "potrf_upper", "syrk_gram"]
 
 
 def _register(module: str, name: str) -> str:

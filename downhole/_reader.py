@@ -11,8 +11,18 @@ from pathlib import Path
 
 from downhole.errors import ScenarioError
 
-__all__ = ["read_toml", "read_scenario_text", "parse_toml_text", "check_values", "MAX_FILE_BYTES",
-           "MAX_STRING_LENGTH", "MAX_LIST_LENGTH", "MAX_DEPTH", "MAX_NUMBER", "MAX_INTEGER"]
+__all__ = [
+    "MAX_DEPTH",
+    "MAX_FILE_BYTES",
+    "MAX_INTEGER",
+    "MAX_LIST_LENGTH",
+    "MAX_NUMBER",
+    "MAX_STRING_LENGTH",
+    "check_values",
+    "parse_toml_text",
+    "read_scenario_text",
+    "read_toml",
+]
 
 
 #: Largest scenario file read (bytes); a scenario is a few kB.

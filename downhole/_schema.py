@@ -53,8 +53,14 @@ from pathlib import Path
 from downhole._reader import read_toml
 from downhole.errors import ScenarioError
 
-__all__ = ["TABLES", "RENAMES", "VALUE_RENAMES", "read_scenario", "check_dialect",
-           "raise_validation"]
+__all__ = [
+    "RENAMES",
+    "TABLES",
+    "VALUE_RENAMES",
+    "check_dialect",
+    "raise_validation",
+    "read_scenario",
+]
 
 #: Every top-level key of a scenario file.
 TABLES = ("title", "description", "model", "well", "string", "bit", "rig", "operation",

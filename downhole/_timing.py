@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-__all__ = ["timed", "best_time"]
+__all__ = ["best_time", "timed"]
 
 
 def timed(fn, *args, repeat: int = 1, **kwargs) -> tuple[float, object]:

@@ -31,7 +31,7 @@ from functools import lru_cache
 
 from downhole.errors import DownholeInputError, WorkerProcessError
 
-__all__ = ["check_main_guarded", "broken_pool_error", "WorkerProcessError", "GUARD"]
+__all__ = ["GUARD", "WorkerProcessError", "broken_pool_error", "check_main_guarded"]
 
 GUARD = 'if __name__ == "__main__":'
 

@@ -37,7 +37,7 @@ from gymnasium import spaces
 
 from downhole.errors import DownholeInputError, SimulationDiverged
 
-__all__ = ["DrillingEnv", "ENV_ID"]
+__all__ = ["ENV_ID", "DrillingEnv"]
 
 ENV_ID = "downhole/Drilling-v0"
 V_S, W_S = 0.01, 20.0
@@ -103,7 +103,7 @@ class DrillingEnv(gym.Env):
         self._obs = None
 
     @classmethod
-    def from_scenario(cls, path, **overrides) -> "DrillingEnv":
+    def from_scenario(cls, path, **overrides) -> DrillingEnv:
         """The environment of a scenario file, read with the schema every command uses
         (:func:`downhole.sil.scenario.load_sil_scenario`): the plant of ``[model]``, ``[bit]``,
         ``[operation]`` and ``[simulation]`` (``dt``, ``depth_of_cut``; ``duration`` is the

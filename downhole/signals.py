@@ -25,8 +25,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["Signal", "Metric", "SIGNALS", "METRICS", "register_signal", "signal", "unit_of",
-           "metric_unit", "STANDARD_CHANNELS", "check_command_value", "range_reason"]
+__all__ = [
+    "METRICS",
+    "SIGNALS",
+    "STANDARD_CHANNELS",
+    "Metric",
+    "Signal",
+    "check_command_value",
+    "metric_unit",
+    "range_reason",
+    "register_signal",
+    "signal",
+    "unit_of",
+]
 
 
 @dataclass(frozen=True)
@@ -214,7 +225,7 @@ def _declare_standard() -> None:
     s("node_angular_velocity", "rad/s", "angular_velocity",
       "angular velocity of every string node")
 
-    m = lambda name, unit, desc: METRICS.__setitem__(name, Metric(name, unit, desc))  # noqa: E731
+    m = lambda name, unit, desc: METRICS.__setitem__(name, Metric(name, unit, desc))
     m("stick_slip_severity", "-", "(max - min) / (2 mean) of the bit angular velocity")
     m("stuck_fraction", "-", "fraction of samples with |bit angular velocity| < 0.1 rad/s")
     m("bit_bounce_fraction", "-", "fraction of samples with WOB <= 0 or depth of cut <= 0")

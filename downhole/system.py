@@ -44,7 +44,7 @@ from downhole.string.drillstring import DrillString, StringSegment
 from downhole.units import si_or_number
 from downhole.well.path import WellPath
 
-__all__ = ["DrillingSystem", "Rig", "FIDELITIES", "LumpedDerivation"]
+__all__ = ["FIDELITIES", "DrillingSystem", "LumpedDerivation", "Rig"]
 
 #: Model fidelities a description can be built at.
 FIDELITIES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
@@ -161,7 +161,7 @@ class DrillingSystem:
 
     # ------------------------------------------------------------------ presets
     @classmethod
-    def table_5_1(cls, **changes) -> "DrillingSystem":
+    def table_5_1(cls, **changes) -> DrillingSystem:
         """The seed's Table 5.1 well, string and bit (corrected), with its top drive."""
         from downhole.params import get_preset
         from downhole.string.fem import table_5_1_setup
@@ -177,7 +177,7 @@ class DrillingSystem:
 
     @classmethod
     def vertical(cls, string: DrillString, bit: BitParams | None = None,
-                 **changes) -> "DrillingSystem":
+                 **changes) -> DrillingSystem:
         """A vertical well exactly as deep as ``string`` is long."""
         from downhole.params import get_preset
         from downhole.well.path import Vertical

@@ -20,10 +20,26 @@ from functools import lru_cache
 
 import pint
 
-__all__ = ["UnitError", "to_si", "as_si", "as_si_array", "si_or_number", "SI_UNITS", "RANGES",
-           "MAX_QUANTITY_LENGTH", "QUANTITY_GRAMMAR", "check_range", "parse_quantity_string",
-           "UnitSystem", "SYSTEMS", "display_units", "parse_unit_override", "unit_label",
-           "registry", "convert"]
+__all__ = [
+    "MAX_QUANTITY_LENGTH",
+    "QUANTITY_GRAMMAR",
+    "RANGES",
+    "SI_UNITS",
+    "SYSTEMS",
+    "UnitError",
+    "UnitSystem",
+    "as_si",
+    "as_si_array",
+    "check_range",
+    "convert",
+    "display_units",
+    "parse_quantity_string",
+    "parse_unit_override",
+    "registry",
+    "si_or_number",
+    "to_si",
+    "unit_label",
+]
 
 #: The SI unit downhole stores for each physical dimension name used in parameter schemas.
 SI_UNITS: dict[str, str] = {
@@ -192,11 +208,11 @@ def parse_quantity_string(value: str) -> tuple[float, str]:
     if not math.isfinite(number):
         raise UnitError(f"quantity {value!r} is not a finite number")
     unit = value[m.end():].strip()
+    # '10rad/s' is fine for pint, but '1e5e5' or '1.2.3 m' is not a number
     if unit and m.end() < len(value) and not value[m.end()].isspace() \
-            and value[m.end()] not in "*/":
-        # '10rad/s' is fine for pint, but '1e5e5' or '1.2.3 m' is not a number
-        if not (value[m.end()].isalpha() or value[m.end()] in "\u00b5\u03bc\u00b0\u03a9"):
-            raise UnitError(f"cannot parse quantity {value!r}: expected a number and a unit")
+            and value[m.end()] not in "*/" \
+            and not (value[m.end()].isalpha() or value[m.end()] in "\u00b5\u03bc\u00b0\u03a9"):
+        raise UnitError(f"cannot parse quantity {value!r}: expected a number and a unit")
     _check_unit_expression(unit, value)
     return number, unit
 
@@ -220,7 +236,7 @@ def check_range(value: float, dimension: str) -> float:
     return value
 
 
-def to_si(value: float | int | str, dimension: str) -> float:
+def to_si(value: float | str, dimension: str) -> float:
     """Convert ``value`` to the SI unit of ``dimension``.
 
     Parameters
@@ -274,7 +290,7 @@ def to_si(value: float | int | str, dimension: str) -> float:
         number, unit = parse_quantity_string(value)
         try:
             q = ureg.Quantity(number, unit) if unit else ureg.Quantity(number)
-        except Exception as exc:  # pint raises several error types  # noqa: BLE001
+        except Exception as exc:  # pint raises several error types
             raise UnitError(f"cannot parse quantity {value!r}: {exc}") from None
     try:
         if target == "":
@@ -287,7 +303,7 @@ def to_si(value: float | int | str, dimension: str) -> float:
             f"quantity {value!r} has unit '{q.units}', which cannot be converted to "
             f"{target or 'a plain number'}"
         ) from None
-    except Exception as exc:  # offset units (degC) and other pint refusals  # noqa: BLE001
+    except Exception as exc:  # offset units (degC) and other pint refusals
         raise UnitError(f"cannot convert quantity {value!r} to {target or 'a number'}: "
                         f"{exc}") from None
     try:
@@ -312,7 +328,7 @@ def _own_quantity(value):
         return value
     try:
         return ureg.Quantity(value.magnitude, str(value.units))
-    except Exception as exc:  # noqa: BLE001 - a unit our registry does not know
+    except Exception as exc:
         raise UnitError(f"cannot use quantity {value!r}: {exc}") from None
 
 
@@ -538,7 +554,7 @@ def _check_override(key: str, unit: str) -> tuple[str, str]:
     except pint.DimensionalityError:
         raise UnitError(f"unit override {key}={unit}: {unit} is not a unit of "
                         f"{dim.replace('_', ' ')} (SI: {si or '-'})") from None
-    except Exception as exc:  # noqa: BLE001 - unknown unit names, offset units
+    except Exception as exc:
         raise UnitError(f"unit override {key}={unit}: {exc}") from None
     return dim, si
 
@@ -644,7 +660,7 @@ class UnitSystem:
             units[k] = unit if unit not in ("",) else "-"
         return values, units
 
-    def for_figures(self) -> "UnitSystem":
+    def for_figures(self) -> UnitSystem:
         """The units of figures: this system, except that ``si`` shows forces in kN, torques in
         kN·m, velocities in mm/s, rotary speeds in rpm and pressures in MPa."""
         return UnitSystem(self.name, dict(self.overrides), True)

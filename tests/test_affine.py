@@ -18,7 +18,7 @@ def _model(nonlinear=None, **kw):
 
 
 def test_scaling_matches_physical_step():
-    h = lambda z: np.stack([np.zeros(len(z)), -0.01 * z[:, 1] ** 3], axis=1)  # noqa: E731
+    h = lambda z: np.stack([np.zeros(len(z)), -0.01 * z[:, 1] ** 3], axis=1)
     m = _model(h)
     z = np.array([0.3, -0.4])
     u = np.array([7.0])
@@ -31,7 +31,7 @@ def test_scaling_matches_physical_step():
 
 
 def test_exact_jacobian_is_analytic():
-    h = lambda z: np.stack([np.zeros(len(z)), -0.01 * z[:, 1] ** 3], axis=1)  # noqa: E731
+    h = lambda z: np.stack([np.zeros(len(z)), -0.01 * z[:, 1] ** 3], axis=1)
     m = _model(h)
     zb = np.array([0.2, 0.7])
     J = m.jacobian(zb, kind="exact")
@@ -86,7 +86,7 @@ def test_structured_force_form_equals_nonlinear_form():
               input_names=["slack_off_force"])
     s = ControlAffineModel.from_physical(A, B, force_map=fmap,
                                          forces=lambda zb: -3.0 * np.tanh(zb[:, 1:2]), **kw)
-    h = lambda z: -3.0 * np.tanh(z[:, 1:2] / 0.5) @ fmap.T  # noqa: E731
+    h = lambda z: -3.0 * np.tanh(z[:, 1:2] / 0.5) @ fmap.T
     u = ControlAffineModel.from_physical(A, B, nonlinear_physical=h, **kw)
     Z = np.random.default_rng(1).normal(size=(4, 2))
     np.testing.assert_allclose(s.f(Z), u.f(Z), rtol=1e-12)

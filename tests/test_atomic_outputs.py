@@ -34,9 +34,18 @@ import numpy as np
 import pytest
 
 import downhole
-from downhole._atomic import (MARKER, PAUSE_ENV, OutputFile, OutputFolder, atomic_path,
-                              check_output_path, is_incomplete, temp_path, write_json_atomic,
-                              write_text_atomic)
+from downhole._atomic import (
+    MARKER,
+    PAUSE_ENV,
+    OutputFile,
+    OutputFolder,
+    atomic_path,
+    check_output_path,
+    is_incomplete,
+    temp_path,
+    write_json_atomic,
+    write_text_atomic,
+)
 from downhole.cli import main
 from downhole.errors import DownholeInputError
 from downhole.sim.result import Result, load_result
@@ -223,19 +232,17 @@ def test_atomic_path_replaces_only_on_success_and_keeps_the_suffix(tmp_path):
     final = tmp_path / "a.npz"
     final.write_text("previous")
     assert temp_path(final).name == f".a.part-{os.getpid()}.npz"
-    with pytest.raises(RuntimeError, match="writer broke"):
-        with atomic_path(final) as tmp:
-            tmp.write_text("half")
-            raise RuntimeError("writer broke")
+    with pytest.raises(RuntimeError, match="writer broke"), atomic_path(final) as tmp:
+        tmp.write_text("half")
+        raise RuntimeError("writer broke")
     assert final.read_text() == "previous"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npz"]  # temporary removed
     with atomic_path(final) as tmp:
         np.savez(tmp, x=np.arange(3))  # savez keeps a name that ends in .npz
     with np.load(final) as z:
         assert z["x"].tolist() == [0, 1, 2]
-    with pytest.raises(RuntimeError, match="produced no file"):
-        with atomic_path(tmp_path / "b.txt"):
-            pass
+    with pytest.raises(RuntimeError, match="produced no file"), atomic_path(tmp_path / "b.txt"):
+        pass
     assert not (tmp_path / "b.txt").exists()
 
 

@@ -10,9 +10,16 @@ import numpy as np
 import pytest
 
 from downhole.analysis.metrics import stick_slip_severity
-from downhole.control import (BASELINES, AutoDriller, SoftSpeed, TopDriveSpeedPI,
-                              autodriller_gains, reflection_coefficient, softspeed_tuning,
-                              stick_slip_frequency)
+from downhole.control import (
+    BASELINES,
+    AutoDriller,
+    SoftSpeed,
+    TopDriveSpeedPI,
+    autodriller_gains,
+    reflection_coefficient,
+    softspeed_tuning,
+    stick_slip_frequency,
+)
 from downhole.control.base import check_pair, run_closed_loop
 from downhole.errors import DownholeInputError
 from downhole.params.rig import Hook, TopDrive

@@ -105,7 +105,9 @@ def test_bit_params_validation():
 
 # ---- the interface: analytic slopes, the Aarsnes & van de Wouw law, law selection -----------
 
-from downhole.bit import LAWS, bit_forces_and_slopes_py, law_id  # noqa: E402
+import itertools
+
+from downhole.bit import LAWS, bit_forces_and_slopes_py, law_id
 
 AARSNES = BIT.model_copy(update={"law": "aarsnes"})  # F_c = sigma l a = 24.3 kN, d_c = 10 um
 
@@ -223,7 +225,7 @@ def test_aarsnes_torque_to_weight_ratio_tends_to_the_cutting_ratio():
         wob, tob = bit_forces_py(d, 0.01, 10.0, AARSNES)
         errs.append(abs(tob / wob - cut))
     assert errs[-1] < 2e-3 * cut
-    for e0, e1 in zip(errs, errs[1:]):
+    for e0, e1 in itertools.pairwise(errs):
         assert e1 < e0
     assert errs[2] / errs[3] == pytest.approx(10.0, rel=0.05)
 

@@ -13,8 +13,7 @@ import math
 import numpy as np
 import pytest
 
-import downhole.bit.law as law
-from downhole.bit import bit_forces, bit_forces_py, solve_bit_node
+from downhole.bit import bit_forces, bit_forces_py, law, solve_bit_node
 from downhole.params import get_preset
 
 BIT_21 = get_preset("table_2_1").bit

@@ -15,8 +15,14 @@ import numpy as np
 import pytest
 
 from downhole.cli import main
-from downhole.compare import (BUILTIN, SUITE_VERSIONS, SUITES, compare_controllers, gym_policy,
-                              register)
+from downhole.compare import (
+    BUILTIN,
+    SUITE_VERSIONS,
+    SUITES,
+    compare_controllers,
+    gym_policy,
+    register,
+)
 from downhole.compare.runner import case_plant, score_run
 from downhole.compare.suite import NOISE, Case
 from downhole.control.base import Controller

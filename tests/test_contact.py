@@ -116,8 +116,12 @@ def test_contact_elements_skip_straight_vertical_and_unflagged():
 
 
 def test_fem_elements_reproduce_johancsik_and_numpy_form_matches_compiled():
-    from downhole.contact import (element_normal_half, friction_damper, nodal_friction_forces,
-                                  normal_force_per_length)
+    from downhole.contact import (
+        element_normal_half,
+        friction_damper,
+        nodal_friction_forces,
+        normal_force_per_length,
+    )
     from downhole.string.fem import fem_model
 
     well = WellPath.from_sections([Vertical(300), Arc(600, 0.8, azimuth=0.2),

@@ -24,10 +24,18 @@ from downhole.analysis.metrics import stick_slip_severity
 from downhole.control.base import Controller
 from downhole.errors import DownholeInputError
 from downhole.sil import RealTimeRunner, build_plant, pi_controller_for
-from downhole.sil.controllers import (ManualFill, plant_stick_slip_frequency,
-                                      plant_torsional_impedance)
-from downhole.sil.dashboard import (UNIT_SYSTEMS, DashboardSession, display_units, make_app,
-                                    rolling_severity)
+from downhole.sil.controllers import (
+    ManualFill,
+    plant_stick_slip_frequency,
+    plant_torsional_impedance,
+)
+from downhole.sil.dashboard import (
+    UNIT_SYSTEMS,
+    DashboardSession,
+    display_units,
+    make_app,
+    rolling_severity,
+)
 from downhole.sil.testing import ServerThread, free_port
 
 CHROMIUM = "/usr/bin/chromium"

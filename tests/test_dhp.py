@@ -4,10 +4,19 @@ import numpy as np
 import pytest
 
 from downhole.control.affine import ControlAffineModel
-from downhole.control.dhp import (METHODS, BitReference, DHPProblem, DHPSettings,
-                                  PenaltyWeights, TrainingDiverged, build_problem,
-                                  finite_horizon_lqr, lumped_affine_model, table_4_1_weights,
-                                  train_dhp)
+from downhole.control.dhp import (
+    METHODS,
+    BitReference,
+    DHPProblem,
+    DHPSettings,
+    PenaltyWeights,
+    TrainingDiverged,
+    build_problem,
+    finite_horizon_lqr,
+    lumped_affine_model,
+    table_4_1_weights,
+    train_dhp,
+)
 from downhole.errors import DownholeInputError
 
 
@@ -233,8 +242,8 @@ def test_modal_riccati_matches_closed_form_numpy_and_threads_on_fem():
     """The fast trainer (modal Riccati form, fused compiled samples/forces/fit, 1 or 2 threads)
     gives Algorithm 1's fixed point: the closed form in the original coordinates on the same
     samples, and the plain-NumPy version of the same trainer."""
-    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
     from downhole.control.dhp.baseline import riccati_numpy
+    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
 
     design = directional_affine_model(table_5_1_models()[0])
     pb = build_problem(design, BitReference.step(), 0.12, PenaltyWeights())

@@ -6,13 +6,19 @@ import math
 import numpy as np
 import pytest
 
-from downhole.control.dhp import (BitReference, DHPSettings, PenaltyWeights, design_dhp,
-                                  load_controller,
-                                  lumped_affine_model, lumped_true_plant, run_design_model,
-                                  run_on_plant)
+from downhole.control.dhp import (
+    BitReference,
+    DHPSettings,
+    PenaltyWeights,
+    design_dhp,
+    load_controller,
+    lumped_affine_model,
+    lumped_true_plant,
+    run_design_model,
+    run_on_plant,
+)
 from downhole.errors import DownholeInputError
 from downhole.sim.result import REQUIRED_CHANNELS
-
 
 #: weights that suit the 4-state lumped model (Table 2.1's slow string driven by top displacements)
 LUMPED = PenaltyWeights(bit_velocity=(1000.0, 1000.0), bit_position=(1.0, 1.0), r=(1.0, 0.1))

@@ -3,10 +3,21 @@
 import numpy as np
 import pytest
 
-from downhole.control.dhp import (BitReference, DHPSettings, DirectionalStatePlant, PenaltyWeights,
-                                  design_dhp, load_controller, run_on_plant)
-from downhole.control.dhp.plan import (PlannedTrajectory, PlanSettings, plan_trajectory,
-                                       planned_controller)
+from downhole.control.dhp import (
+    BitReference,
+    DHPSettings,
+    DirectionalStatePlant,
+    PenaltyWeights,
+    design_dhp,
+    load_controller,
+    run_on_plant,
+)
+from downhole.control.dhp.plan import (
+    PlannedTrajectory,
+    PlanSettings,
+    plan_trajectory,
+    planned_controller,
+)
 from downhole.errors import DownholeInputError
 
 SHORT = PlanSettings(duration=3.0, knot_spacing=0.5, n_knots=5, settle_from=2.0, late_from=2.5,

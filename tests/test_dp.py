@@ -6,9 +6,18 @@ import numpy as np
 import pytest
 
 from downhole.bit.law import approx_depth_of_cut, bit_forces
-from downhole.control.dp import (DPProblem, best_constant_velocities, ensemble_costs,
-                                 load_solution, replay_discrete, replay_path, solve_customized,
-                                 solve_robust, solve_standard, trajectory_cost)
+from downhole.control.dp import (
+    DPProblem,
+    best_constant_velocities,
+    ensemble_costs,
+    load_solution,
+    replay_discrete,
+    replay_path,
+    solve_customized,
+    solve_robust,
+    solve_standard,
+    trajectory_cost,
+)
 from downhole.errors import DownholeInputError
 
 

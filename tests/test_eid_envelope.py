@@ -13,14 +13,28 @@ import math
 import numpy as np
 import pytest
 
-from downhole.control.eid.envelope import (ENVELOPE_CANDIDATES, EIDSchedule, envelope_point,
-                                           open_loop_abscissa, operating_point, settle_metrics)
+from downhole.control.eid.envelope import (
+    ENVELOPE_CANDIDATES,
+    EIDSchedule,
+    envelope_point,
+    open_loop_abscissa,
+    operating_point,
+    settle_metrics,
+)
 from downhole.control.eid.predictor import PredictiveEID, predictive_closed_loop
-from downhole.control.eid.references import (constant_reference, envelope_tracking_reference,
-                                             rotate_then_drill, seed_tracking_reference,
-                                             startup_reference, startup_time)
-from downhole.control.eid.stability import (_bit_rock_gains, channel_loop_matrices,
-                                            regenerative_closed_loop)
+from downhole.control.eid.references import (
+    constant_reference,
+    envelope_tracking_reference,
+    rotate_then_drill,
+    seed_tracking_reference,
+    startup_reference,
+    startup_time,
+)
+from downhole.control.eid.stability import (
+    _bit_rock_gains,
+    channel_loop_matrices,
+    regenerative_closed_loop,
+)
 from downhole.errors import DownholeInputError
 from downhole.string.neutral import neutral_model, simulate_neutral
 

@@ -56,8 +56,8 @@ def test_to_pandas_after_a_netcdf_round_trip(tmp_path):
 
 
 def test_plot_returns_the_figure_and_saves_when_given_a_path(tmp_path):
-    from matplotlib.figure import Figure
     import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     from downhole.sim import SurfaceInputs, simulate
     from downhole.sim.lumped_model import lumped_model
@@ -130,8 +130,14 @@ def test_to_control_matches_python_controls_own_zoh(fem6):
 
 # ---------------------------------------------------------------------------------- MSE
 def test_mse_is_finite_in_a_dhp_closed_loop_result():
-    from downhole.control.dhp import (BitReference, PenaltyWeights, design_dhp,
-                                      lumped_affine_model, lumped_true_plant, run_on_plant)
+    from downhole.control.dhp import (
+        BitReference,
+        PenaltyWeights,
+        design_dhp,
+        lumped_affine_model,
+        lumped_true_plant,
+        run_on_plant,
+    )
 
     model = lumped_affine_model("table_2_1", dt=1e-3)
     w = PenaltyWeights(bit_velocity=(1000.0, 1000.0), bit_position=(1.0, 1.0), r=(1.0, 0.1))

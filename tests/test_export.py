@@ -7,10 +7,10 @@ import pytest
 
 lasio = pytest.importorskip("lasio")
 
-from downhole.cli import main  # noqa: E402
-from downhole.io import read_las, write_las  # noqa: E402
-from downhole.sim import Result, SurfaceInputs, simulate  # noqa: E402
-from downhole.sim.lumped_model import lumped_model  # noqa: E402
+from downhole.cli import main
+from downhole.io import read_las, write_las
+from downhole.sim import Result, SurfaceInputs, simulate
+from downhole.sim.lumped_model import lumped_model
 
 
 @pytest.fixture(scope="module")

@@ -11,8 +11,14 @@ import pytest
 
 from downhole.control.dhp.weight_sets import REGISTRY, weight_set, weight_set_names
 from downhole.errors import DownholeInputError
-from downhole.string.neutral import (NEUTRAL_KERNEL_ARGS, NOMINAL_U_A, NOMINAL_U_T,
-                                     _run_neutral, neutral_model, simulate_neutral)
+from downhole.string.neutral import (
+    NEUTRAL_KERNEL_ARGS,
+    NOMINAL_U_A,
+    NOMINAL_U_T,
+    _run_neutral,
+    neutral_model,
+    simulate_neutral,
+)
 
 UPPER = ("control", "sil", "cli", "experiments", "report", "bench", "sweep", "gym")
 

@@ -8,7 +8,7 @@ import pytest
 from downhole.errors import DownholeInputError
 from downhole.params import NeutralStringParams, PipeSection
 from downhole.string._reference_fd import simulate_fd
-from downhole.string.neutral import (NOMINAL_U_A, NOMINAL_U_T, neutral_model, simulate_neutral)
+from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, neutral_model, simulate_neutral
 
 
 def _rel_rms(ref, val):

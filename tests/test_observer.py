@@ -10,11 +10,19 @@ import math
 import numpy as np
 import pytest
 
-from downhole.control.observer import (DEFAULT_SURFACE_NOISE, FEM_MEASUREMENTS,
-                                       NEUTRAL_MEASUREMENTS, KalmanObserver, MeasurementNoise,
-                                       NeutralSurfaceObserver, SurfaceFeedback,
-                                       bit_law_jacobian, eid_from_surface, fem_surface_observer,
-                                       steady_state_gain)
+from downhole.control.observer import (
+    DEFAULT_SURFACE_NOISE,
+    FEM_MEASUREMENTS,
+    NEUTRAL_MEASUREMENTS,
+    KalmanObserver,
+    MeasurementNoise,
+    NeutralSurfaceObserver,
+    SurfaceFeedback,
+    bit_law_jacobian,
+    eid_from_surface,
+    fem_surface_observer,
+    steady_state_gain,
+)
 from downhole.errors import DownholeInputError
 from downhole.signals import SIGNALS
 
@@ -287,8 +295,7 @@ def test_kalman_observer_refuses_mismatched_names():
 @pytest.mark.slow
 def test_eid_regulates_from_the_surface_within_the_stated_bound():
     from downhole.experiments.ch3_eid import _errors
-    from downhole.experiments.ch7_observer import (EID_OMEGA_BOUND, EID_ROP_BOUND,
-                                                   run_eid_surface)
+    from downhole.experiments.ch7_observer import EID_OMEGA_BOUND, EID_ROP_BOUND, run_eid_surface
 
     e_rop, e_w = _errors(run_eid_surface(quick=True))
     assert e_rop < EID_ROP_BOUND and e_w < EID_OMEGA_BOUND
@@ -296,8 +303,12 @@ def test_eid_regulates_from_the_surface_within_the_stated_bound():
 
 @pytest.mark.slow
 def test_dhp_step_from_the_surface_within_the_stated_bound():
-    from downhole.experiments.ch7_observer import (DHP_ANGULAR_BOUND, DHP_AXIAL_BOUND,
-                                                   _dhp_measure, run_dhp_surface)
+    from downhole.experiments.ch7_observer import (
+        DHP_ANGULAR_BOUND,
+        DHP_AXIAL_BOUND,
+        _dhp_measure,
+        run_dhp_surface,
+    )
 
     m = _dhp_measure(run_dhp_surface(quick=False))
     assert m["stuck_fraction"] == 0.0

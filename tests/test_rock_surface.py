@@ -11,8 +11,14 @@ import math
 import numpy as np
 import pytest
 
-from downhole.bit.rock_surface import (RockSurfaceSpec, rock_advance, rock_advance_to, rock_depth,
-                                       rock_depth_at, rock_init)
+from downhole.bit.rock_surface import (
+    RockSurfaceSpec,
+    rock_advance,
+    rock_advance_to,
+    rock_depth,
+    rock_depth_at,
+    rock_init,
+)
 
 N_BLADES = 5
 PITCH = 2 * math.pi / N_BLADES

@@ -6,9 +6,9 @@ import textwrap
 import numpy as np
 import pytest
 
+from downhole.analysis.metrics import SUMMARY_KEYS
 from downhole.cli import main
 from downhole.sim import load_result
-from downhole.analysis.metrics import SUMMARY_KEYS
 
 GOOD = """
 title = "short nominal"

@@ -15,8 +15,7 @@ from scipy.optimize import brentq
 from downhole.cli import main
 from downhole.errors import ScenarioError
 from downhole.scenario import load_scenario, run_scenario, validate_data
-from downhole.scenario.system import (FIDELITY_NAMES, steady_bit_state,
-                                      validate_system_scenario)
+from downhole.scenario.system import FIDELITY_NAMES, steady_bit_state, validate_system_scenario
 from downhole.sim import load_result
 from downhole.system import FIDELITIES, _chain_frequencies
 

@@ -271,9 +271,9 @@ def test_wrong_shapes_in_directional_tables(tmp_path):
 
 def test_every_reader_refuses_hostile_files(tmp_path, guard):
     """SIL, DP, DHP design, EID design and sweep readers go through the same checks."""
-    from downhole.scenario.dhp import load_dhp_scenario
     from downhole.cli.design_eid import load_eid_scenario
     from downhole.control.dp import load_problem
+    from downhole.scenario.dhp import load_dhp_scenario
     from downhole.sil.scenario import load_sil_scenario
     from downhole.sweep import load_sweep_file
 

@@ -6,8 +6,15 @@ import math
 import pint
 import pytest
 
-from downhole.signals import (METRICS, SIGNALS, STANDARD_CHANNELS, check_command_value,
-                              register_signal, signal, unit_of)
+from downhole.signals import (
+    METRICS,
+    SIGNALS,
+    STANDARD_CHANNELS,
+    check_command_value,
+    register_signal,
+    signal,
+    unit_of,
+)
 from downhole.units import SI_UNITS
 
 UREG = pint.UnitRegistry()

@@ -6,8 +6,18 @@ import zlib
 import numpy as np
 import pytest
 
-from downhole.sil.protocol import (HEADER_SIZE, MAGIC, VERSION, Layout, MalformedPacket,
-                                   MsgType, pack, pack_layout, unpack, unpack_layout)
+from downhole.sil.protocol import (
+    HEADER_SIZE,
+    MAGIC,
+    VERSION,
+    Layout,
+    MalformedPacket,
+    MsgType,
+    pack,
+    pack_layout,
+    unpack,
+    unpack_layout,
+)
 
 
 def test_header_byte_layout_matches_the_documented_offsets():

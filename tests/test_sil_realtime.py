@@ -12,8 +12,13 @@ import time
 import numpy as np
 import pytest
 
-from downhole.sil import (ControllerClient, RealTimeRunner, SafetyPolicy, build_plant,
-                          pi_controller_for)
+from downhole.sil import (
+    ControllerClient,
+    RealTimeRunner,
+    SafetyPolicy,
+    build_plant,
+    pi_controller_for,
+)
 from downhole.sil.protocol import MsgType, pack
 from downhole.sil.testing import ControllerProcess, ch6_dhp, free_port
 
@@ -38,8 +43,8 @@ def _offline_pi(plant, ctrl, duration, every=10):
         o = dict(obs, reference_axial_velocity=0.01, reference_angular_velocity=20.0)
         obs = plant.step(ctrl.command(k * plant.dt, o, ref))
         if (k + 1) % every == 0:
-            for c in out:
-                out[c].append(obs[c])
+            for c, trace in out.items():
+                trace.append(obs[c])
     return {c: np.array(v) for c, v in out.items()}
 
 

@@ -8,8 +8,14 @@ import numpy as np
 import pytest
 
 from downhole.errors import DownholeInputError, ScenarioError
-from downhole.sil import (ControllerClient, RealTimeRunner, RingRecorder, build_plant,
-                          load_chunks, pi_controller_for)
+from downhole.sil import (
+    ControllerClient,
+    RealTimeRunner,
+    RingRecorder,
+    build_plant,
+    load_chunks,
+    pi_controller_for,
+)
 from downhole.sil.scenario import parse_sil_scenario
 
 

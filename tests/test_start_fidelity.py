@@ -8,8 +8,13 @@ import pytest
 
 from downhole.errors import DownholeInputError
 from downhole.sim.plant import Plant
-from downhole.string.neutral import (NOMINAL_U_A, NOMINAL_U_T, NeutralPlant, neutral_model,
-                                     simulate_neutral)
+from downhole.string.neutral import (
+    NOMINAL_U_A,
+    NOMINAL_U_T,
+    NeutralPlant,
+    neutral_model,
+    simulate_neutral,
+)
 
 
 def _hand_bit_forces(bit, d, v, omega):

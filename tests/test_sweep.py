@@ -13,8 +13,7 @@ import pytest
 
 from downhole.errors import DownholeInputError
 from downhole.scenario import run_scenario
-from downhole.sweep import (failed_cases, load_sweep, run_sweep, save_sweep,
-                            stability_map)
+from downhole.sweep import failed_cases, load_sweep, run_sweep, save_sweep, stability_map
 
 BASE = {
     "title": "sweep test",

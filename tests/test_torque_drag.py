@@ -4,6 +4,7 @@ calculations, an independent ODE solution and welleng's soft-string model on two
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import math
 import warnings
@@ -148,7 +149,7 @@ def _arc_ode(well_radius, kop, angle, length, w, mu, sign, r, t_bit=0.0, m_bit=0
 
     y = [t_bit, m_bit]
     bounds = sorted({length, min(arc_end, length), kop, 0.0}, reverse=True)
-    for a, b in zip(bounds[:-1], bounds[1:]):
+    for a, b in itertools.pairwise(bounds):
         sol = solve_ivp(rhs, (a, b), y, rtol=1e-11, atol=1e-6, method="DOP853")
         y = sol.y[:, -1]
     return y

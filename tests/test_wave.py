@@ -7,9 +7,18 @@ import pytest
 
 from downhole.errors import DownholeInputError
 from downhole.params import NeutralStringParams, get_preset
-from downhole.sim.wave import (WaveSegment, segments_from_pipe, static_end_forces,
-                               wave_end_forces, wave_incoming, wave_outgoing, wave_push,
-                               wave_source_forces, wave_state, wave_step)
+from downhole.sim.wave import (
+    WaveSegment,
+    segments_from_pipe,
+    static_end_forces,
+    wave_end_forces,
+    wave_incoming,
+    wave_outgoing,
+    wave_push,
+    wave_source_forces,
+    wave_state,
+    wave_step,
+)
 
 
 def _run_line(seg, dt, n, v_b_fn, c_end):

@@ -2,4 +2,4 @@
 
 from downhole.analysis.metrics import SUMMARY_KEYS, stick_slip_severity, summarize
 
-__all__ = ["summarize", "stick_slip_severity", "SUMMARY_KEYS"]
+__all__ = ["SUMMARY_KEYS", "stick_slip_severity", "summarize"]

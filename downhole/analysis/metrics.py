@@ -6,8 +6,13 @@ import math
 
 import numpy as np
 
-__all__ = ["summarize", "stick_slip_severity", "stick_slip_severity_series", "SUMMARY_KEYS",
-           "STUCK_THRESHOLD"]
+__all__ = [
+    "STUCK_THRESHOLD",
+    "SUMMARY_KEYS",
+    "stick_slip_severity",
+    "stick_slip_severity_series",
+    "summarize",
+]
 
 #: |bit angular velocity| below this counts as stuck, rad/s.
 STUCK_THRESHOLD = 0.1

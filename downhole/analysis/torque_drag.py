@@ -14,13 +14,21 @@ import math
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from downhole.analysis.plots import save_figure  # noqa: E402
+from downhole.analysis.plots import save_figure
 
-__all__ = ["survey_table", "torque_drag_table", "display_table", "write_csv", "summary",
-           "plot_broomstick", "plot_profiles", "plot_survey"]
+__all__ = [
+    "display_table",
+    "plot_broomstick",
+    "plot_profiles",
+    "plot_survey",
+    "summary",
+    "survey_table",
+    "torque_drag_table",
+    "write_csv",
+]
 
 # the cases of downhole.string.torque_drag.CASES (not imported: the core's sim imports this
 # package, so analysis must not import the string package)
@@ -241,9 +249,9 @@ def plot_survey(well, path, azimuth: float | None = None, title: str | None = No
     md = np.linspace(well.top_depth, well.total_depth, 1001)
     md = np.unique(np.concatenate([md, well.stations["md"]]))
     cols = survey_table(well, md, azimuth)
-    L = lambda v: _conv(u, np.asarray(v, float), "m")[0]  # noqa: E731
+    L = lambda v: _conv(u, np.asarray(v, float), "m")[0]
     lu = _conv(u, 1.0, "m")[1]
-    K = lambda v: _conv(u, v, "deg_per_30m")[0]  # noqa: E731
+    K = lambda v: _conv(u, v, "deg_per_30m")[0]
     ku = _conv(u, 1.0, "deg_per_30m")[1]
     st = well.stations
     az = well.closure()[1] if azimuth is None else azimuth

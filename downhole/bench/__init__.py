@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 from downhole._timing import timed
 
-__all__ = ["BenchOutcome", "bench_case", "all_cases", "run_bench", "timed"]
+__all__ = ["BenchOutcome", "all_cases", "bench_case", "run_bench", "timed"]
 
 
 @dataclass
@@ -91,8 +91,8 @@ def run_bench(quick: bool = False, names: list[str] | None = None, progress=None
                      "ratio": ratio, "seed_seconds": case.seed_seconds,
                      "ratio_to_seed": (case.seed_seconds / out.seconds) if case.seed_seconds
                      else None, **({"extra": out.extra} if out.extra else {})})
-    import platform
     import os
+    import platform
 
     return {"machine": {"platform": platform.platform(), "processor": platform.processor(),
                         "cpus": os.cpu_count(), "python": platform.python_version()},

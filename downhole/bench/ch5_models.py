@@ -10,7 +10,6 @@ ODE solver cannot integrate the delay line directly.
 
 from __future__ import annotations
 
-
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.linalg import solve_banded
@@ -19,7 +18,7 @@ from downhole._timing import best_time
 from downhole.bench import BenchOutcome, bench_case, timed
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
-__all__ = ["lsoda_seconds", "best_time"]
+__all__ = ["best_time", "lsoda_seconds"]
 
 
 def _ode_rhs(model, top_speed=10.0, wob=120e3, kp=1e4, ki=2e3, j_td=DEFAULT_TOP_DRIVE_INERTIA):

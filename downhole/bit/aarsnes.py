@@ -20,11 +20,20 @@ from __future__ import annotations
 
 from numba import njit
 
-from downhole.bit.detournay import (contact_speed_factor, cutting, friction_coefficient,
-                                    friction_sign)
+from downhole.bit.detournay import (
+    contact_speed_factor,
+    cutting,
+    friction_coefficient,
+    friction_sign,
+)
 
-__all__ = ["aarsnes_contact_force", "aarsnes_friction_factor", "aarsnes_wob", "aarsnes_torque",
-           "aarsnes_forces_and_slopes"]
+__all__ = [
+    "aarsnes_contact_force",
+    "aarsnes_forces_and_slopes",
+    "aarsnes_friction_factor",
+    "aarsnes_torque",
+    "aarsnes_wob",
+]
 
 
 @njit(cache=True, inline="always")

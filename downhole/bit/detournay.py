@@ -20,9 +20,17 @@ import math
 
 from numba import njit
 
-__all__ = ["cutting", "contact_speed_factor", "friction_coefficient", "friction_sign",
-           "friction_factor", "wear_flat_force", "detournay_wob", "detournay_torque",
-           "detournay_forces_and_slopes"]
+__all__ = [
+    "contact_speed_factor",
+    "cutting",
+    "detournay_forces_and_slopes",
+    "detournay_torque",
+    "detournay_wob",
+    "friction_coefficient",
+    "friction_factor",
+    "friction_sign",
+    "wear_flat_force",
+]
 
 
 @njit(cache=True, inline="always")

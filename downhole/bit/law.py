@@ -44,16 +44,37 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from downhole.bit.aarsnes import (aarsnes_contact_force, aarsnes_forces_and_slopes,
-                                  aarsnes_torque, aarsnes_wob)
-from downhole.bit.detournay import (detournay_forces_and_slopes, detournay_torque,
-                                    detournay_wob, wear_flat_force)
+from downhole.bit.aarsnes import (
+    aarsnes_contact_force,
+    aarsnes_forces_and_slopes,
+    aarsnes_torque,
+    aarsnes_wob,
+)
+from downhole.bit.detournay import (
+    detournay_forces_and_slopes,
+    detournay_torque,
+    detournay_wob,
+    wear_flat_force,
+)
 from downhole.params.bit import LAW_IDS, BitKernelParams, BitParams
 
-__all__ = ["BitLaw", "LAWS", "law_id", "bit_forces", "bit_forces_and_slopes",
-           "bit_wob", "bit_contact_force", "bit_torque_at_contact",
-           "approx_depth_of_cut", "approx_depth_rate", "bit_force_slopes", "solve_bit_node",
-           "bit_forces_py", "bit_forces_vec", "bit_forces_and_slopes_py"]
+__all__ = [
+    "LAWS",
+    "BitLaw",
+    "approx_depth_of_cut",
+    "approx_depth_rate",
+    "bit_contact_force",
+    "bit_force_slopes",
+    "bit_forces",
+    "bit_forces_and_slopes",
+    "bit_forces_and_slopes_py",
+    "bit_forces_py",
+    "bit_forces_vec",
+    "bit_torque_at_contact",
+    "bit_wob",
+    "law_id",
+    "solve_bit_node",
+]
 
 
 @dataclass(frozen=True)
@@ -158,8 +179,7 @@ def bit_forces(d, v, omega, p):
 def approx_depth_of_cut(v, omega, p):
     """Approximated total depth of cut d = 2 pi v / max(omega, omega*) (Eqs. 2.11, 4.16), m."""
     w = omega
-    if w < p.omega_floor:
-        w = p.omega_floor
+    w = max(w, p.omega_floor)
     return 2.0 * math.pi * v / w
 
 
@@ -167,8 +187,7 @@ def approx_depth_of_cut(v, omega, p):
 def approx_depth_rate(omega, p):
     """dd/dv of the approximated depth of cut: 2 pi / max(omega, omega*), s."""
     w = omega
-    if w < p.omega_floor:
-        w = p.omega_floor
+    w = max(w, p.omega_floor)
     return 2.0 * math.pi / w
 
 

@@ -25,8 +25,16 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["RockSurfaceSpec", "RockSurfaceParams", "rock_init", "rock_init_helix", "rock_depth",
-           "rock_advance", "rock_depth_at", "rock_advance_to"]
+__all__ = [
+    "RockSurfaceParams",
+    "RockSurfaceSpec",
+    "rock_advance",
+    "rock_advance_to",
+    "rock_depth",
+    "rock_depth_at",
+    "rock_init",
+    "rock_init_helix",
+]
 
 
 class RockSurfaceParams(NamedTuple):
@@ -109,16 +117,13 @@ def rock_depth_at(surf, j_next, theta_ref, h, nb, cap, nbl, x, theta):
     jf = (theta - theta_ref) / h
     if jf >= j_next - 1:
         q = jf - nb
-        if q > j_next - 1.0:
-            q = j_next - 1.0
-        if q < j_next - cap + 1.0:
-            q = j_next - cap + 1.0
+        q = min(q, j_next - 1.0)
+        q = max(q, j_next - cap + 1.0)
         if q == j_next - 1.0:
             q = q - 1e-12
     else:
         q = jf
-        if q < j_next - cap + 1.0:
-            q = j_next - cap + 1.0
+        q = max(q, j_next - cap + 1.0)
     j0 = int(math.floor(q))
     f = q - j0
     s0 = surf[j0 & mask]
@@ -141,8 +146,7 @@ def rock_advance_to(surf, j_next, theta_ref, h, nb, cap, memory, theta_prev, x_p
     mask = cap - 1
     j_lo = int(math.floor(a0)) + 1
     j_hi = int(math.floor(a1))
-    if j_lo < j_next - cap + nb + 1:
-        j_lo = j_next - cap + nb + 1
+    j_lo = max(j_lo, j_next - cap + nb + 1)
     if j_hi - j_lo >= cap - nb:
         # more than the ring in one step (a runaway): only the last points can be kept
         j_lo = j_hi - cap + nb + 1
@@ -152,12 +156,11 @@ def rock_advance_to(surf, j_next, theta_ref, h, nb, cap, memory, theta_prev, x_p
         if j >= j_next:
             if memory:
                 below = surf[(j - nb) & mask]
-                surf[j & mask] = xj if xj > below else below
+                surf[j & mask] = max(below, xj)
             else:
                 surf[j & mask] = xj
         elif memory:
-            if xj > surf[j & mask]:
-                surf[j & mask] = xj
+            surf[j & mask] = max(surf[j & mask], xj)
     if j_hi + 1 > j_next:
         return j_hi + 1
     return j_next

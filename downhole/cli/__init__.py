@@ -12,7 +12,7 @@ import sys
 
 import typer
 
-__all__ = ["app", "main", "fail"]
+__all__ = ["app", "fail", "main"]
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   rich_markup_mode=None,

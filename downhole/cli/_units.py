@@ -3,8 +3,6 @@ results (see docs/units.md)."""
 
 from __future__ import annotations
 
-from typing import List, Optional
-
 import typer
 
 __all__ = ["UNITS_OPTION", "UNIT_OPTION", "resolve_units"]
@@ -21,7 +19,7 @@ UNIT_OPTION = typer.Option(
     "torque=kN*m, speed=rad/s or wob=kN (repeat)")
 
 
-def resolve_units(units: str, unit: Optional[List[str]] = None):
+def resolve_units(units: str, unit: list[str] | None = None):
     """The :class:`~downhole.units.UnitSystem` of the options (DownholeInputError, exit code 2,
     on a bad name or override)."""
     from downhole.units import display_units

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 from rich.console import Console
@@ -22,21 +21,21 @@ console = Console()
 def compare_controllers_cmd(
     out: Path = typer.Option(..., "--out", help="output folder (index.html, scores.json)"),
     suite: str = typer.Option("standard", "--suite", help="standard (full) or smoke (seconds)"),
-    controller: Optional[List[Path]] = typer.Option(
+    controller: list[Path] | None = typer.Option(
         None, "--controller", help="a controller file to score as well: a saved DHP "
         "(.json/.npz) or, with --allow-code, a Python file (make_controller(plant) or "
         "controller); repeatable"),
-    builtin: Optional[List[str]] = typer.Option(
+    builtin: list[str] | None = typer.Option(
         None, "--builtin", help="score only these built-in controllers (default: all); "
         "repeatable"),
     no_builtin: bool = typer.Option(False, "--no-builtin", help="score only the --controller "
                                     "files"),
     allow_code: bool = typer.Option(False, "--allow-code", help="allow running Python "
                                     "controller files (they are code)"),
-    case: Optional[List[str]] = typer.Option(None, "--case", help="only these case ids"),
+    case: list[str] | None = typer.Option(None, "--case", help="only these case ids"),
     jobs: int = typer.Option(1, "--jobs", "-j", help="worker processes for the cells"),
     units: str = UNITS_OPTION,
-    unit: Optional[List[str]] = UNIT_OPTION,
+    unit: list[str] | None = UNIT_OPTION,
 ):
     """Score controllers on a fixed, versioned suite of cases (true FEM plant, delayed depth of
     cut); write OUT/index.html (tables and plots) and OUT/scores.json."""
@@ -72,8 +71,7 @@ def compare_controllers_cmd(
     if not specs:
         fail("nothing to score: give --controller files or leave out --no-builtin")
 
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                               TimeElapsedColumn)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     with Progress(TextColumn("[progress.description]{task.description}"), BarColumn(),
                   MofNCompleteColumn(), TimeElapsedColumn(), console=console) as progress:

@@ -11,15 +11,18 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 
 from downhole.cli._units import UNIT_OPTION, UNITS_OPTION, resolve_units
 from downhole.cli.design import design_app
-from downhole.scenario.dhp import (design_from_scenario, load_dhp_scenario,  # noqa: F401
-                                   parse_dhp_scenario, run_dhp_scenario,
-                                   run_scenario_simulation)
+from downhole.scenario.dhp import (  # noqa: F401
+    design_from_scenario,
+    load_dhp_scenario,
+    parse_dhp_scenario,
+    run_dhp_scenario,
+    run_scenario_simulation,
+)
 
 __all__ = ["design_dhp_cmd"]
 
@@ -29,7 +32,7 @@ def design_dhp_cmd(scenario: Path = typer.Argument(..., help="DHP design scenari
                    out: Path = typer.Option(Path("out/dhp"), "--out", help="output directory"),
                    progress: bool = typer.Option(True, "--progress/--no-progress",
                                                  help="progress bar while training"),
-                   units: str = UNITS_OPTION, unit: Optional[List[str]] = UNIT_OPTION):
+                   units: str = UNITS_OPTION, unit: list[str] | None = UNIT_OPTION):
     """Train a DHP (single-network adaptive critic) controller; optionally simulate it."""
     from downhole._atomic import OutputFolder, check_output_path
 

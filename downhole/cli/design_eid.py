@@ -25,8 +25,7 @@ from downhole.errors import ScenarioError
 def load_eid_scenario(path: Path):
     """Parse and validate an EID design scenario; returns (model, design kwargs, reference)."""
     from downhole.scenario import load_scenario
-    from downhole.scenario.neutral import (build_neutral, build_reference,
-                                                  load_neutral_scenario)
+    from downhole.scenario.neutral import build_neutral, build_reference, load_neutral_scenario
 
     data, source, _ = load_scenario(path)
     model_t = data.get("model")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 from rich.console import Console
@@ -19,13 +18,13 @@ console = Console()
 def export(
     result: Path = typer.Argument(..., help="result.nc written by `downhole simulate` (or a "
                                             "sweep.nc for --csv)"),
-    csv: Optional[Path] = typer.Option(None, "--csv", help="write the channels as CSV"),
-    las: Optional[Path] = typer.Option(None, "--las", help="write a time-indexed LAS 2.0 file"),
-    channel: Optional[List[str]] = typer.Option(None, "--channel", help="only these channels "
+    csv: Path | None = typer.Option(None, "--csv", help="write the channels as CSV"),
+    las: Path | None = typer.Option(None, "--las", help="write a time-indexed LAS 2.0 file"),
+    channel: list[str] | None = typer.Option(None, "--channel", help="only these channels "
                                                 "(repeat; LAS only)"),
     well: str = typer.Option("downhole simulation", "--well", help="LAS ~Well WELL entry"),
     units: str = UNITS_OPTION,
-    unit: Optional[List[str]] = UNIT_OPTION,
+    unit: list[str] | None = UNIT_OPTION,
 ):
     """Export a simulation result to CSV (time column + channels, each header with its unit)
     and/or LAS 2.0 with curve units, in the display units of --units/--unit."""

@@ -10,7 +10,6 @@ the bit velocities and inputs, and prints a one-screen summary. ``--method`` ove
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 
@@ -42,7 +41,7 @@ def dp(
                                 help="replay the inputs on the continuous 4th-order model"),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="progress bar"),
     units: str = UNITS_OPTION,
-    unit: Optional[List[str]] = UNIT_OPTION,
+    unit: list[str] | None = UNIT_OPTION,
 ):
     """Solve a DP problem file and write the solution to OUT (solution.npz and .json in SI;
     the table and solution.png in the display units of --units/--unit)."""

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 from rich.console import Console
@@ -43,18 +42,17 @@ def experiments():
 
 @app.command()
 def reproduce(
-    ids: Optional[List[str]] = typer.Argument(None, help="experiment ids, e.g. fig2.3 table2.2"),
+    ids: list[str] | None = typer.Argument(None, help="experiment ids, e.g. fig2.3 table2.2"),
     out: Path = typer.Option(Path("out/reproduce"), "--out", help="output folder"),
     all_: bool = typer.Option(False, "--all", help="run every experiment"),
     quick: bool = typer.Option(False, "--quick", help="reduced sizes for a fast check"),
-    jobs: Optional[int] = typer.Option(None, "--jobs", "-j", help="parallel worker processes "
+    jobs: int | None = typer.Option(None, "--jobs", "-j", help="parallel worker processes "
                                        "(default: number of cores; 1 = in this process)"),
-    chapter: Optional[List[int]] = typer.Option(None, "--chapter", help="only these chapters"),
+    chapter: list[int] | None = typer.Option(None, "--chapter", help="only these chapters"),
 ):
     """Run experiments in parallel; each writes OUT/ID/ (figures, data, claim.json, run.log),
     a failure is recorded and does not stop the others; OUT/index.html shows them all."""
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                               TimeElapsedColumn)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from downhole.experiments import all_experiments, get_experiment
     from downhole.report import reproduce as run_all
@@ -115,8 +113,8 @@ def _git_commit() -> str | None:
 def bench(
     out: Path = typer.Option(Path("out/bench.json"), "--out", help="JSON report file"),
     quick: bool = typer.Option(False, "--quick", help="only the quick cases"),
-    case: Optional[List[str]] = typer.Option(None, "--case", help="run only these cases"),
-    group: Optional[List[str]] = typer.Option(None, "--group", help="only these groups (ch2...)"),
+    case: list[str] | None = typer.Option(None, "--case", help="run only these cases"),
+    group: list[str] | None = typer.Option(None, "--group", help="only these groups (ch2...)"),
 ):
     """Run benchmarks (ratios against in-run baselines and the seed's published times); a
     failing case is recorded with its error and the others go on."""
@@ -145,7 +143,7 @@ def bench(
             try:
                 report = run_bench(quick=quick, names=[c.name])
                 rows += report["cases"]
-            except Exception as exc:  # noqa: BLE001 - one failing case must not stop the others
+            except Exception as exc:
                 rows.append({"name": c.name, "group": c.group, "seconds": None,
                              "baseline": None, "baseline_seconds": None, "ratio": None,
                              "seed_seconds": c.seed_seconds, "ratio_to_seed": None,

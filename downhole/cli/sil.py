@@ -30,7 +30,6 @@ import signal
 import threading
 import time
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 
@@ -38,7 +37,7 @@ from downhole._atomic import OutputFile, check_output_path
 from downhole.cli import app, fail
 from downhole.cli._units import UNIT_OPTION, UNITS_OPTION, resolve_units
 
-__all__ = ["sil", "sil_controller", "export_fmu"]
+__all__ = ["export_fmu", "sil", "sil_controller"]
 
 
 def _positive_seconds(value: float | None, option: str) -> float | None:
@@ -83,7 +82,7 @@ class _StopOnSignal:
         self.phase = "waiting"
         self._previous: dict = {}
 
-    def install(self) -> "_StopOnSignal":
+    def install(self) -> _StopOnSignal:
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 self._previous[sig] = signal.signal(sig, self)
@@ -117,11 +116,11 @@ class _StopOnSignal:
 
 @app.command("sil")
 def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.md)"),
-        controller: Optional[Path] = typer.Option(None, "--controller",
+        controller: Path | None = typer.Option(None, "--controller",
                                                   help="controller file (DHP .json/.npz, or a "
                                                        ".py with --allow-code)"),
         dashboard: bool = typer.Option(False, "--dashboard", help="serve the live dashboard"),
-        http_port: Optional[int] = typer.Option(
+        http_port: int | None = typer.Option(
             None, "--http-port", help="the dashboard's HTTP port (overrides [dashboard] port; "
                                       "0: any free port)"),
         autostart: bool = typer.Option(
@@ -131,11 +130,11 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
             False, "--exit-after-run", help="with --dashboard: end the command when the run "
                                             "ends instead of keeping the dashboard up until "
                                             "Ctrl-C"),
-        duration: Optional[float] = typer.Option(None, "--duration", help="simulated s"),
-        out: Optional[Path] = typer.Option(None, "--out", help="write the Result (NetCDF)"),
+        duration: float | None = typer.Option(None, "--duration", help="simulated s"),
+        out: Path | None = typer.Option(None, "--out", help="write the Result (NetCDF)"),
         remote: bool = typer.Option(False, "--remote", help="controller over the UDP link"),
-        port: Optional[int] = typer.Option(None, "--port", help="UDP port (overrides [link])"),
-        wait: Optional[float] = typer.Option(
+        port: int | None = typer.Option(None, "--port", help="UDP port (overrides [link])"),
+        wait: float | None = typer.Option(
             None, "--wait", help="seconds to wait for the remote controller, with a countdown "
                                  "(overrides [link] connect_timeout, default 300)"),
         allow_code: bool = typer.Option(
@@ -144,10 +143,10 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         progress: bool = typer.Option(True, "--progress/--no-progress",
                                       help="progress of design, waiting and run (stderr)"),
         unpaced: bool = typer.Option(False, "--unpaced", help="as fast as possible"),
-        link_key_file: Optional[Path] = typer.Option(
+        link_key_file: Path | None = typer.Option(
             None, "--link-key-file", help="shared key of the UDP link (chmod 600; default: "
             "$DOWNHOLE_LINK_KEY); required beyond loopback"),
-        units: str = UNITS_OPTION, unit: Optional[List[str]] = UNIT_OPTION):
+        units: str = UNITS_OPTION, unit: list[str] | None = UNIT_OPTION):
     """Run a scenario in the real-time SIL runtime."""
     from downhole.sil.console import RunProgress, wait_with_countdown
     from downhole.sil.runtime import RealTimeRunner, SafetyPolicy
@@ -303,21 +302,21 @@ def _reference_limits(sc) -> dict:
 
 
 @app.command("sil-controller")
-def sil_controller(port: Optional[int] = typer.Option(
+def sil_controller(port: int | None = typer.Option(
                        None, "--port", help="plant's UDP port (default: the scenario's [link] "
                                             "port, else 47600)"),
-                   host: Optional[str] = typer.Option(
+                   host: str | None = typer.Option(
                        None, "--host", help="plant's address (default: the scenario's [link] "
                                             "host, else 127.0.0.1)"),
-                   controller: Optional[Path] = typer.Option(
+                   controller: Path | None = typer.Option(
                        None, "--controller", help="DHP .json/.npz, or a .py with --allow-code"),
-                   scenario: Optional[Path] = typer.Option(
+                   scenario: Path | None = typer.Option(
                        None, "--scenario", help="build the controller from this scenario"),
                    rig: bool = typer.Option(False, "--rig",
                                             help="act as the software HIL rig (bit + rock)"),
                    idle_timeout: float = typer.Option(5.0, "--idle-timeout",
                                                       help="stop after this long without data"),
-                   wait: Optional[float] = typer.Option(
+                   wait: float | None = typer.Option(
                        None, "--wait", help="seconds to keep trying to reach the plant, with a "
                                             "countdown (default: the scenario's [link] "
                                             "connect_timeout, else 300)"),
@@ -327,7 +326,7 @@ def sil_controller(port: Optional[int] = typer.Option(
                                                  help="progress of design and waiting (stderr)"),
                    realtime: bool = typer.Option(True, "--realtime/--no-realtime",
                                                  help="try SCHED_FIFO while serving"),
-                   link_key_file: Optional[Path] = typer.Option(
+                   link_key_file: Path | None = typer.Option(
                        None, "--link-key-file", help="the plant's shared link key (default: "
                        "$DOWNHOLE_LINK_KEY)")):
     """Run a controller (or the software rig) against a plant over the UDP link.
@@ -345,8 +344,7 @@ def sil_controller(port: Optional[int] = typer.Option(
     _positive_seconds(idle_timeout, "--idle-timeout")
     sc = None
     if scenario is not None:
-        from downhole.sil.scenario import build_from_scenario, check_code_allowed, \
-            load_sil_scenario
+        from downhole.sil.scenario import build_from_scenario, check_code_allowed, load_sil_scenario
 
         sc = load_sil_scenario(scenario)  # validated before connecting: a bad file fails at once
         sc.controller.remote = False
@@ -400,7 +398,7 @@ def sil_controller(port: Optional[int] = typer.Option(
         # warm up (compile) before the first observation arrives
         try:
             ctrl.command(0.0, {n: 0.0 for n in layout.observations}, None)
-        except Exception:  # noqa: BLE001 - a warm-up failure shows up again, properly, below
+        except Exception:
             pass
         ctrl.reset()
         typer.echo(f"connected: {len(layout.observations)} observations, commands "
@@ -422,10 +420,10 @@ def sil_controller(port: Optional[int] = typer.Option(
 def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML, or a scenario that "
                                                      "describes the system ([well], [string])"),
                out: Path = typer.Option(Path("plant.fmu"), "--out", help="FMU file to write"),
-               fidelity: Optional[str] = typer.Option(
+               fidelity: str | None = typer.Option(
                    None, "--fidelity", help="system scenarios: lumped4 | lumped12 | neutral | "
                    "fem | hybrid (default: the file's model.fidelity)"),
-               units: str = UNITS_OPTION, unit: Optional[List[str]] = UNIT_OPTION):
+               units: str = UNITS_OPTION, unit: list[str] | None = UNIT_OPTION):
     """Build an FMI 2.0 co-simulation FMU of the scenario's plant (pythonfmu).
 
     Every variable carries its SI unit and description; --units/--unit add FMI display units

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 from rich.console import Console
@@ -83,11 +82,11 @@ def summary_table(rows: dict[str, dict], units=None) -> Table:
 def simulate(
     scenario: Path = typer.Argument(..., help="scenario TOML file"),
     out: Path = typer.Option(Path("out/simulate"), "--out", help="output folder"),
-    fidelity: Optional[str] = typer.Option(
+    fidelity: str | None = typer.Option(
         None, "--fidelity", help="model fidelity of a system scenario ([model] fidelity): "
         "lumped4, lumped12, neutral, fem or hybrid; overrides the file's"),
     units: str = UNITS_OPTION,
-    unit: Optional[List[str]] = UNIT_OPTION,
+    unit: list[str] | None = UNIT_OPTION,
 ):
     """Run a scenario; write OUT/result.nc, OUT/summary.json and OUT/overview.png."""
     from downhole.scenario import load_scenario, run_scenario, validate_data
@@ -110,7 +109,7 @@ def simulate(
 
 @app.command()
 def demo(out: Path = typer.Option(Path("out"), "--out", help="output folder"),
-         units: str = UNITS_OPTION, unit: Optional[List[str]] = UNIT_OPTION):
+         units: str = UNITS_OPTION, unit: list[str] | None = UNIT_OPTION):
     """The main demo on built-in defaults: nominal Table 2.1 drilling and the stick-slip case."""
     from downhole.scenario import run_scenario
 

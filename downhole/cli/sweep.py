@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 from rich.console import Console
@@ -23,33 +22,33 @@ console = Console()
 def sweep(
     scenario: Path = typer.Argument(..., help="scenario TOML (an optional [sweep] table gives "
                                               "defaults for the options below)"),
-    param: Optional[List[str]] = typer.Option(
+    param: list[str] | None = typer.Option(
         None, "--param", help="NAME=START:STOP:COUNT (grid), NAME=START:STOP (with --random) or "
                               "NAME=V1,V2,...; NAME is a dotted scenario path such as "
                               "operation.surface_speed or bit.epsilon; units allowed "
                               "(2:20:10 mm/s). Repeat for more dimensions."),
-    metric: Optional[List[str]] = typer.Option(None, "--metric", help="metric to record "
+    metric: list[str] | None = typer.Option(None, "--metric", help="metric to record "
                                                "(repeat); e.g. stick_slip_severity"),
-    random: Optional[int] = typer.Option(None, "--random", help="Monte Carlo: N cases drawn "
+    random: int | None = typer.Option(None, "--random", help="Monte Carlo: N cases drawn "
                                          "uniformly in the ranges instead of a grid"),
-    seed: Optional[int] = typer.Option(None, "--seed", help="random seed for --random"),
-    window: Optional[str] = typer.Option(None, "--window", help="metric window START:END in "
+    seed: int | None = typer.Option(None, "--seed", help="random seed for --random"),
+    window: str | None = typer.Option(None, "--window", help="metric window START:END in "
                                          "seconds (default: second half of each run)"),
     out: Path = typer.Option(Path("out/sweep"), "--out", help="output folder"),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address "
+    scheduler: str | None = typer.Option(None, "--scheduler", help="Dask scheduler address "
                                             "tcp://HOST:PORT"),
     local_cluster: bool = typer.Option(False, "--local-cluster", help="run on a dask.distributed "
                                        "LocalCluster (workers = --processes or the cores)"),
-    processes: Optional[int] = typer.Option(None, "--processes", help="worker processes "
+    processes: int | None = typer.Option(None, "--processes", help="worker processes "
                                             "(default: number of cores; 1 = in this process)"),
-    batch_size: Optional[int] = typer.Option(None, "--batch-size", help="cases per task"),
+    batch_size: int | None = typer.Option(None, "--batch-size", help="cases per task"),
     severity_threshold: float = typer.Option(0.5, "--severity-threshold",
                                              help="stick-slip above this severity (map)"),
     bounce_threshold: float = typer.Option(0.01, "--bounce-threshold",
                                            help="bit bounce above this fraction (map)"),
     no_plots: bool = typer.Option(False, "--no-plots", help="write only the NetCDF dataset"),
     units: str = UNITS_OPTION,
-    unit: Optional[List[str]] = UNIT_OPTION,
+    unit: list[str] | None = UNIT_OPTION,
 ):
     """Sweep scenario parameters; write OUT/sweep.nc, plots and the drilling stability map."""
     from downhole.sweep import load_sweep_file
@@ -79,8 +78,7 @@ def _run_and_write(folder, begin, base, source, param, metric, random, seed, win
                    display=None):
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
 
-    from downhole.sweep import (failed_cases, plot_sweep, run_sweep, save_sweep,
-                                stability_map)
+    from downhole.sweep import failed_cases, plot_sweep, run_sweep, save_sweep, stability_map
 
     out = folder.path
     with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),

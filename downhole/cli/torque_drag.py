@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 from rich.console import Console
@@ -45,10 +44,10 @@ def _parse_friction(text: str) -> tuple:
 def torque_drag(
     scenario: Path = typer.Argument(..., help="system scenario TOML file ([well], [string])"),
     out: Path = typer.Option(Path("out/torque_drag"), "--out", help="output folder"),
-    friction: Optional[str] = typer.Option(
+    friction: str | None = typer.Option(
         None, "--friction", help="friction factors, comma-separated (e.g. 0.1,0.2,0.3); "
         "overrides the file's torque_drag.friction_factors"),
-    units: str = UNITS_OPTION, unit: Optional[List[str]] = UNIT_OPTION,
+    units: str = UNITS_OPTION, unit: list[str] | None = UNIT_OPTION,
 ):
     """Soft-string torque and drag: tension, torque and side force along the string, hook load
     and surface torque against bit depth (trip out, trip in, rotating off bottom, drilling) at
@@ -85,8 +84,8 @@ def torque_drag(
                                                             units=fig_units))):
             with atomic_path(out / name) as tmp:
                 plot(tmp)
-    F = lambda v: fig_units.convert("hook_load", v, "N")  # noqa: E731
-    T = lambda v: fig_units.convert("surface_torque", v, "N*m")  # noqa: E731
+    F = lambda v: fig_units.convert("hook_load", v, "N")
+    T = lambda v: fig_units.convert("surface_torque", v, "N*m")
     fu, tu = (unit_label(F(1.0)[1]), unit_label(T(1.0)[1]))
     depth, du = fig_units.convert("md", well.total_depth, "m")
     table = Table("case", *[f"mu = {f:g}" for f in result.friction],

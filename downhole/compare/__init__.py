@@ -18,6 +18,22 @@ from downhole.compare.policies import GymPolicy, gym_policy, load_controller_spe
 from downhole.compare.report import write_report
 from downhole.compare.suite import NOISE, SUITE_VERSIONS, SUITES, Case, get_suite
 
-__all__ = ["compare_controllers", "BUILTIN", "register", "Entry", "NotApplicable", "SUITES",
-           "SUITE_VERSIONS", "Case", "get_suite", "NOISE", "SCORES", "FORMAT", "GymPolicy",
-           "gym_policy", "load_controller_spec", "write_report", "summarize_scores"]
+__all__ = [
+           "BUILTIN",
+           "FORMAT",
+           "NOISE",
+           "SCORES",
+           "SUITES",
+           "SUITE_VERSIONS",
+           "Case",
+           "Entry",
+           "GymPolicy",
+           "NotApplicable",
+           "compare_controllers",
+           "get_suite",
+           "gym_policy",
+           "load_controller_spec",
+           "register",
+           "summarize_scores",
+           "write_report",
+]

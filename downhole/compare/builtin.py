@@ -18,13 +18,13 @@ registered here like the others.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from downhole.compare.runner import SetPoint
 from downhole.control.ztorque import ZTorque
 
-__all__ = ["Entry", "BUILTIN", "register", "NotApplicable", "declared_stand_in"]
+__all__ = ["BUILTIN", "Entry", "NotApplicable", "declared_stand_in", "register"]
 
 
 class NotApplicable(Exception):

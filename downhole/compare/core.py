@@ -6,7 +6,7 @@ import copy
 import math
 import pickle
 import time
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 from downhole.compare.builtin import BUILTIN, Entry, NotApplicable, declared_stand_in
 from downhole.compare.runner import case_plant, run_cell
@@ -14,7 +14,7 @@ from downhole.compare.suite import SUITE_VERSIONS, get_suite
 from downhole.control.base import check_pair
 from downhole.errors import DownholeInputError
 
-__all__ = ["compare_controllers", "FORMAT", "SCORES", "resolve_controllers", "summarize_scores"]
+__all__ = ["FORMAT", "SCORES", "compare_controllers", "resolve_controllers", "summarize_scores"]
 
 FORMAT = "downhole.compare/1"
 
@@ -66,7 +66,7 @@ class _Spec:
         if self.obj is not None:
             try:
                 return copy.deepcopy(self.obj)  # no state carried from one case to the next
-            except Exception:  # noqa: BLE001 - not copyable: the same object, reset per run
+            except Exception:
                 return self.obj
         return self.factory(system, case)
 
@@ -138,7 +138,7 @@ def _prepare(spec: _Spec, case, system, plant):
         ctrl = spec.build(system, case)
     except NotApplicable as exc:
         return None, {"status": "n/a", "reason": str(exc)}
-    except Exception as exc:  # noqa: BLE001 - a factory that fails fails its cell only
+    except Exception as exc:
         return None, {"status": "failed", "reason": f"building the controller: "
                                                     f"{type(exc).__name__}: {exc}"}
     why = check_pair(ctrl, plant.inner)
@@ -157,7 +157,7 @@ def _picklable(obj) -> bool:
     try:
         pickle.dumps(obj)
         return True
-    except Exception:  # noqa: BLE001 - anything that does not pickle runs in this process
+    except Exception:
         return False
 
 
@@ -264,13 +264,13 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
                         other.cancel()
                     raise broken_pool_error(f"compare_controllers(jobs={jobs})", "jobs=1",
                                             exc) from None
-                except Exception as exc:  # noqa: BLE001 - a crashed cell is a failed cell
+                except Exception as exc:
                     cell = {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
                 _report(case_id, label, cell)
     for case, label, ctrl in local:
         try:
             cell = run_cell(case, ctrl, trace=traces)
-        except Exception as exc:  # noqa: BLE001 - a controller that raises fails its cell only
+        except Exception as exc:
             cell = {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
         _report(case.id, label, cell)
     # cells in suite order, controllers in the given order

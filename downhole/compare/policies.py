@@ -108,7 +108,7 @@ def load_controller_spec(path, *, allow_code: bool = False):
         ctrl = load_controller_file(p, None, allow_code=allow_code)
     except DownholeInputError:
         raise
-    except Exception as exc:  # noqa: BLE001 - a broken file is an input error, one line
+    except Exception as exc:
         msg = str(exc).splitlines()[0] if str(exc) else ""
         raise DownholeInputError(f"controller file {p}: {type(exc).__name__}: {msg}") from None
     if p.suffix in (".json", ".npz"):

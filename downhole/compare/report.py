@@ -11,7 +11,7 @@ import math
 
 from downhole._atomic import OutputFolder, write_text_atomic
 
-__all__ = ["write_report", "render_html", "OUTPUT_FILES", "TABLE_COLUMNS"]
+__all__ = ["OUTPUT_FILES", "TABLE_COLUMNS", "render_html", "write_report"]
 
 #: Files the command owns in its output folder.
 OUTPUT_FILES = ("index.html", "scores.json")

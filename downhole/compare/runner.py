@@ -23,8 +23,17 @@ from downhole.errors import DownholeError, DownholeInputError
 from downhole.sim.plant import Plant
 from downhole.sim.result import Result
 
-__all__ = ["MeasuredPlant", "HandOver", "SetPoint", "case_plant", "run_cell", "score_run",
-           "TRUE_CHANNELS", "SUPPRESS_BAND", "SUPPRESS_HOLD"]
+__all__ = [
+    "SUPPRESS_BAND",
+    "SUPPRESS_HOLD",
+    "TRUE_CHANNELS",
+    "HandOver",
+    "MeasuredPlant",
+    "SetPoint",
+    "case_plant",
+    "run_cell",
+    "score_run",
+]
 
 #: True plant signals logged for the scores (and the plots).
 TRUE_CHANNELS = ("bit_axial_velocity", "bit_angular_velocity", "wob", "tob", "depth_of_cut",

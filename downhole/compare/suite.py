@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["Case", "SUITES", "SUITE_VERSIONS", "get_suite", "NOISE"]
+__all__ = ["NOISE", "SUITES", "SUITE_VERSIONS", "Case", "get_suite"]
 
 #: Sensor noise of the cases with ``noise=True``: standard deviations (signal units) of white
 #: Gaussian noise on every measurement a controller may read.

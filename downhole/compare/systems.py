@@ -29,7 +29,7 @@ JSON-able description that ``scores.json`` carries with each case.
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 
 from downhole.errors import DownholeInputError
 from downhole.params import get_preset
@@ -38,7 +38,7 @@ from downhole.string.drillstring import DrillString, Stabilizer, StringSegment, 
 from downhole.system import DrillingSystem, Rig
 from downhole.well.path import Arc, Tangent, Vertical, WellPath
 
-__all__ = ["SYSTEMS", "build_system", "describe_system", "J_SURVEY_STATIONS"]
+__all__ = ["J_SURVEY_STATIONS", "SYSTEMS", "build_system", "describe_system"]
 
 INCH = 0.0254
 
@@ -105,7 +105,7 @@ SYSTEMS = {"ch2": _ch2, "ch3": _ch3, "table_5_1": _table_5_1, "j_survey": _j_sur
            "horizontal_3000": _horizontal_3000}
 
 
-@lru_cache(maxsize=None)
+@cache
 def _base(key: str) -> DrillingSystem:
     try:
         return SYSTEMS[key]()

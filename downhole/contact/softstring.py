@@ -30,9 +30,17 @@ from numba import njit
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["ELEM_LAYOUT", "normal_force_per_length", "element_normal_half", "friction_damper",
-           "friction_forces", "contact_elements", "normal_weight", "soft_string_normal_force",
-           "nodal_friction_forces"]
+__all__ = [
+    "ELEM_LAYOUT",
+    "contact_elements",
+    "element_normal_half",
+    "friction_damper",
+    "friction_forces",
+    "nodal_friction_forces",
+    "normal_force_per_length",
+    "normal_weight",
+    "soft_string_normal_force",
+]
 
 #: Columns of the per-element contact array (``DirectionalModel.elem``).
 ELEM_LAYOUT = ("length", "dtds_north", "dtds_east", "dtds_down", "wg_north", "wg_east", "wg_down",

@@ -10,16 +10,33 @@ Z-torque, SoftSpeed-tuned soft torque, the stiff top-drive PI and an auto-drille
 
 from downhole.control.autodriller import AutoDriller, autodriller_gains
 from downhole.control.base import Controller, check_pair, run_closed_loop
-from downhole.control.softspeed import (SoftSpeed, TopDriveSpeedPI, reflection_coefficient,
-                                        softspeed_tuning, stick_slip_frequency,
-                                        top_drive_impedance)
+from downhole.control.softspeed import (
+                                        SoftSpeed,
+                                        TopDriveSpeedPI,
+                                        reflection_coefficient,
+                                        softspeed_tuning,
+                                        stick_slip_frequency,
+                                        top_drive_impedance,
+)
 from downhole.control.ztorque import ZTorque, torsional_impedance
 
 #: Registry names of the contract baselines -> classes (for ``[controller] type`` names).
 BASELINES = {"ztorque": ZTorque, "softspeed": SoftSpeed, "stiff_pi": TopDriveSpeedPI,
              "autodriller": AutoDriller}
 
-__all__ = ["Controller", "check_pair", "run_closed_loop", "ZTorque", "torsional_impedance",
-           "SoftSpeed", "TopDriveSpeedPI", "softspeed_tuning", "top_drive_impedance",
-           "reflection_coefficient", "stick_slip_frequency", "AutoDriller", "autodriller_gains",
-           "BASELINES"]
+__all__ = [
+                                        "BASELINES",
+                                        "AutoDriller",
+                                        "Controller",
+                                        "SoftSpeed",
+                                        "TopDriveSpeedPI",
+                                        "ZTorque",
+                                        "autodriller_gains",
+                                        "check_pair",
+                                        "reflection_coefficient",
+                                        "run_closed_loop",
+                                        "softspeed_tuning",
+                                        "stick_slip_frequency",
+                                        "top_drive_impedance",
+                                        "torsional_impedance",
+]

@@ -83,15 +83,21 @@ A double integrator (position, velocity) with force input, dt = 0.1 s, scaled by
 from __future__ import annotations
 
 import math
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
-__all__ = ["ControlAffineModel", "from_directional", "STATE_KINDS", "INPUT_NAMES", "INPUT_UNITS",
-           "scale_from_trajectory"]
+__all__ = [
+    "INPUT_NAMES",
+    "INPUT_UNITS",
+    "STATE_KINDS",
+    "ControlAffineModel",
+    "from_directional",
+    "scale_from_trajectory",
+]
 
 #: Allowed state kinds.
 STATE_KINDS = ("axial_position", "angular_position", "axial_velocity", "angular_velocity", "other")
@@ -303,7 +309,7 @@ class ControlAffineModel:
     @classmethod
     def from_physical(cls, A_d, B_d, *, state_scale, input_scale, dt: float,
                       nonlinear_physical: Callable | None = None, **kwargs
-                      ) -> "ControlAffineModel":
+                      ) -> ControlAffineModel:
         """Build from physical ``A_d`` (n, n), ``B_d`` (n, m) and ``h`` (Eqs. 4.17-4.19).
 
         Parameters

@@ -33,7 +33,7 @@ Set-points: the keyword arguments, or the references ``reference_wob`` (N) and
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 from downhole.control.base import Controller
 from downhole.errors import DownholeInputError

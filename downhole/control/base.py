@@ -18,7 +18,7 @@ References are a mapping of reference signal names (``reference_axial_velocity``
 
 from __future__ import annotations
 
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 

@@ -52,10 +52,20 @@ from downhole.control.base import Controller
 from downhole.errors import DownholeInputError
 from downhole.string.zoh import zoh
 
-__all__ = ["KalmanObserver", "steady_state_gain", "bit_law_jacobian", "fem_surface_observer",
-           "NeutralSurfaceObserver", "SurfaceFeedback", "MeasurementNoise", "eid_from_surface",
-           "dhp_from_surface", "FEM_MEASUREMENTS", "NEUTRAL_MEASUREMENTS",
-           "DEFAULT_SURFACE_NOISE"]
+__all__ = [
+    "DEFAULT_SURFACE_NOISE",
+    "FEM_MEASUREMENTS",
+    "NEUTRAL_MEASUREMENTS",
+    "KalmanObserver",
+    "MeasurementNoise",
+    "NeutralSurfaceObserver",
+    "SurfaceFeedback",
+    "bit_law_jacobian",
+    "dhp_from_surface",
+    "eid_from_surface",
+    "fem_surface_observer",
+    "steady_state_gain",
+]
 
 #: Surface signals the FEM observer reads (the block position is integrated from the block
 #: velocity inside :class:`SurfaceFeedback` when the plant does not report it).

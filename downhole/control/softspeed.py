@@ -42,13 +42,19 @@ stiff PI baseline.
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 from downhole.control.base import Controller
 from downhole.errors import DownholeInputError
 
-__all__ = ["TopDriveSpeedPI", "SoftSpeed", "softspeed_tuning", "top_drive_impedance",
-           "reflection_coefficient", "stick_slip_frequency"]
+__all__ = [
+    "SoftSpeed",
+    "TopDriveSpeedPI",
+    "reflection_coefficient",
+    "softspeed_tuning",
+    "stick_slip_frequency",
+    "top_drive_impedance",
+]
 
 
 def _number(owner, name, value, *, strict=True, allow_none=False):

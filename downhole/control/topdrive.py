@@ -4,4 +4,4 @@ keeps the historical import path."""
 
 from downhole.params.rig import Hook, TopDrive
 
-__all__ = ["TopDrive", "Hook"]
+__all__ = ["Hook", "TopDrive"]

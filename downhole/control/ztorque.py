@@ -18,7 +18,7 @@ command at every fidelity); the axial command keeps the plant's default or anoth
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 from downhole.control.base import Controller
 from downhole.errors import DownholeInputError

@@ -11,11 +11,11 @@ from __future__ import annotations
 import importlib
 import json
 import pkgutil
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
-__all__ = ["Experiment", "experiment", "all_experiments", "get_experiment", "run_experiment"]
+__all__ = ["Experiment", "all_experiments", "experiment", "get_experiment", "run_experiment"]
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ import numpy as np
 
 from downhole.experiments import experiment
 
-__all__ = ["robust_pair", "spread_metrics", "TABLE_2_2", "table_problem"]
+__all__ = ["TABLE_2_2", "robust_pair", "spread_metrics", "table_problem"]
 
 #: (type, horizon s, search grid, index grid, seed minutes) -- seed Table 2.2
 TABLE_2_2 = [

@@ -3,15 +3,13 @@ stick-slip at low rotary speed, and the 4th- vs 12th-order models."""
 
 from __future__ import annotations
 
+import copy
+
+import matplotlib.pyplot as plt
 import numpy as np
 
 from downhole.analysis.plots import save_figure
 from downhole.experiments import experiment
-
-import matplotlib.pyplot as plt  # noqa: E402  (Agg set by analysis.plots)
-
-import copy
-
 from downhole.scenario import run_scenario
 
 

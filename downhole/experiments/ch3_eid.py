@@ -197,8 +197,7 @@ def fig3_7(out_dir, quick):
                   "epsilon although the open-loop plant is not at 175% and 200%",
             caption="Robustness of EID controller with different epsilon")
 def fig3_8(out_dir, quick):
-    from downhole.control.eid.stability import (bit_rock_open_loop_roots,
-                                                regenerative_closed_loop)
+    from downhole.control.eid.stability import bit_rock_open_loop_roots, regenerative_closed_loop
     from downhole.string.neutral import simulate_neutral
 
     m, c = _setup()
@@ -218,8 +217,8 @@ def fig3_8(out_dir, quick):
         res = simulate_neutral(mf, duration=60.0, dt=dt, controller=c)
         e_rop, e_w = _errors(res, 50.0, 50.0)
         e10, e40 = _errors(res)
-        ol = [r for r in bit_rock_open_loop_roots(mf) if abs(r) > 1e-6][0]
-        ab = [r for r in bit_rock_open_loop_roots(mf, top="absorbing") if abs(r) > 1e-6][0]
+        ol = next(r for r in bit_rock_open_loop_roots(mf) if abs(r) > 1e-6)
+        ab = next(r for r in bit_rock_open_loop_roots(mf, top="absorbing") if abs(r) > 1e-6)
         cl = regenerative_closed_loop(c, mf)
         measured[f"eps_{int(f * 100)}pct"] = {
             "rop_error_last_10s": e_rop, "omega_error_last_10s": e_w,

@@ -142,8 +142,13 @@ def fig4_5(out_dir, quick):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from downhole.control.dhp import (BitReference, DHPSettings, PenaltyWeights, build_problem,
-                                      train_dhp)
+    from downhole.control.dhp import (
+        BitReference,
+        DHPSettings,
+        PenaltyWeights,
+        build_problem,
+        train_dhp,
+    )
 
     _, _, design = _models()
     T = 0.3 if quick else 5.0
@@ -380,8 +385,13 @@ def fig4_12(out_dir, quick):
 
 # ----------------------------------------------------------------------------------- Table 4.2
 def _table_rows(quick):
-    from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, build_problem
-    from downhole.control.dhp import train_dhp
+    from downhole.control.dhp import (
+        BitReference,
+        DHPSettings,
+        PenaltyWeights,
+        build_problem,
+        train_dhp,
+    )
     from downhole.control.dhp.directional import directional_affine_model
     from downhole.string.fem import fem_model
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 from downhole.experiments import experiment
 
 __all__ = ["fig4_4"]

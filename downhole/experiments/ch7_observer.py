@@ -32,8 +32,7 @@ def _noise(names):
 def run_eid_surface(quick: bool, noisy: bool = True, duration: float = 60.0,
                     **observer_options):
     """fig3.4's closed loop with EID on the neutral-string observer; returns the Result."""
-    from downhole.control.observer import (NEUTRAL_MEASUREMENTS, MeasurementNoise,
-                                           eid_from_surface)
+    from downhole.control.observer import NEUTRAL_MEASUREMENTS, MeasurementNoise, eid_from_surface
     from downhole.experiments.ch3_eid import _setup
     from downhole.string.neutral import simulate_neutral
 

@@ -5,4 +5,4 @@
 
 from downhole.io.las import read_las, write_las
 
-__all__ = ["write_las", "read_las"]
+__all__ = ["read_las", "write_las"]

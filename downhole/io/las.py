@@ -12,7 +12,7 @@ import numpy as np
 from downhole.errors import DownholeInputError
 from downhole.sim.las import _PARAM_ATTRS, NULL, write_las
 
-__all__ = ["write_las", "read_las", "NULL"]
+__all__ = ["NULL", "read_las", "write_las"]
 
 
 def read_las(path: str | os.PathLike):
@@ -39,7 +39,7 @@ def read_las(path: str | os.PathLike):
             # written in display units (e.g. --units oilfield): back to SI
             try:
                 data = convert(data, c.unit, sig.unit)
-            except Exception as exc:  # noqa: BLE001 - pint's unit and dimension errors
+            except Exception as exc:
                 raise DownholeInputError(
                     f"{path}: curve {c.mnemonic} has unit {c.unit!r}, which does not convert "
                     f"to {sig.unit or 'a plain number'} ({exc})") from None
@@ -57,6 +57,6 @@ def read_las(path: str | os.PathLike):
         unit = (las.params["BITRAD"].unit or "m").strip() or "m"
         try:
             attrs["bit_radius"] = float(convert(float(radius), unit, "m"))
-        except Exception:  # noqa: BLE001 - an unknown unit: no radius rather than a wrong one
+        except Exception:
             attrs.pop("bit_radius", None)
     return Result(t, channels, units=units, attrs=attrs)

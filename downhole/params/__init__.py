@@ -5,5 +5,14 @@ from downhole.params.lumped import LumpedParams, TwelfthOrderSplit
 from downhole.params.presets import PRESETS, Preset, get_preset
 from downhole.params.strings import DirectionalWellParams, NeutralStringParams, PipeSection
 
-__all__ = ["BitParams", "LumpedParams", "TwelfthOrderSplit", "PRESETS", "Preset", "get_preset",
-           "DirectionalWellParams", "NeutralStringParams", "PipeSection"]
+__all__ = [
+           "PRESETS",
+           "BitParams",
+           "DirectionalWellParams",
+           "LumpedParams",
+           "NeutralStringParams",
+           "PipeSection",
+           "Preset",
+           "TwelfthOrderSplit",
+           "get_preset",
+]

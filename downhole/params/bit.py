@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from downhole.params.quantity import Q
 
-__all__ = ["BitParams", "BitKernelParams", "LAW_IDS"]
+__all__ = ["LAW_IDS", "BitKernelParams", "BitParams"]
 
 #: Integer id of each bit law in the compiled dispatch (:mod:`downhole.bit.law`).
 LAW_IDS = {"detournay": 0, "aarsnes": 1}

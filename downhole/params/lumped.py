@@ -25,7 +25,7 @@ class TwelfthOrderSplit(BaseModel):
     compliance_shares: tuple[float, float, float] = (0.02, 0.58, 0.40)
     servo_damping_ratio: float = Field(0.7, ge=0)
 
-    def model_post_init(self, __context) -> None:  # noqa: D401
+    def model_post_init(self, __context) -> None:
         for name in ("mass_shares", "compliance_shares"):
             vals = getattr(self, name)
             if any(v <= 0 for v in vals) or abs(sum(vals) - 1.0) > 1e-9:

@@ -11,7 +11,7 @@ from downhole.params.bit import BitParams
 from downhole.params.lumped import LumpedParams
 from downhole.params.strings import DirectionalWellParams, NeutralStringParams, PipeSection
 
-__all__ = ["Preset", "PRESETS", "get_preset"]
+__all__ = ["PRESETS", "Preset", "get_preset"]
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["TopDrive", "Hook", "DEFAULT_TOP_DRIVE_INERTIA"]
+__all__ = ["DEFAULT_TOP_DRIVE_INERTIA", "Hook", "TopDrive"]
 
 #: Top-drive rotor + gearbox inertia on the string's top node, kg m^2. The seed gives none; 500 is
 #: the value used throughout (directional FEM, hybrid, DHP design models, SIL plants). Every

@@ -9,7 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from downhole.params.quantity import Q
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
-__all__ = ["PipeSection", "NeutralStringParams", "DirectionalWellParams"]
+__all__ = ["DirectionalWellParams", "NeutralStringParams", "PipeSection"]
 
 
 class PipeSection(BaseModel):

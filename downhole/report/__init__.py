@@ -5,5 +5,11 @@ from downhole.report.bench import bench_markdown
 from downhole.report.html import CHAPTERS, build_index
 from downhole.report.reproduce import machine_description, reproduce, run_one
 
-__all__ = ["reproduce", "run_one", "build_index", "CHAPTERS", "bench_markdown",
-           "machine_description"]
+__all__ = [
+           "CHAPTERS",
+           "bench_markdown",
+           "build_index",
+           "machine_description",
+           "reproduce",
+           "run_one",
+]

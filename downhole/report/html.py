@@ -13,7 +13,7 @@ import json
 import math
 from pathlib import Path
 
-__all__ = ["build_index", "CHAPTERS"]
+__all__ = ["CHAPTERS", "build_index"]
 
 #: Chapter titles of the dissertation (the dissertation's chapters).
 CHAPTERS = {

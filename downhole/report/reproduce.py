@@ -26,14 +26,19 @@ import re
 import shutil
 import time
 import traceback
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
-from downhole._atomic import (MARKER, OutputFolder, check_output_path, write_json_atomic,
-                              write_text_atomic)
+from downhole._atomic import (
+    MARKER,
+    OutputFolder,
+    check_output_path,
+    write_json_atomic,
+    write_text_atomic,
+)
 from downhole.errors import DownholeInputError
 
-__all__ = ["reproduce", "run_one", "is_timing", "machine_description"]
+__all__ = ["is_timing", "machine_description", "reproduce", "run_one"]
 
 #: Files that identify a folder as an experiment folder written by :func:`run_one`.
 _EXPERIMENT_FILES = ("claim.json", "run.log", "error.log", MARKER)
@@ -117,7 +122,7 @@ def run_one(eid: str, out_dir: str | Path, quick: bool) -> dict:
         try:
             claim = run_experiment(eid, stage_parent, quick=quick)
             error = None
-        except BaseException as exc:  # noqa: BLE001 - recorded, and the others go on
+        except BaseException as exc:
             if isinstance(exc, KeyboardInterrupt):
                 raise
             error = f"{type(exc).__name__}: {exc}"
@@ -251,7 +256,7 @@ def _run_pool(ids: list[str], out_dir: Path, quick: bool, jobs: int, done) -> No
                         other.cancel()
                     _crashed(out_dir, eid, exc, quick)
                     raise broken_pool_error(f"reproduce(jobs={jobs})", "jobs=1", exc) from None
-                except BaseException as exc:  # noqa: BLE001 - the experiment's task raised
+                except BaseException as exc:
                     claim = _crashed(out_dir, eid, exc, quick)
                 done(eid, claim)
     finally:

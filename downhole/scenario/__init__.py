@@ -10,27 +10,52 @@ Model types are pluggable: :func:`register_model_type` adds a runner for ``[mode
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, Callable, Literal, Union
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, ValidationError,
-                      field_validator)
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator
 
-from downhole._reader import (MAX_DEPTH, MAX_FILE_BYTES, MAX_INTEGER,  # noqa: F401
-                              MAX_LIST_LENGTH, MAX_NUMBER, MAX_STRING_LENGTH,
-                              _check_numeric_string, check_values, parse_toml_text,
-                              read_scenario_text, read_toml)
+from downhole._reader import (  # noqa: F401
+    MAX_DEPTH,
+    MAX_FILE_BYTES,
+    MAX_INTEGER,
+    MAX_LIST_LENGTH,
+    MAX_NUMBER,
+    MAX_STRING_LENGTH,
+    _check_numeric_string,
+    check_values,
+    parse_toml_text,
+    read_scenario_text,
+    read_toml,
+)
 from downhole._schema import raise_validation
 from downhole.errors import ScenarioError
 from downhole.params.quantity import Q
 from downhole.units import UnitError, to_si
 
-__all__ = ["load_scenario", "parse_scenario", "run_scenario", "register_model_type",
-           "LumpedScenario", "MODEL_TYPES", "model_type", "is_lumped_type", "validate_data",
-           "validate_scenario", "build_lumped_model", "read_toml", "read_scenario_text",
-           "check_values", "validate_lumped", "euler_stable_dt", "check_step_count"]
+__all__ = [
+    "MODEL_TYPES",
+    "LumpedScenario",
+    "build_lumped_model",
+    "check_step_count",
+    "check_values",
+    "euler_stable_dt",
+    "is_lumped_type",
+    "load_scenario",
+    "model_type",
+    "parse_scenario",
+    "read_scenario_text",
+    "read_toml",
+    "register_model_type",
+    "run_scenario",
+    "validate_data",
+    "validate_lumped",
+    "validate_scenario",
+]
 
 def _not_bool(value):
     if isinstance(value, bool):
@@ -40,7 +65,7 @@ def _not_bool(value):
 
 
 #: A profile: a constant, or breakpoints [[t, value], ...] interpolated linearly.
-Profile = Annotated[Union[float, int, str, list], BeforeValidator(_not_bool)]
+Profile = Annotated[float | int | str | list, BeforeValidator(_not_bool)]
 
 
 def profile_to_signal(value: Profile, dimension: str, field: str):
@@ -54,7 +79,7 @@ def profile_to_signal(value: Profile, dimension: str, field: str):
                 raise ValueError(f"{field}[{i}]: expected [time, value], got {pair!r}")
             ts.append(to_si(pair[0], "time"))
             vs.append(to_si(pair[1], dimension))
-        if any(b < a for a, b in zip(ts, ts[1:])):
+        if any(b < a for a, b in itertools.pairwise(ts)):
             raise ValueError(f"{field}: breakpoint times must be non-decreasing, got {ts}")
         return (np.array(ts), np.array(vs))
     return to_si(value, dimension)
@@ -472,7 +497,7 @@ def validate_scenario(path: str | Path, fidelity: str | None = None) -> None:
 
 
 def run_scenario(path_or_data: str | Path | dict, source: str = "<dict>",
-                 fidelity: str | None = None) -> "Result":  # noqa: F821
+                 fidelity: str | None = None) -> Result:
     """Run a scenario file (or an already-parsed dict) and return its Result.
 
     Parameters

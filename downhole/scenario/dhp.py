@@ -107,7 +107,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal
 
 from pydantic import BeforeValidator, Field, StrictInt, ValidationError
 
@@ -115,9 +115,17 @@ from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params.quantity import Q
 from downhole.scenario import _raise_validation, _Strict
 
-__all__ = ["DHPScenario", "DHPDesignSettings", "DHPTrainingSettings", "load_dhp_scenario",
-           "parse_dhp_scenario", "design_from_scenario", "run_scenario_simulation",
-           "run_dhp_scenario", "is_dhp_dialect"]
+__all__ = [
+    "DHPDesignSettings",
+    "DHPScenario",
+    "DHPTrainingSettings",
+    "design_from_scenario",
+    "is_dhp_dialect",
+    "load_dhp_scenario",
+    "parse_dhp_scenario",
+    "run_dhp_scenario",
+    "run_scenario_simulation",
+]
 
 #: Most training steps (horizon / dt) and closed-loop steps (duration / dt) of one file.
 MAX_TRAINING_STEPS = 1_000_000
@@ -142,8 +150,8 @@ _Angular = Annotated[Q["angular_velocity"], Field(ge=-200.0, le=200.0)]
 class DHPPlantSettings(_Strict):
     """``[model]``: the plant the closed loop runs on."""
 
-    fidelity: Optional[Literal["fem", "hybrid", "lumped4"]] = None
-    preset: Optional[str] = Field(None, max_length=64)
+    fidelity: Literal["fem", "hybrid", "lumped4"] | None = None
+    preset: str | None = Field(None, max_length=64)
 
 
 class DHPTrainingSettings(_Strict):
@@ -151,10 +159,10 @@ class DHPTrainingSettings(_Strict):
 
     horizon: Q["time"] = Field(40.0, gt=0, le=1e5)
     method: str = Field("riccati", max_length=64)
-    n_samples: Optional[StrictInt] = Field(None, ge=1, le=100_000)
+    n_samples: StrictInt | None = Field(None, ge=1, le=100_000)
     n_iterations: StrictInt = Field(20, ge=1, le=10_000)
     threshold: float = Field(1e-6, gt=0)
-    sample_radius: Union[float, list[float]] = 0.02
+    sample_radius: float | list[float] = 0.02
     warm_start: bool = True
     seed: StrictInt = Field(0, ge=0)
     resample_every: StrictInt = Field(1, ge=1, le=100_000)
@@ -167,22 +175,22 @@ class DHPDesignSettings(_Strict):
     """``[controller.dhp]``: the design model, the weights, the training and the plan."""
 
     design: Literal["fem24", "fem", "lumped"] = "fem24"
-    elements: Optional[StrictInt] = Field(None, ge=3, le=500)
-    preset: Optional[str] = Field(None, max_length=64)
+    elements: StrictInt | None = Field(None, ge=3, le=500)
+    preset: str | None = Field(None, max_length=64)
     dt: Q["time"] = Field(1e-3, gt=0, le=0.1)
     input_limits: tuple[tuple[Q["force"], Q["force"]], tuple[Q["torque"], Q["torque"]]] = (
         (-50e3, 300e3), (-60e3, 60e3))
-    friction: Optional[Annotated[float, BeforeValidator(_no_bool)]] = Field(None, ge=0, le=10)
-    weights: Union[str, dict[str, Any], None] = None
+    friction: Annotated[float, BeforeValidator(_no_bool)] | None = Field(None, ge=0, le=10)
+    weights: str | dict[str, Any] | None = None
     training: DHPTrainingSettings = DHPTrainingSettings()
-    plan: Optional[dict[str, Any]] = None
+    plan: dict[str, Any] | None = None
 
 
 class DHPControllerSettings(_Strict):
     """``[controller]`` of a DHP scenario."""
 
     type: Literal["dhp"] = "dhp"
-    file: Optional[str] = Field(None, min_length=1, max_length=4096)
+    file: str | None = Field(None, min_length=1, max_length=4096)
     dhp: DHPDesignSettings = DHPDesignSettings()
 
 
@@ -190,10 +198,10 @@ class DHPReferenceSettings(_Strict):
     """``[reference]``: the bit-velocity reference the controller tracks."""
 
     type: Literal["step", "ramp", "sine", "user"] = "step"
-    axial_velocity: Optional[_Velocity] = None
-    angular_velocity: Optional[_Angular] = None
-    t_final: Optional[Q["time"]] = Field(None, gt=0, le=1e5)
-    frequency: Optional[Q["angular_velocity"]] = Field(None, ge=0, le=1e3)
+    axial_velocity: _Velocity | None = None
+    angular_velocity: _Angular | None = None
+    t_final: Q["time"] | None = Field(None, gt=0, le=1e5)
+    frequency: Q["angular_velocity"] | None = Field(None, ge=0, le=1e3)
     time: list[Q["time"]] = Field(default_factory=list, max_length=100_000)
     axial_velocity_values: list[_Velocity] = Field(default_factory=list, max_length=100_000)
     angular_velocity_values: list[_Angular] = Field(default_factory=list, max_length=100_000)
@@ -202,7 +210,7 @@ class DHPReferenceSettings(_Strict):
 class DHPSimulationSettings(_Strict):
     """``[simulation]``: the closed-loop check."""
 
-    duration: Optional[Q["time"]] = Field(None, gt=0, le=1e5)
+    duration: Q["time"] | None = Field(None, gt=0, le=1e5)
     depth_of_cut: Literal["approximate", "delayed"] = "approximate"
 
 
@@ -215,7 +223,7 @@ class DHPScenario(_Strict):
     bit: dict[str, Any] = Field(default_factory=dict)
     controller: DHPControllerSettings = DHPControllerSettings()
     reference: DHPReferenceSettings = DHPReferenceSettings()
-    simulation: Optional[DHPSimulationSettings] = None
+    simulation: DHPSimulationSettings | None = None
 
 
 def is_dhp_dialect(data: dict) -> bool:

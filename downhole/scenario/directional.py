@@ -88,15 +88,22 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params.quantity import Q
-from downhole.scenario import (Profile, preset_params, _Strict, check_step_count,
-                               parse_scenario, profile_to_signal, read_scenario_text)
+from downhole.scenario import (
+    Profile,
+    _Strict,
+    check_step_count,
+    parse_scenario,
+    preset_params,
+    profile_to_signal,
+    read_scenario_text,
+)
 from downhole.units import UnitError
 
 __all__ = ["DirectionalScenario", "build_directional", "run_directional_scenario",
@@ -114,15 +121,15 @@ def _profile(value, dim, name):
 class FemSettings(_Strict):
     """``[model.fem]``: the FEM's discretization."""
 
-    elements: Optional[int] = Field(None, ge=1, le=5000)
+    elements: int | None = Field(None, ge=1, le=5000)
 
 
 class HybridSettings(_Strict):
     """``[model.hybrid]``: the hybrid's discretization (a preset or node counts)."""
 
-    preset: Optional[Literal["hybrid24", "hybrid68", "hybrid108"]] = None
-    nodes_ab: Optional[int] = Field(None, ge=2, le=2000)
-    nodes_cd: Optional[int] = Field(None, ge=2, le=2000)
+    preset: Literal["hybrid24", "hybrid68", "hybrid108"] | None = None
+    nodes_ab: int | None = Field(None, ge=2, le=2000)
+    nodes_cd: int | None = Field(None, ge=2, le=2000)
     n_lags: int = Field(0, ge=0, le=8)
 
 
@@ -132,14 +139,14 @@ class DirectionalModelSettings(_Strict):
 
     fidelity: Literal["fem", "hybrid"]
     preset: str = "table_5_1"
-    fem: Optional[FemSettings] = None
-    hybrid: Optional[HybridSettings] = None
-    wave_section: Optional[list[Q["length"]]] = Field(None, min_length=2, max_length=2)
+    fem: FemSettings | None = None
+    hybrid: HybridSettings | None = None
+    wave_section: list[Q["length"]] | None = Field(None, min_length=2, max_length=2)
     damping: Literal["rayleigh", "modal"] = "rayleigh"
-    rayleigh_alpha: Optional[float] = Field(None, ge=0)
-    rayleigh_beta: Optional[float] = Field(None, ge=0)
+    rayleigh_alpha: float | None = Field(None, ge=0)
+    rayleigh_beta: float | None = Field(None, ge=0)
     modal_ratio: float = Field(0.03, gt=0, lt=1)
-    friction: Optional[float] = Field(None, ge=0)
+    friction: float | None = Field(None, ge=0)
     friction_velocity: Q["velocity"] = Field(1e-3, gt=0)
     mass: Literal["consistent", "lumped"] = "consistent"
     string: dict[str, Any] = Field(default_factory=dict)
@@ -195,12 +202,12 @@ class SectionSettings(_Strict):
     """One ``[[well.sections]]`` entry."""
 
     type: Literal["vertical", "tangent", "arc", "build_turn"]
-    length: Optional[Q["length"]] = Field(None, gt=0)
-    radius: Optional[Q["length"]] = Field(None, gt=0)
-    angle: Optional[Q["angle"]] = Field(None, gt=0, lt=math.pi)
+    length: Q["length"] | None = Field(None, gt=0)
+    radius: Q["length"] | None = Field(None, gt=0)
+    angle: Q["angle"] | None = Field(None, gt=0, lt=math.pi)
     toolface: Q["angle"] = 0.0
-    azimuth: Optional[Q["angle"]] = None
-    inclination: Optional[Q["angle"]] = Field(None, ge=0, le=math.pi)
+    azimuth: Q["angle"] | None = None
+    inclination: Q["angle"] | None = Field(None, ge=0, le=math.pi)
 
     @model_validator(mode="after")
     def _needs(self):
@@ -226,12 +233,12 @@ class SectionSettings(_Strict):
 class WellSettings(_Strict):
     """``[well]``: a survey CSV, survey columns or sections (exactly one)."""
 
-    survey: Optional[str] = None
+    survey: str | None = None
     units: Literal["si", "oilfield"] = "si"
-    md: Optional[list[float]] = None
-    inclination: Optional[list[float]] = None
-    azimuth: Optional[list[float]] = None
-    sections: Optional[list[SectionSettings]] = None
+    md: list[float] | None = None
+    inclination: list[float] | None = None
+    azimuth: list[float] | None = None
+    sections: list[SectionSettings] | None = None
 
     @model_validator(mode="after")
     def _one_source(self):
@@ -252,7 +259,7 @@ class SegmentSettings(_Strict):
     """One ``[[string.segments]]`` entry (a uniform tubular)."""
 
     kind: Literal["pipe", "heavyweight", "collar", "bha"] = "pipe"
-    length: Optional[Q["length"]] = Field(None, gt=0)
+    length: Q["length"] | None = Field(None, gt=0)
     outer_diameter: Q["length"] = Field(..., gt=0)
     inner_diameter: Q["length"] = Field(..., ge=0)
     young_modulus: Q["pressure"] = Field(2.1e11, gt=0)
@@ -277,7 +284,7 @@ class StabilizerSettings(_Strict):
 class StringSettings(_Strict):
     """``[string]``: segments (surface first), stabilizers, mud density."""
 
-    segments: Optional[list[SegmentSettings]] = None
+    segments: list[SegmentSettings] | None = None
     stabilizers: list[StabilizerSettings] = Field(default_factory=list)
     mud_density: Q["density"] = Field(0.0, ge=0)
 
@@ -299,7 +306,7 @@ class ControllerSettings(_Strict):
     type: Literal["pi", "soft_torque", "dhp"] = "pi"
     soft_gain: float = Field(2e-4, ge=0)
     soft_tau: Q["time"] = Field(2.0, gt=0)
-    file: Optional[str] = None
+    file: str | None = None
 
     @model_validator(mode="after")
     def _file(self):
@@ -313,9 +320,9 @@ class ControllerSettings(_Strict):
 class TopDriveSettings(_Strict):
     """``[rig.top_drive]``: inertia and PI gains (default: the preset's)."""
 
-    inertia: Optional[Q["inertia"]] = Field(None, gt=0)
-    kp: Optional[Q["torsional_damping"]] = Field(None, ge=0)
-    ki: Optional[Q["torsional_stiffness"]] = Field(None, ge=0)
+    inertia: Q["inertia"] | None = Field(None, gt=0)
+    kp: Q["torsional_damping"] | None = Field(None, ge=0)
+    ki: Q["torsional_stiffness"] | None = Field(None, ge=0)
 
 
 class HookSettings(_Strict):
@@ -340,7 +347,7 @@ class OperationSettings(_Strict):
 
     surface_speed: Profile = Field("10 rad/s", validate_default=True)
     wob: Q["force"] = Field(120e3, ge=0)
-    hook_load: Optional[Profile] = None
+    hook_load: Profile | None = None
     rop: Profile = Field(0.0, validate_default=True)
 
     @field_validator("surface_speed", mode="after")
@@ -362,8 +369,8 @@ class OperationSettings(_Strict):
 class ReferenceSettings(_Strict):
     """``[reference]``: desired bit velocities, recorded as ``reference_*`` channels."""
 
-    axial_velocity: Optional[Profile] = None
-    angular_velocity: Optional[Profile] = None
+    axial_velocity: Profile | None = None
+    angular_velocity: Profile | None = None
 
     @field_validator("axial_velocity", "angular_velocity", mode="after")
     @classmethod
@@ -380,7 +387,7 @@ class SimulationSettings(_Strict):
     duration: Q["time"] = Field(..., gt=0)
     dt: Q["time"] = Field(1e-3, gt=0, le=0.01)
     depth_of_cut: Literal["delayed", "approximate"] = "delayed"
-    record_dt: Optional[Q["time"]] = Field(0.01, gt=0)
+    record_dt: Q["time"] | None = Field(0.01, gt=0)
     start: Literal["rest", "off_bottom", "steady"] = "rest"
 
     @model_validator(mode="after")
@@ -399,13 +406,13 @@ class DirectionalScenario(_Strict):
     title: str = ""
     description: str = ""
     model: DirectionalModelSettings
-    well: Optional[WellSettings] = None
-    string: Optional[StringSettings] = None
+    well: WellSettings | None = None
+    string: StringSettings | None = None
     bit: dict[str, Any] = Field(default_factory=dict)
     rig: RigSettings = RigSettings()
     controller: ControllerSettings = ControllerSettings()
     operation: OperationSettings = OperationSettings()
-    reference: Optional[ReferenceSettings] = None
+    reference: ReferenceSettings | None = None
     simulation: SimulationSettings
 
     @model_validator(mode="after")

@@ -48,18 +48,31 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal
 
 from pydantic import BeforeValidator, Field, field_validator, model_validator
 
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params.quantity import Q
-from downhole.scenario import Profile, preset_params, _Strict, check_step_count, \
-    parse_scenario, profile_to_signal
+from downhole.scenario import (
+    Profile,
+    _Strict,
+    check_step_count,
+    parse_scenario,
+    preset_params,
+    profile_to_signal,
+)
 from downhole.units import UnitError
 
-__all__ = ["NeutralScenario", "load_neutral_scenario", "build_neutral", "build_controller",
-           "build_reference", "run_neutral_scenario", "validate_neutral_scenario"]
+__all__ = [
+    "NeutralScenario",
+    "build_controller",
+    "build_neutral",
+    "build_reference",
+    "load_neutral_scenario",
+    "run_neutral_scenario",
+    "validate_neutral_scenario",
+]
 
 
 def _profile(value, dim, name):
@@ -106,13 +119,13 @@ class EIDSettings(_Strict):
     """``[controller]`` with ``type = "eid"``: a saved design (``file``) or design options."""
 
     type: Literal["eid"]
-    file: Optional[str] = None
-    internal_model_gain: Optional[Pair] = None
-    filter_bandwidth: Optional[Pair] = None
-    observer_gain: Optional[Pair] = None
-    gain_bound: Optional[float] = Field(None, gt=0)
-    predictor: Optional[bool] = None
-    delayed_input_observer: Optional[bool] = None
+    file: str | None = None
+    internal_model_gain: Pair | None = None
+    filter_bandwidth: Pair | None = None
+    observer_gain: Pair | None = None
+    gain_bound: float | None = Field(None, gt=0)
+    predictor: bool | None = None
+    delayed_input_observer: bool | None = None
 
     @field_validator("internal_model_gain", "filter_bandwidth", "observer_gain", mode="after")
     @classmethod
@@ -140,11 +153,11 @@ class NeutralReference(_Strict):
     """``[reference]``: desired bit velocities."""
 
     type: Literal["constant", "eq3.34-3.35", "seed_tracking", "breakpoints"] = "constant"
-    axial_velocity: Optional[Profile] = None
-    angular_velocity: Optional[Profile] = None
+    axial_velocity: Profile | None = None
+    angular_velocity: Profile | None = None
     v: Q["velocity"] = Field(0.005, gt=0)
     omega: Q["angular_velocity"] = Field(20.0, gt=0)
-    max_depth_of_cut: Union[Q["length"], bool] = 6e-3
+    max_depth_of_cut: Q["length"] | bool = 6e-3
 
     @field_validator("axial_velocity", "angular_velocity", mode="after")
     @classmethod
@@ -187,7 +200,7 @@ class NeutralSimulation(_Strict):
     duration: Q["time"] = Field(..., gt=0)
     dt: Q["time"] = Field(1e-4, gt=0)
     depth_of_cut: Literal["delayed", "approximate"] = "delayed"
-    record_dt: Optional[Q["time"]] = Field(None, gt=0)
+    record_dt: Q["time"] | None = Field(None, gt=0)
     seed: int = 0
     noise: NoiseSettings = NoiseSettings()
     start: Literal["rest", "off_bottom", "steady"] = "rest"
@@ -200,10 +213,10 @@ class NeutralScenario(_Strict):
     description: str = ""
     model: NeutralModelSettings
     bit: dict[str, Any] = Field(default_factory=dict)
-    operation: Optional[NeutralSurface] = None
-    controller: Optional[EIDSettings] = None
-    reference: Optional[NeutralReference] = None
-    simulation: Optional[NeutralSimulation] = None
+    operation: NeutralSurface | None = None
+    controller: EIDSettings | None = None
+    reference: NeutralReference | None = None
+    simulation: NeutralSimulation | None = None
 
 
 def load_neutral_scenario(data: dict, source: str) -> NeutralScenario:
@@ -227,8 +240,11 @@ def build_neutral(sc: NeutralScenario, source: str):
 def build_reference(sc: NeutralScenario):
     """The :class:`~downhole.control.eid.references.Reference` of a scenario (default constant
     10 mm/s, 20 rad/s)."""
-    from downhole.control.eid.references import (constant_reference, seed_tracking_reference,
-                                                 user_reference)
+    from downhole.control.eid.references import (
+        constant_reference,
+        seed_tracking_reference,
+        user_reference,
+    )
 
     r = sc.reference
     if r is None:

@@ -3,8 +3,20 @@ command reads (``TABLES``), the renames of the older dialects (``RENAMES``, ``VA
 and the reader every command uses (``read_scenario``: the hardened reader, then
 ``check_dialect``)."""
 
-from downhole._schema import (RENAMES, TABLES, VALUE_RENAMES, check_dialect,  # noqa: F401
-                              raise_validation, read_scenario)
+from downhole._schema import (
+                              RENAMES,
+                              TABLES,
+                              VALUE_RENAMES,
+                              check_dialect,
+                              raise_validation,
+                              read_scenario,
+)
 
-__all__ = ["TABLES", "RENAMES", "VALUE_RENAMES", "read_scenario", "check_dialect",
-           "raise_validation"]
+__all__ = [
+                              "RENAMES",
+                              "TABLES",
+                              "VALUE_RENAMES",
+                              "check_dialect",
+                              "raise_validation",
+                              "read_scenario",
+]

@@ -62,20 +62,38 @@ from __future__ import annotations
 import inspect
 import math
 from types import SimpleNamespace
-from typing import Any, Literal, Optional
+from typing import Any, Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params.quantity import Q
-from downhole.scenario import (_raise_validation, _Strict, check_step_count, euler_stable_dt,
-                               parse_scenario)
-from downhole.scenario.directional import (SegmentSettings, StabilizerSettings, WellSettings,
-                                           _string, _well)
+from downhole.scenario import (
+    _raise_validation,
+    _Strict,
+    check_step_count,
+    euler_stable_dt,
+    parse_scenario,
+)
+from downhole.scenario.directional import (
+    SegmentSettings,
+    StabilizerSettings,
+    WellSettings,
+    _string,
+    _well,
+)
 
-__all__ = ["SystemScenario", "FIDELITY_NAMES", "RENAMED", "is_system_dialect",
-           "check_fidelity", "build_system", "validate_system_scenario", "run_system_scenario",
-           "steady_bit_state"]
+__all__ = [
+    "FIDELITY_NAMES",
+    "RENAMED",
+    "SystemScenario",
+    "build_system",
+    "check_fidelity",
+    "is_system_dialect",
+    "run_system_scenario",
+    "steady_bit_state",
+    "validate_system_scenario",
+]
 
 #: The fidelities a system scenario can run at (:data:`downhole.system.FIDELITIES`).
 FIDELITY_NAMES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
@@ -108,7 +126,7 @@ def is_system_dialect(data: dict) -> bool:
 
 # ---------------------------------------------------------------------------------- schema
 class _Options(_Strict):
-    friction: Optional[float] = Field(None, ge=0, le=10)
+    friction: float | None = Field(None, ge=0, le=10)
 
 
 class LumpedOptions(_Options):
@@ -133,9 +151,9 @@ class FemOptions(_Options):
 class HybridOptions(_Options):
     """``[model.hybrid]``."""
 
-    preset: Optional[Literal["hybrid24", "hybrid68", "hybrid108"]] = None
-    nodes_ab: Optional[int] = Field(None, ge=2, le=2000)
-    nodes_cd: Optional[int] = Field(None, ge=2, le=2000)
+    preset: Literal["hybrid24", "hybrid68", "hybrid108"] | None = None
+    nodes_ab: int | None = Field(None, ge=2, le=2000)
+    nodes_cd: int | None = Field(None, ge=2, le=2000)
     n_lags: int = Field(0, ge=0, le=8)
 
 
@@ -147,7 +165,7 @@ class SystemModelSettings(_Strict):
     rayleigh_alpha: float = Field(0.05, ge=0, le=1e3)
     rayleigh_beta: float = Field(0.03, ge=0, le=1e3)
     lump_length: Q["length"] = Field(10.0, gt=0)
-    wave_section: Optional[list[Q["length"]]] = Field(None, min_length=2, max_length=2)
+    wave_section: list[Q["length"]] | None = Field(None, min_length=2, max_length=2)
     lumped4: LumpedOptions = LumpedOptions()
     lumped12: LumpedOptions = LumpedOptions()
     neutral: NeutralOptions = NeutralOptions()
@@ -205,8 +223,8 @@ class OperationSettings(_Strict):
     """``[operation]``: the set-points (constants)."""
 
     surface_speed: Q["angular_velocity"] = Field(10.0, gt=0)
-    rop: Optional[Q["velocity"]] = Field(None, gt=0, le=1.0)
-    wob: Optional[Q["force"]] = Field(None, gt=0)
+    rop: Q["velocity"] | None = Field(None, gt=0, le=1.0)
+    wob: Q["force"] | None = Field(None, gt=0)
 
     @model_validator(mode="after")
     def _one(self):
@@ -219,8 +237,8 @@ class SystemSimulation(_Strict):
     """``[simulation]``."""
 
     duration: Q["time"] = Field(..., gt=0)
-    dt: Optional[Q["time"]] = Field(None, gt=0, le=0.01)
-    record_dt: Optional[Q["time"]] = Field(0.01, gt=0)
+    dt: Q["time"] | None = Field(None, gt=0, le=0.01)
+    record_dt: Q["time"] | None = Field(0.01, gt=0)
     depth_of_cut: Literal["delayed", "approximate"] = "delayed"
     start: Literal["rest", "off_bottom", "steady"] = "rest"
     integrator: Literal["euler", "newmark"] = "newmark"
@@ -232,9 +250,9 @@ class TorqueDragSettings(_Strict):
 
     friction_factors: list[float] = Field([0.1, 0.2, 0.3], min_length=1, max_length=20)
     step: Q["length"] = Field(10.0, ge=0.1, le=1000.0)
-    vertical_section_azimuth: Optional[Q["angle"]] = None
-    wob: Optional[Q["force"]] = Field(None, gt=0)
-    tob: Optional[Q["torque"]] = Field(None, ge=0)
+    vertical_section_azimuth: Q["angle"] | None = None
+    wob: Q["force"] | None = Field(None, gt=0)
+    tob: Q["torque"] | None = Field(None, ge=0)
 
     @field_validator("friction_factors", mode="before")
     @classmethod

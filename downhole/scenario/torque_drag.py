@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.scenario import check_values, model_type, parse_scenario
 
-__all__ = ["TorqueDragCase", "torque_drag_case", "run_torque_drag"]
+__all__ = ["TorqueDragCase", "run_torque_drag", "torque_drag_case"]
 
 
 @dataclass(frozen=True)
@@ -44,8 +44,12 @@ def torque_drag_case(data: dict, source: str, friction=None) -> TorqueDragCase:
         Naming the file and the field: not a system scenario, a schema error, a string that does
         not reach from surface to the bit, a WOB that the bit law cannot reach.
     """
-    from downhole.scenario.system import (SystemScenario, _check_renames, build_system,
-                                          steady_bit_state)
+    from downhole.scenario.system import (
+        SystemScenario,
+        _check_renames,
+        build_system,
+        steady_bit_state,
+    )
 
     check_values(data, source)
     mtype = model_type(data, source)

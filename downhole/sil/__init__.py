@@ -20,6 +20,18 @@ from downhole.sil.protocol import VERSION as PROTOCOL_VERSION
 from downhole.sil.recorder import RingRecorder, load_chunks
 from downhole.sil.runtime import RealTimeRunner, SafetyPolicy
 
-__all__ = ["RealTimeRunner", "SafetyPolicy", "PlantLink", "ControllerClient", "SilPlant",
-           "build_plant", "SurfacePI", "pi_controller_for", "load_controller_file", "run_offline",
-           "RingRecorder", "load_chunks", "PROTOCOL_VERSION"]
+__all__ = [
+           "PROTOCOL_VERSION",
+           "ControllerClient",
+           "PlantLink",
+           "RealTimeRunner",
+           "RingRecorder",
+           "SafetyPolicy",
+           "SilPlant",
+           "SurfacePI",
+           "build_plant",
+           "load_chunks",
+           "load_controller_file",
+           "pi_controller_for",
+           "run_offline",
+]

@@ -19,7 +19,7 @@ import sys
 import threading
 import time
 
-__all__ = ["wait_with_countdown", "RunProgress", "ServeProgress", "format_seconds"]
+__all__ = ["RunProgress", "ServeProgress", "format_seconds", "wait_with_countdown"]
 
 
 def format_seconds(s: float) -> str:

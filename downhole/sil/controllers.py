@@ -21,9 +21,17 @@ import numpy as np
 from downhole.errors import DownholeInputError
 from downhole.sim.result import Result
 
-__all__ = ["SurfacePI", "pi_controller_for", "load_controller_file", "run_offline",
-           "CODE_REFUSED", "ManualFill", "plant_torsional_impedance", "plant_stick_slip_frequency",
-           "controller_choices"]
+__all__ = [
+    "CODE_REFUSED",
+    "ManualFill",
+    "SurfacePI",
+    "controller_choices",
+    "load_controller_file",
+    "pi_controller_for",
+    "plant_stick_slip_frequency",
+    "plant_torsional_impedance",
+    "run_offline",
+]
 
 
 class SurfacePI:

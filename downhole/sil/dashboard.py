@@ -66,9 +66,20 @@ from urllib.parse import parse_qs
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["DashboardSession", "make_app", "serve_dashboard", "is_loopback", "TOKEN_COOKIE",
-           "DEFAULT_REFERENCE_LIMITS", "MIN_REMOTE_TOKEN", "check_dashboard_settings",
-           "UNIT_SYSTEMS", "display_units", "rolling_severity", "TREND_CHANNELS"]
+__all__ = [
+    "DEFAULT_REFERENCE_LIMITS",
+    "MIN_REMOTE_TOKEN",
+    "TOKEN_COOKIE",
+    "TREND_CHANNELS",
+    "UNIT_SYSTEMS",
+    "DashboardSession",
+    "check_dashboard_settings",
+    "display_units",
+    "is_loopback",
+    "make_app",
+    "rolling_severity",
+    "serve_dashboard",
+]
 
 SIGNALS = ("bit_axial_velocity", "bit_angular_velocity", "wob", "tob", "hook_load",
            "surface_torque", "top_drive_angular_velocity", "top_drive_axial_velocity",
@@ -367,7 +378,7 @@ class DashboardSession:
             if fresh and self.on_start is not None:
                 try:
                     self.on_start()
-                except Exception as exc:  # noqa: BLE001 - shown on the page
+                except Exception as exc:
                     self.error = f"not started: {type(exc).__name__}: {exc}"
                     return False
             self._started_once = True
@@ -375,7 +386,7 @@ class DashboardSession:
             def work():
                 try:
                     self.runner.run(remaining, reset=fresh)
-                except Exception as exc:  # noqa: BLE001 - shown on the page
+                except Exception as exc:
                     self.error = f"{type(exc).__name__}: {exc}"
                 finally:
                     if self.duration is not None and \
@@ -622,16 +633,16 @@ class _Guard:
             headers.setdefault(k.decode("latin-1").lower(), []).append(v.decode("latin-1"))
         why = self._refuse_reason(scope, headers)
         login = None
-        if why is None and self.token is not None:
-            if not _check_token(self._given_token(headers), self.token):
-                query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
-                q = query.get("token")
-                if (scope["type"] == "http" and scope.get("method") == "GET"
-                        and scope.get("path") == "/" and q and _check_token(q[0], self.token)):
-                    login = q[0]
-                else:
-                    why = ("token", 403, "missing or wrong token (Authorization: Bearer, "
-                           f"X-Downhole-Token or the {TOKEN_COOKIE} cookie)")
+        if (why is None and self.token is not None
+                and not _check_token(self._given_token(headers), self.token)):
+            query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
+            q = query.get("token")
+            if (scope["type"] == "http" and scope.get("method") == "GET"
+                    and scope.get("path") == "/" and q and _check_token(q[0], self.token)):
+                login = q[0]
+            else:
+                why = ("token", 403, "missing or wrong token (Authorization: Bearer, "
+                       f"X-Downhole-Token or the {TOKEN_COOKIE} cookie)")
         if why is not None:
             self.session.refused[why[0]] += 1
             if scope["type"] == "websocket":

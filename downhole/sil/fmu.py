@@ -213,7 +213,7 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
                                  f"{stop_time!r}")
     try:
         blob = pickle.dumps(plant)
-    except Exception as exc:  # noqa: BLE001 - any pickling failure, named
+    except Exception as exc:
         raise DownholeInputError(f"{type(plant).__name__} cannot be pickled into the FMU: "
                                  f"{exc}") from None
     copy = pickle.loads(blob)  # fail here, not inside the FMU
@@ -324,7 +324,7 @@ def _model_description(fmu: Path):
         raise DownholeInputError(f"{fmu}: no such FMU file")
     try:
         md = fmpy.read_model_description(str(fmu))
-    except Exception as exc:  # noqa: BLE001 - zip, XML or schema errors
+    except Exception as exc:
         raise DownholeInputError(f"{fmu}: not a readable FMU ({exc})") from None
     if md.fmiVersion != "2.0" or md.coSimulation is None:
         raise DownholeInputError(f"{fmu}: expected an FMI 2.0 co-simulation FMU, got FMI "
@@ -519,7 +519,7 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
             slave.setReal(in_vr, [float(held[c]) for c in in_names])
             try:
                 slave.doStep(currentCommunicationPoint=t, communicationStepSize=dt)
-            except Exception as exc:  # noqa: BLE001 - FMICallException
+            except Exception as exc:
                 said = "; ".join(list(log.messages)[-3:]) or str(exc)
                 raise DownholeInputError(f"the FMU {fmu.name} rejected the step at t = {t:g} s "
                                          f"(dt = {dt:g} s): {said}") from None

@@ -202,7 +202,7 @@ class DownholePlant(Fmi2Slave):
         try:
             for _ in range(n):
                 obs = self._plant.step(cmd)
-        except Exception as exc:  # noqa: BLE001 - the reason goes to the importer's log
+        except Exception as exc:
             self.log(f"t = {current_time:g} s: {type(exc).__name__}: {exc}", Fmi2Status.error)
             return False
         self._set_outputs(obs)

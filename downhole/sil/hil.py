@@ -27,7 +27,7 @@ from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
 from downhole.errors import DownholeInputError
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
-__all__ = ["HILStringPlant", "SoftwareRig", "build_hil_plant", "COUPLING"]
+__all__ = ["COUPLING", "HILStringPlant", "SoftwareRig", "build_hil_plant"]
 
 #: Default coupling (k_a N/m, c_a N s/m, k_t N m/rad, c_t N m s/rad).
 COUPLING = (1e7, 1e5, 1e4, 2e3)

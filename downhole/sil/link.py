@@ -71,7 +71,7 @@ from downhole.sil.protocol import (
     unpack_layout,
 )
 
-__all__ = ["PlantLink", "ControllerClient", "LINK_COUNTERS", "is_loopback"]
+__all__ = ["LINK_COUNTERS", "ControllerClient", "PlantLink", "is_loopback"]
 
 #: Counter names kept by both ends.
 LINK_COUNTERS = ("rx", "tx", "malformed", "foreign", "duplicates", "reordered", "stale",

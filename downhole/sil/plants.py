@@ -39,15 +39,21 @@ Interfaces (``interface`` of :func:`build_plant`):
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.signals import SIGNALS, range_reason
 from downhole.sim.plant import plant_bit_radius
 
-__all__ = ["SilPlant", "build_plant", "SIGNAL_UNITS", "COMMAND_RANGES", "REFERENCE_RANGES",
-           "check_range", "resolve_ranges"]
+__all__ = [
+    "COMMAND_RANGES",
+    "REFERENCE_RANGES",
+    "SIGNAL_UNITS",
+    "SilPlant",
+    "build_plant",
+    "check_range",
+    "resolve_ranges",
+]
 
 #: Units of the signals the adapters expose (others: ""), from :mod:`downhole.signals`.
 SIGNAL_UNITS = {name: SIGNALS[name].unit for name in (

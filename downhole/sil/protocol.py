@@ -55,10 +55,29 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["VERSION", "MAGIC", "HEADER", "HEADER_SIZE", "MsgType", "Message", "MalformedPacket",
-           "VersionMismatch", "AuthenticationFailed", "pack", "unpack", "pack_layout",
-           "unpack_layout", "Layout", "MAX_DATAGRAM", "FLAG_AUTH", "TAG_SIZE", "KEY_ENV",
-           "MIN_KEY_BYTES", "load_key", "Signer"]
+__all__ = [
+    "FLAG_AUTH",
+    "HEADER",
+    "HEADER_SIZE",
+    "KEY_ENV",
+    "MAGIC",
+    "MAX_DATAGRAM",
+    "MIN_KEY_BYTES",
+    "TAG_SIZE",
+    "VERSION",
+    "AuthenticationFailed",
+    "Layout",
+    "MalformedPacket",
+    "Message",
+    "MsgType",
+    "Signer",
+    "VersionMismatch",
+    "load_key",
+    "pack",
+    "pack_layout",
+    "unpack",
+    "unpack_layout",
+]
 
 MAGIC = b"DHSL"
 VERSION = 2

@@ -65,7 +65,7 @@ from downhole.sil.recorder import RingRecorder
 from downhole.sil.scheduling import elevate_priority, sleep_until
 from downhole.sim.result import Result
 
-__all__ = ["RealTimeRunner", "SafetyPolicy", "STATS_KEYS", "elevate_priority"]
+__all__ = ["STATS_KEYS", "RealTimeRunner", "SafetyPolicy", "elevate_priority"]
 
 STATS_KEYS = ("steps", "deadline_misses", "overruns", "late_commands", "resyncs",
               "max_lag_s", "max_exec_s", "mean_exec_s", "wall_s", "sim_s", "real_time_factor",
@@ -626,7 +626,7 @@ class RealTimeRunner:
         k0 = self._k
         t0 = time.monotonic() - k0 * dt if self.paced else time.monotonic()
         wall0 = time.monotonic()
-        restore = lambda: None  # noqa: E731
+        restore = lambda: None
         if self.paced and self.realtime:
             restore, self.scheduler = elevate_priority()
         gc_was = gc.isenabled()
@@ -648,20 +648,16 @@ class RealTimeRunner:
                 self._exec_sum += ex
                 rx = self._rx_step
                 self._rx_sum += rx
-                if rx > st["max_rx_s"]:
-                    st["max_rx_s"] = rx
+                st["max_rx_s"] = max(st["max_rx_s"], rx)
                 self._listen_sum += self._listen_step
-                if self._listen_step > st["max_rx_listen_s"]:
-                    st["max_rx_listen_s"] = self._listen_step
+                st["max_rx_listen_s"] = max(st["max_rx_listen_s"], self._listen_step)
                 if ex > dt:
                     st["overruns"] += 1
-                if ex > st["max_exec_s"]:
-                    st["max_exec_s"] = ex
+                st["max_exec_s"] = max(st["max_exec_s"], ex)
                 lag = end - (t0 + (k + 1) * dt) if self.paced else 0.0
                 if lag > 0:
                     st["deadline_misses"] += 1
-                    if lag > st["max_lag_s"]:
-                        st["max_lag_s"] = lag
+                    st["max_lag_s"] = max(st["max_lag_s"], lag)
                     if lag > self.max_lag:
                         t0 += lag
                         st["resyncs"] += 1

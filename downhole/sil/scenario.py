@@ -52,15 +52,21 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from downhole.errors import ScenarioError
 from downhole.params.quantity import Q
 
-__all__ = ["SilScenario", "load_sil_scenario", "parse_sil_scenario", "build_from_scenario",
-           "check_code_allowed", "dashboard_token"]
+__all__ = [
+    "SilScenario",
+    "build_from_scenario",
+    "check_code_allowed",
+    "dashboard_token",
+    "load_sil_scenario",
+    "parse_sil_scenario",
+]
 
 
 class _Strict(BaseModel):
@@ -77,7 +83,7 @@ class ModelSection(_Strict):
     """``[model]``: the plant."""
 
     fidelity: Literal["lumped4", "lumped12", "neutral", "fem", "hybrid"] = "hybrid"
-    preset: Optional[str] = None   # hybrid: hybrid24 | hybrid68 | hybrid108; lumped: table_2_1
+    preset: str | None = None   # hybrid: hybrid24 | hybrid68 | hybrid108; lumped: table_2_1
     interface: Literal["surface", "state"] = "surface"
     fem: FemSection = FemSection()
 
@@ -260,7 +266,7 @@ def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
     if d.token is not None and (not d.token or any(ch.isspace() for ch in d.token)):
         raise ScenarioError(source, "dashboard.token", "must be non-empty, without whitespace")
     for o in d.allowed_origins:
-        if not (o.startswith("http://") or o.startswith("https://")) or o.rstrip("/") != o:
+        if not (o.startswith(("http://", "https://"))) or o.rstrip("/") != o:
             raise ScenarioError(source, "dashboard.allowed_origins",
                                 f"{o!r} is not an origin (scheme://host[:port], no path)")
     directional = sc.model.fidelity in ("fem", "hybrid")

@@ -9,7 +9,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["ch6_dhp", "ControllerProcess", "free_port"]
+__all__ = ["ControllerProcess", "ch6_dhp", "free_port"]
 
 _CACHE: dict = {}
 
@@ -67,7 +67,7 @@ class ControllerProcess:
         env = dict(os.environ)
         env.setdefault("OMP_NUM_THREADS", "1")
         env.setdefault("OPENBLAS_NUM_THREADS", "1")
-        self._log = open(log, "w") if log else subprocess.DEVNULL
+        self._log = open(log, "w") if log else subprocess.DEVNULL  # noqa: SIM115 (closed in kill)
         self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, env=env)
 
     def kill(self) -> None:

@@ -4,4 +4,4 @@ from downhole.sim.inputs import SurfaceInputs
 from downhole.sim.result import CHANNEL_UNITS, Result, load_result
 from downhole.sim.simulate import LumpedPlant, simulate
 
-__all__ = ["Result", "load_result", "CHANNEL_UNITS", "SurfaceInputs", "simulate", "LumpedPlant"]
+__all__ = ["CHANNEL_UNITS", "LumpedPlant", "Result", "SurfaceInputs", "load_result", "simulate"]

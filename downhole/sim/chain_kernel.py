@@ -15,7 +15,7 @@ from numba import njit
 from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
 from downhole.bit.rock_surface import rock_advance, rock_depth
 
-__all__ = ["run_chain", "CHANNELS"]
+__all__ = ["CHANNELS", "run_chain"]
 
 CHANNELS = ("time", "bit_axial_position", "bit_axial_velocity", "bit_angle",
             "bit_angular_velocity", "depth_of_cut", "wob", "tob", "hook_load", "surface_torque",

@@ -30,14 +30,25 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from downhole.bit.law import (approx_depth_of_cut, approx_depth_rate, bit_forces, bit_wob,
-                              solve_bit_node)
+from downhole.bit.law import (
+    approx_depth_of_cut,
+    approx_depth_rate,
+    bit_forces,
+    bit_wob,
+    solve_bit_node,
+)
 from downhole.bit.rock_surface import rock_advance_to, rock_depth_at
 from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
 from downhole.sim.wave import wave_read_at, wave_read_plan, wave_source_forces, wave_step_at
 
-__all__ = ["CHANNELS", "DirectionalParams", "RUN_STATE_DTYPE", "new_run_state",
-           "run_directional", "thomas_solve"]
+__all__ = [
+    "CHANNELS",
+    "RUN_STATE_DTYPE",
+    "DirectionalParams",
+    "new_run_state",
+    "run_directional",
+    "thomas_solve",
+]
 
 #: Recorded channels, in order.
 CHANNELS = (

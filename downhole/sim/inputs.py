@@ -2,19 +2,19 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Union
 
 import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.units import _is_quantity, as_si, as_si_array
 
-__all__ = ["SurfaceInputs", "Signal", "sample_signal"]
+__all__ = ["Signal", "SurfaceInputs", "sample_signal"]
 
 #: A signal: a constant, a callable f(t) (vectorized over arrays), or (times, values) samples
 #: interpolated linearly (held constant outside).
-Signal = Union[float, Callable, tuple]
+Signal = float | Callable | tuple
 
 
 def sample_signal(sig: Signal, t: np.ndarray, name: str) -> np.ndarray:
@@ -98,13 +98,13 @@ class SurfaceInputs:
                                                       f"{self.mode} input {attr}"))
 
     @classmethod
-    def velocity(cls, axial: Signal = 0.01, angular: Signal = 10.0) -> "SurfaceInputs":
+    def velocity(cls, axial: Signal = 0.01, angular: Signal = 10.0) -> SurfaceInputs:
         """Top-drive axial velocity (m/s, or a quantity such as ``"30 ft/h"``) and rotary speed
         (rad/s, or ``"120 rpm"``): constants, ``(times, values)`` or callables f(t) in SI."""
         return cls("velocity", axial, angular)
 
     @classmethod
-    def displacement(cls, time, axial, angular) -> "SurfaceInputs":
+    def displacement(cls, time, axial, angular) -> SurfaceInputs:
         """Top-drive axial displacement (m) and angle (rad) at ``time`` (s); arrays of numbers
         in SI, of quantity strings or pint Quantity arrays."""
         t = as_si_array(time, "time", "displacement input time")
@@ -112,7 +112,7 @@ class SurfaceInputs:
                    (t, as_si_array(angular, "angle", "displacement input angular")))
 
     @classmethod
-    def force(cls, hook_load: Signal, torque: Signal) -> "SurfaceInputs":
+    def force(cls, hook_load: Signal, torque: Signal) -> SurfaceInputs:
         """Hook load (N, or ``"250 klbf"``) and surface torque (N m, or ``"10 kft*lbf"``)."""
         return cls("force", hook_load, torque)
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["write_las", "NULL"]
+__all__ = ["NULL", "write_las"]
 
 #: Null value written for NaN samples (the LAS convention).
 NULL = -999.25
@@ -125,7 +125,7 @@ def write_las(result, path: str | os.PathLike, well: str = "downhole simulation"
     if summary:
         try:
             s = result.summary()
-        except Exception:  # noqa: BLE001 - a summary needs the standard channels
+        except Exception:
             s = {}
         from downhole.signals import metric_unit
 

@@ -34,7 +34,7 @@ Subclasses set ``command_names``, ``observation_names`` and ``dt`` and implement
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -42,7 +42,7 @@ from downhole.errors import DownholeInputError
 from downhole.signals import SIGNALS, check_command_value
 from downhole.units import as_si
 
-__all__ = ["Plant", "START_MODES", "check_start", "plant_bit_radius"]
+__all__ = ["START_MODES", "Plant", "check_start", "plant_bit_radius"]
 
 #: The ways a run can start (see the module docstring).
 START_MODES = ("rest", "off_bottom", "steady")

@@ -13,8 +13,15 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["Reference", "constant_reference", "seed_tracking_reference", "user_reference",
-           "as_reference", "eq_3_34", "eq_3_35"]
+__all__ = [
+    "Reference",
+    "as_reference",
+    "constant_reference",
+    "eq_3_34",
+    "eq_3_35",
+    "seed_tracking_reference",
+    "user_reference",
+]
 
 
 @dataclass(frozen=True)

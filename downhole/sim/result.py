@@ -16,7 +16,7 @@ import xarray as xr
 from downhole._atomic import atomic_path
 from downhole.signals import SIGNALS, STANDARD_CHANNELS
 
-__all__ = ["Result", "CHANNEL_UNITS", "load_result"]
+__all__ = ["CHANNEL_UNITS", "Result", "load_result"]
 
 #: Units and descriptions of the standard channels (a view of :data:`downhole.signals.SIGNALS`).
 CHANNEL_UNITS: dict[str, tuple[str, str]] = {
@@ -75,7 +75,7 @@ class Result:
 
     # --- access -------------------------------------------------------------------------------
     @classmethod
-    def from_dataset(cls, ds: xr.Dataset) -> "Result":
+    def from_dataset(cls, ds: xr.Dataset) -> Result:
         obj = cls.__new__(cls)
         obj.dataset = ds
         return obj
@@ -105,7 +105,7 @@ class Result:
     def units(self, name: str) -> str:
         return self.dataset[name].attrs.get("units", "")
 
-    def window(self, t_start: float | None = None, t_end: float | None = None) -> "Result":
+    def window(self, t_start: float | None = None, t_end: float | None = None) -> Result:
         """A Result restricted to ``t_start <= t <= t_end``."""
         t = self.time
         lo = t[0] if t_start is None else t_start

@@ -20,7 +20,7 @@ from downhole.sim.plant import Plant, check_start, steady_depth_of_cut
 from downhole.sim.result import Result
 from downhole.units import si_or_number
 
-__all__ = ["simulate", "LumpedPlant", "DEPTH_OF_CUT_MODES", "INTEGRATORS"]
+__all__ = ["DEPTH_OF_CUT_MODES", "INTEGRATORS", "LumpedPlant", "simulate"]
 
 DEPTH_OF_CUT_MODES = ("delayed", "approximate")
 INTEGRATORS = ("euler", "newmark")

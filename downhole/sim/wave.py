@@ -71,10 +71,25 @@ from numba import njit
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["WaveSegment", "segments_from_pipe", "wave_state", "wave_incoming", "wave_push",
-           "wave_step", "wave_step_at", "wave_read", "wave_read_plan", "wave_read_at",
-           "wave_outgoing", "wave_end_forces", "wave_source_forces", "static_end_forces",
-           "line_preload", "initial_waves", "WaveParams"]
+__all__ = [
+    "WaveParams",
+    "WaveSegment",
+    "initial_waves",
+    "line_preload",
+    "segments_from_pipe",
+    "static_end_forces",
+    "wave_end_forces",
+    "wave_incoming",
+    "wave_outgoing",
+    "wave_push",
+    "wave_read",
+    "wave_read_at",
+    "wave_read_plan",
+    "wave_source_forces",
+    "wave_state",
+    "wave_step",
+    "wave_step_at",
+]
 
 
 class WaveParams(NamedTuple):

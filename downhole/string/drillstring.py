@@ -16,7 +16,7 @@ from downhole.errors import DownholeInputError
 from downhole.params.strings import PipeSection
 from downhole.units import si_or_number
 
-__all__ = ["StringSegment", "Stabilizer", "DrillString", "pipe_section"]
+__all__ = ["DrillString", "Stabilizer", "StringSegment", "pipe_section"]
 
 _KINDS = ("pipe", "heavyweight", "collar", "bha")
 
@@ -158,7 +158,7 @@ class DrillString:
 
     @classmethod
     def uniform(cls, length: float, section: PipeSection, mud_density: float = 0.0,
-                g: float = 9.81) -> "DrillString":
+                g: float = 9.81) -> DrillString:
         """One uniform pipe of ``length`` m (or a quantity such as ``"15000 ft"``)."""
         return cls((StringSegment(_number(length, "length", "length"), section),),
                    mud_density=mud_density, g=g)

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.linalg import solve_banded
 
 from downhole.bit.rock_surface import RockSurfaceSpec, rock_init
-from downhole.contact.softstring import nodal_friction_forces, normal_weight
+from downhole.contact.softstring import normal_weight
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, DirectionalWellParams
 from downhole.params.presets import get_preset
@@ -37,9 +37,15 @@ from downhole.string.zoh import StateSpace, zoh
 from downhole.units import si_or_number
 from downhole.well import WellPath
 
-__all__ = ["DirectionalModel", "fem_model", "fem_from_nodes", "simulate_directional",
-           "DirectionalPlant",
-           "table_5_1_setup", "EXTRA_UNITS"]
+__all__ = [
+    "EXTRA_UNITS",
+    "DirectionalModel",
+    "DirectionalPlant",
+    "fem_from_nodes",
+    "fem_model",
+    "simulate_directional",
+    "table_5_1_setup",
+]
 
 #: Units of the extra (non-standard) channels written by the directional models.
 EXTRA_UNITS = {"force_b": "N", "torque_b": "N*m", "force_c": "N", "torque_c": "N*m",
@@ -145,7 +151,7 @@ class DirectionalModel:
         return f[:count]
 
     # ---------------------------------------------------------------- linear export
-    def design_model(self, n_bc: int = 1) -> "DirectionalModel":
+    def design_model(self, n_bc: int = 1) -> DirectionalModel:
         """The FEM this model is linearized on: itself for a FEM; for a hybrid, a FEM with the
         same AB and CD nodes and ``n_bc`` elements for the straight section BC (the delay line
         has no finite state; with ``n_bc = 1`` the state count equals the hybrid's)."""
@@ -557,7 +563,7 @@ def _tri_ones(T):
     return out
 
 
-def _directional_start(pk: "_Packed", start: str, ax_cmd: float, tq_cmd: float,
+def _directional_start(pk: _Packed, start: str, ax_cmd: float, tq_cmd: float,
                        clearance: float = 0.05):
     """Kernel state and the record of t = 0 for ``start`` under the commands
     ``(ax_cmd, tq_cmd)`` (hook load N or block velocity m/s; speed set-point rad/s or surface
@@ -888,7 +894,7 @@ class _Packed:
                                cmd.shape[0], self.dt, rec, rec_every, rec_start)
 
 
-_PACKS: "weakref.WeakKeyDictionary[DirectionalModel, dict]" = weakref.WeakKeyDictionary()
+_PACKS: weakref.WeakKeyDictionary[DirectionalModel, dict] = weakref.WeakKeyDictionary()
 
 
 def _packed(model: DirectionalModel, dt: float, top_drive: TopDrive, hook: Hook,

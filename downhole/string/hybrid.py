@@ -26,11 +26,18 @@ from downhole.errors import DownholeInputError
 from downhole.params import BitParams
 from downhole.sim.wave import WaveSegment
 from downhole.string.drillstring import DrillString
-from downhole.string.fem import (DirectionalModel, _assemble_chain, _apply_stabilizers,
-                                 _check_int, _damping, _mesh, table_5_1_setup)
+from downhole.string.fem import (
+    DirectionalModel,
+    _apply_stabilizers,
+    _assemble_chain,
+    _check_int,
+    _damping,
+    _mesh,
+    table_5_1_setup,
+)
 from downhole.well import WellPath
 
-__all__ = ["hybrid_model", "HYBRID_PRESETS"]
+__all__ = ["HYBRID_PRESETS", "hybrid_model"]
 
 #: Seed state counts -> (nodes on AB, nodes on CD).
 HYBRID_PRESETS = {"hybrid24": (2, 4), "hybrid68": (4, 13), "hybrid108": (7, 20)}

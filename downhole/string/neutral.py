@@ -26,19 +26,39 @@ import numpy as np
 from numba import njit
 
 from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
-from downhole.bit.rock_surface import (RockSurfaceSpec, rock_advance, rock_depth, rock_init,
-                                       rock_init_helix)
+from downhole.bit.rock_surface import (
+    RockSurfaceSpec,
+    rock_advance,
+    rock_depth,
+    rock_init,
+    rock_init_helix,
+)
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, NeutralStringParams, get_preset
 from downhole.sim.plant import Plant, check_start, steady_depth_of_cut
 from downhole.sim.references import as_reference
 from downhole.sim.result import Result
-from downhole.sim.wave import (WaveSegment, segments_from_pipe, wave_read_at, wave_read_plan,
-                               wave_source_forces, wave_state, wave_step_at)
+from downhole.sim.wave import (
+    WaveSegment,
+    segments_from_pipe,
+    wave_read_at,
+    wave_read_plan,
+    wave_source_forces,
+    wave_state,
+    wave_step_at,
+)
 from downhole.units import si_or_number
 
-__all__ = ["NeutralModel", "NDDEMatrices", "NeutralPlant", "neutral_model", "simulate_neutral",
-           "NEUTRAL_CHANNELS", "NOMINAL_U_A", "NOMINAL_U_T"]
+__all__ = [
+    "NEUTRAL_CHANNELS",
+    "NOMINAL_U_A",
+    "NOMINAL_U_T",
+    "NDDEMatrices",
+    "NeutralModel",
+    "NeutralPlant",
+    "neutral_model",
+    "simulate_neutral",
+]
 
 #: docs/seed-errata.md: open-loop commands giving 10 mm/s and 20 rad/s with Table 3.1.
 NOMINAL_U_A = 1.147224
@@ -160,7 +180,7 @@ class NeutralModel:
             h1=2 * self.tau1, h2=2 * self.tau2, tau=(self.tau1, self.tau2),
             u_offset=(self.hang_command, 0.0))
 
-    def with_bit(self, bit: BitParams) -> "NeutralModel":
+    def with_bit(self, bit: BitParams) -> NeutralModel:
         """Same string, another bit (e.g. a perturbed epsilon)."""
         return NeutralModel(self.params, bit, self.axial, self.torsional, self.name)
 
@@ -492,7 +512,7 @@ class NeutralPlant(Plant):
     command_names = ("top_drive_axial_velocity", "top_drive_angular_velocity")
     observation_names = NEUTRAL_CHANNELS
 
-    def __init__(self, model: "NeutralModel | str" = "table_3_1", dt: float = 1e-4,
+    def __init__(self, model: NeutralModel | str = "table_3_1", dt: float = 1e-4,
                  depth_of_cut: str = "delayed", rock_points_per_pitch: int = 512):
         dt = si_or_number(dt, "time", "dt")  # "0.5 ms" or a pint quantity
         if not isinstance(model, NeutralModel):

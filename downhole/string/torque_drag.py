@@ -30,6 +30,7 @@ friction factors. See ``docs/torque-drag.md``.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -43,7 +44,7 @@ from downhole.string.drillstring import DrillString
 from downhole.units import si_or_number
 from downhole.well.path import WellPath
 
-__all__ = ["CASES", "CASE_LABELS", "TorqueDrag", "torque_drag", "md_nodes"]
+__all__ = ["CASES", "CASE_LABELS", "TorqueDrag", "md_nodes", "torque_drag"]
 
 #: Load cases: pick-up (trip out), slack-off (trip in), rotating off bottom, drilling (rotating
 #: on bottom with WOB and TOB).
@@ -102,7 +103,7 @@ def md_nodes(well: WellPath, step: float, extra=()) -> np.ndarray:
     fixed = np.concatenate([well.stations["md"], np.asarray(list(extra), float)])
     fixed = np.unique(np.clip(fixed, top, td))
     nodes = [fixed[:1]]
-    for a, b in zip(fixed[:-1], fixed[1:]):
+    for a, b in itertools.pairwise(fixed):
         n = max(1, int(math.ceil((b - a) / step - 1e-9)))
         nodes.append(np.linspace(a, b, n + 1)[1:])
     md = np.concatenate(nodes)

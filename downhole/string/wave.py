@@ -5,12 +5,42 @@ Defined in :mod:`downhole.sim.wave`, beside the compiled kernels that step it
 ``sim`` <-> ``string`` cycle); this module keeps the drill-string namespace for it.
 """
 
-from downhole.sim.wave import (WaveSegment, segments_from_pipe, wave_state, wave_incoming,
-                               wave_push, wave_step, wave_step_at, wave_read, wave_read_plan,
-                               wave_read_at, wave_outgoing, wave_end_forces, wave_source_forces,
-                               static_end_forces, line_preload, initial_waves, WaveParams)
+from downhole.sim.wave import (
+                               WaveParams,
+                               WaveSegment,
+                               initial_waves,
+                               line_preload,
+                               segments_from_pipe,
+                               static_end_forces,
+                               wave_end_forces,
+                               wave_incoming,
+                               wave_outgoing,
+                               wave_push,
+                               wave_read,
+                               wave_read_at,
+                               wave_read_plan,
+                               wave_source_forces,
+                               wave_state,
+                               wave_step,
+                               wave_step_at,
+)
 
-__all__ = ["WaveSegment", "segments_from_pipe", "wave_state", "wave_incoming", "wave_push",
-           "wave_step", "wave_step_at", "wave_read", "wave_read_plan", "wave_read_at",
-           "wave_outgoing", "wave_end_forces", "wave_source_forces", "static_end_forces",
-           "line_preload", "initial_waves", "WaveParams"]
+__all__ = [
+                               "WaveParams",
+                               "WaveSegment",
+                               "initial_waves",
+                               "line_preload",
+                               "segments_from_pipe",
+                               "static_end_forces",
+                               "wave_end_forces",
+                               "wave_incoming",
+                               "wave_outgoing",
+                               "wave_push",
+                               "wave_read",
+                               "wave_read_at",
+                               "wave_read_plan",
+                               "wave_source_forces",
+                               "wave_state",
+                               "wave_step",
+                               "wave_step_at",
+]

@@ -24,7 +24,7 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["zoh", "StateSpace"]
+__all__ = ["StateSpace", "zoh"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,7 +63,7 @@ class StateSpace:
             object.__setattr__(self, attr, names)
 
     @classmethod
-    def full_state(cls, A, B, dt: float, state_names=(), input_names=()) -> "StateSpace":
+    def full_state(cls, A, B, dt: float, state_names=(), input_names=()) -> StateSpace:
         """The model whose output is the whole state: ``C = I``, ``D = 0``, outputs named as
         the states."""
         A = np.asarray(A, float)

@@ -15,7 +15,7 @@ import numpy as np
 from downhole._atomic import atomic_path
 from downhole.errors import DownholeInputError
 
-__all__ = ["plot_sweep", "classify_regimes", "stability_map", "REGIMES", "display_units"]
+__all__ = ["REGIMES", "classify_regimes", "display_units", "plot_sweep", "stability_map"]
 
 #: Regime codes of :func:`classify_regimes`.
 REGIMES = {0: "stable", 1: "stick-slip", 2: "bit bounce", 3: "stick-slip + bit bounce"}

@@ -15,17 +15,25 @@ import json
 import math
 import os
 import time
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
 from downhole._atomic import atomic_path
 from downhole.errors import DownholeInputError, ScenarioError
-from downhole.sweep.spec import (METRICS, ParamSpec, compute_metrics, metric_names, parse_param,
-                                 parse_window, set_path, validate_path)
+from downhole.sweep.spec import (
+    METRICS,
+    ParamSpec,
+    compute_metrics,
+    metric_names,
+    parse_param,
+    parse_window,
+    set_path,
+    validate_path,
+)
 
-__all__ = ["run_sweep", "load_sweep_file", "run_cases", "save_sweep", "load_sweep", "failed_cases"]
+__all__ = ["failed_cases", "load_sweep", "load_sweep_file", "run_cases", "run_sweep", "save_sweep"]
 
 
 def load_sweep_file(path: str | Path) -> tuple[dict, str, dict]:
@@ -43,7 +51,7 @@ def load_sweep_file(path: str | Path) -> tuple[dict, str, dict]:
     known = {"params", "metrics", "window", "random", "seed", "batch_size", "stability_map"}
     extra = set(settings) - known
     if extra:
-        raise DownholeInputError(f"{source}: sweep.{sorted(extra)[0]}: unknown key; expected "
+        raise DownholeInputError(f"{source}: sweep.{min(extra)}: unknown key; expected "
                                  f"one of {sorted(known)}")
     return data, source, settings
 
@@ -84,7 +92,7 @@ def run_cases(base: dict, source: str, paths: Sequence[str], cases: Sequence[Seq
             res = run_scenario(data, source)
             vals = compute_metrics(res, list(metrics), window)
             err = ""
-        except Exception as exc:  # noqa: BLE001 - a failing case must not stop the sweep
+        except Exception as exc:
             vals = [math.nan] * len(metrics)
             err = f"{type(exc).__name__}: {exc}"
         out.append((vals, err, time.perf_counter() - t0))
@@ -222,7 +230,7 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
     names = [s.path for s in specs]
     dup = {n for n in names if names.count(n) > 1}
     if dup:
-        raise DownholeInputError(f"--param {sorted(dup)[0]} given more than once")
+        raise DownholeInputError(f"--param {min(dup)} given more than once")
     metrics = _checked("metrics", metric_names, metrics)
     window = _checked("window", parse_window, window)
     _validate_base(base, source)
@@ -284,7 +292,7 @@ def _cluster_workers(scheduler) -> int | None:
     if isinstance(scheduler, Client):
         try:
             return len(scheduler.scheduler_info()["workers"]) or None
-        except Exception:  # noqa: BLE001
+        except Exception:
             return None
     return None
 
@@ -418,7 +426,7 @@ def _assemble(specs: list[ParamSpec], cases, results, metrics, window, base, sou
                                                       "description": "wall time of the case"})
     try:
         scenario_text = tomli_w.dumps(base)
-    except Exception:  # noqa: BLE001
+    except Exception:
         scenario_text = json.dumps(base, default=str)
     n_failed = int(np.sum(errs != ""))
     attrs = {

@@ -21,16 +21,26 @@ from __future__ import annotations
 import copy
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.signals import METRICS as _REGISTERED_METRICS
 
-__all__ = ["ParamSpec", "parse_param", "METRICS", "metric_names", "compute_metrics",
-           "set_path", "get_path", "validate_path", "parse_window"]
+__all__ = [
+    "METRICS",
+    "ParamSpec",
+    "compute_metrics",
+    "get_path",
+    "metric_names",
+    "parse_param",
+    "parse_window",
+    "set_path",
+    "validate_path",
+]
 
 
 # --- metrics -----------------------------------------------------------------------------------

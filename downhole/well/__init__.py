@@ -1,7 +1,21 @@
 """Well trajectories: sections, survey import and minimum-curvature geometry along measured depth."""
 
-from downhole.well.path import (Arc, BuildTurn, Tangent, Vertical, WellPath, minimum_curvature,
-                                read_survey_csv)
+from downhole.well.path import (
+                                Arc,
+                                BuildTurn,
+                                Tangent,
+                                Vertical,
+                                WellPath,
+                                minimum_curvature,
+                                read_survey_csv,
+)
 
-__all__ = ["WellPath", "Vertical", "Tangent", "Arc", "BuildTurn", "read_survey_csv",
-           "minimum_curvature"]
+__all__ = [
+                                "Arc",
+                                "BuildTurn",
+                                "Tangent",
+                                "Vertical",
+                                "WellPath",
+                                "minimum_curvature",
+                                "read_survey_csv",
+]

@@ -22,8 +22,15 @@ import numpy as np
 from downhole.errors import DownholeInputError
 from downhole.units import _is_quantity, as_si_array, si_or_number
 
-__all__ = ["Vertical", "Tangent", "Arc", "BuildTurn", "WellPath", "read_survey_csv",
-           "minimum_curvature"]
+__all__ = [
+    "Arc",
+    "BuildTurn",
+    "Tangent",
+    "Vertical",
+    "WellPath",
+    "minimum_curvature",
+    "read_survey_csv",
+]
 
 _FT = 0.3048
 
@@ -213,7 +220,7 @@ class WellPath:
     # --- constructors ------------------------------------------------------------------------
     @classmethod
     def from_sections(cls, sections, inclination: float = 0.0, azimuth: float = 0.0,
-                      start=(0.0, 0.0, 0.0)) -> "WellPath":
+                      start=(0.0, 0.0, 0.0)) -> WellPath:
         """Build a path from sections, starting at ``inclination``/``azimuth`` (rad).
 
         Raises
@@ -232,12 +239,11 @@ class WellPath:
                 if not s.length > 0:
                     raise DownholeInputError(
                         f"section {k} ({type(s).__name__}): length must be > 0 m, got {s.length}")
-                if isinstance(s, Vertical):
-                    if inc[-1] != 0.0:
-                        # a vertical section after a deviated one: new station kinks the path
-                        raise DownholeInputError(
-                            f"section {k} (Vertical) follows a section ending at inclination "
-                            f"{math.degrees(inc[-1]):g} deg; use Tangent or an Arc first")
+                if isinstance(s, Vertical) and inc[-1] != 0.0:
+                    # a vertical section after a deviated one: new station kinks the path
+                    raise DownholeInputError(
+                        f"section {k} (Vertical) follows a section ending at inclination "
+                        f"{math.degrees(inc[-1]):g} deg; use Tangent or an Arc first")
                 md.append(md[-1] + s.length)
                 inc.append(inc[-1])
                 azi.append(azi[-1])
@@ -281,7 +287,7 @@ class WellPath:
 
     @classmethod
     def from_survey(cls, md, inclination, azimuth, *, degrees: bool = True,
-                    length_unit: str = "m", start=(0.0, 0.0, 0.0)) -> "WellPath":
+                    length_unit: str = "m", start=(0.0, 0.0, 0.0)) -> WellPath:
         """Path from survey columns; ``degrees`` for the angles, ``length_unit`` "m" or "ft".
 
         Columns may also be pint Quantity arrays or sequences of quantity strings
@@ -308,7 +314,7 @@ class WellPath:
                    tuple(float(x) * scale for x in start))
 
     @classmethod
-    def table_5_1(cls, params=None) -> "WellPath":
+    def table_5_1(cls, params=None) -> WellPath:
         """The seed's Table 5.1 well: AB vertical 2000 m, BC vertical 1000 m, CD arc R 4000 m, 30 deg."""
         from downhole.params import DirectionalWellParams
 

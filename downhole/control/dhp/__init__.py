@@ -24,27 +24,78 @@ Example
 2.0
 """
 
-from downhole.control.dhp.closed_loop import (DisplacementToVelocity, lumped_true_plant,
-                                              run_design_model, run_on_plant)
+from downhole.control.dhp.closed_loop import (
+                                              DisplacementToVelocity,
+                                              lumped_true_plant,
+                                              run_design_model,
+                                              run_on_plant,
+)
 from downhole.control.dhp.controller import DHPController, load_controller
 from downhole.control.dhp.design import build_problem, design_dhp
-from downhole.control.dhp.directional import (DirectionalStatePlant, directional_affine_model,
-                                              table_5_1_models)
-from downhole.control.dhp.drilling import (PenaltyWeights, feed_forward, lumped_affine_model,
-                                           penalty_matrices, reference_states,
-                                           table_4_1_weights)
-from downhole.control.dhp.plan import (PlannedTrajectory, PlanSettings, design_dhp_planned,
-                                       plan_trajectory, planned_controller)
+from downhole.control.dhp.directional import (
+                                              DirectionalStatePlant,
+                                              directional_affine_model,
+                                              table_5_1_models,
+)
+from downhole.control.dhp.drilling import (
+                                              PenaltyWeights,
+                                              feed_forward,
+                                              lumped_affine_model,
+                                              penalty_matrices,
+                                              reference_states,
+                                              table_4_1_weights,
+)
+from downhole.control.dhp.plan import (
+                                              PlannedTrajectory,
+                                              PlanSettings,
+                                              design_dhp_planned,
+                                              plan_trajectory,
+                                              planned_controller,
+)
 from downhole.control.dhp.references import BitReference
-from downhole.control.dhp.trainer import (METHODS, DHPProblem, DHPSettings, DHPTraining,
-                                          LinearBasis, QuadraticBasis, TrainingDiverged,
-                                          finite_horizon_lqr, train_dhp)
+from downhole.control.dhp.trainer import (
+                                              METHODS,
+                                              DHPProblem,
+                                              DHPSettings,
+                                              DHPTraining,
+                                              LinearBasis,
+                                              QuadraticBasis,
+                                              TrainingDiverged,
+                                              finite_horizon_lqr,
+                                              train_dhp,
+)
 
-__all__ = ["METHODS", "DHPProblem", "DHPSettings", "DHPTraining", "LinearBasis",
-           "QuadraticBasis", "TrainingDiverged", "finite_horizon_lqr", "train_dhp",
-           "BitReference", "DHPController", "load_controller", "design_dhp", "build_problem",
-           "PenaltyWeights", "penalty_matrices", "table_4_1_weights", "feed_forward",
-           "reference_states", "lumped_affine_model", "run_design_model", "run_on_plant",
-           "lumped_true_plant", "DisplacementToVelocity", "directional_affine_model",
-           "DirectionalStatePlant", "table_5_1_models", "PlanSettings", "PlannedTrajectory",
-           "plan_trajectory", "planned_controller", "design_dhp_planned"]
+__all__ = [
+                                              "METHODS",
+                                              "BitReference",
+                                              "DHPController",
+                                              "DHPProblem",
+                                              "DHPSettings",
+                                              "DHPTraining",
+                                              "DirectionalStatePlant",
+                                              "DisplacementToVelocity",
+                                              "LinearBasis",
+                                              "PenaltyWeights",
+                                              "PlanSettings",
+                                              "PlannedTrajectory",
+                                              "QuadraticBasis",
+                                              "TrainingDiverged",
+                                              "build_problem",
+                                              "design_dhp",
+                                              "design_dhp_planned",
+                                              "directional_affine_model",
+                                              "feed_forward",
+                                              "finite_horizon_lqr",
+                                              "load_controller",
+                                              "lumped_affine_model",
+                                              "lumped_true_plant",
+                                              "penalty_matrices",
+                                              "plan_trajectory",
+                                              "planned_controller",
+                                              "reference_states",
+                                              "run_design_model",
+                                              "run_on_plant",
+                                              "table_4_1_weights",
+                                              "table_5_1_models",
+                                              "train_dhp",
+]

@@ -23,7 +23,7 @@ from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.sim.plant import plant_bit_radius
 from downhole.sim.result import Result
 
-__all__ = ["run_design_model", "run_on_plant", "channels_from_states"]
+__all__ = ["channels_from_states", "run_design_model", "run_on_plant"]
 
 
 def _check_duration(duration, dt):

@@ -39,7 +39,7 @@ import numpy as np
 from downhole.control.dhp.references import BitReference
 from downhole.errors import DownholeInputError
 
-__all__ = ["DHPController", "load_controller", "PAST_HORIZON_POLICIES"]
+__all__ = ["PAST_HORIZON_POLICIES", "DHPController", "load_controller"]
 
 PAST_HORIZON_POLICIES = ("stationary", "error")
 _FORMAT = "downhole.dhp_controller/1"
@@ -128,7 +128,7 @@ class DHPController:
     def n_states(self) -> int:
         return self.kd.shape[2]
 
-    def attach_model(self, model) -> "DHPController":
+    def attach_model(self, model) -> DHPController:
         """Attach the design model (used for the feed-forward past the horizon)."""
         if model.n_states != self.n_states or tuple(model.state_names) != self.state_names:
             raise DownholeInputError(f"model {model.name!r} does not match the controller's "
@@ -136,7 +136,7 @@ class DHPController:
         self._model = model
         return self
 
-    def calibrate_feed_forward(self, plant_model) -> "DHPController":
+    def calibrate_feed_forward(self, plant_model) -> DHPController:
         """Correct the feed-forward with the steady-state inputs of another model of the plant.
 
         The design model's static map (the inputs that hold the string at the reference
@@ -315,9 +315,8 @@ class DHPController:
                 "meta": self.meta}
         from downhole._atomic import atomic_path, write_text_atomic
 
-        with atomic_path(npz) as tmp:
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, **arrays)
+        with atomic_path(npz) as tmp, open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
         write_text_atomic(js, json.dumps(meta, indent=2, default=_json_default))
         return npz, js
 

@@ -12,13 +12,17 @@ import numpy as np
 
 from downhole.control.affine import ControlAffineModel
 from downhole.control.dhp.controller import DHPController
-from downhole.control.dhp.drilling import (PenaltyWeights, feed_forward, penalty_matrices,
-                                           reference_states)
+from downhole.control.dhp.drilling import (
+    PenaltyWeights,
+    feed_forward,
+    penalty_matrices,
+    reference_states,
+)
 from downhole.control.dhp.references import BitReference
 from downhole.control.dhp.trainer import DHPProblem, DHPSettings, train_dhp
 from downhole.errors import DownholeInputError
 
-__all__ = ["design_dhp", "build_problem"]
+__all__ = ["build_problem", "design_dhp"]
 
 
 def build_problem(model: ControlAffineModel, reference: BitReference, horizon: float,

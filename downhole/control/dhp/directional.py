@@ -30,7 +30,7 @@ from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 from downhole.sim.plant import Plant
 from downhole.units import si_or_number
 
-__all__ = ["directional_affine_model", "DirectionalStatePlant", "table_5_1_models"]
+__all__ = ["DirectionalStatePlant", "directional_affine_model", "table_5_1_models"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

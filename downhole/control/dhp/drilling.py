@@ -28,9 +28,17 @@ from downhole.params.bit import BitKernelParams, BitParams
 from downhole.params.lumped import LumpedParams
 from downhole.string.zoh import zoh
 
-__all__ = ["lumped_affine_model", "reference_states", "feed_forward", "PenaltyWeights",
-           "penalty_matrices", "table_4_1_weights", "zoh", "integral_augmented_model",
-           "INTEGRAL_STATE_NAMES"]
+__all__ = [
+    "INTEGRAL_STATE_NAMES",
+    "PenaltyWeights",
+    "feed_forward",
+    "integral_augmented_model",
+    "lumped_affine_model",
+    "penalty_matrices",
+    "reference_states",
+    "table_4_1_weights",
+    "zoh",
+]
 
 
 @njit(cache=True)
@@ -290,7 +298,7 @@ class PenaltyWeights:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "PenaltyWeights":
+    def from_dict(cls, d: dict) -> PenaltyWeights:
         known = {f for f in cls.__dataclass_fields__}
         bad = set(d) - known
         if bad:

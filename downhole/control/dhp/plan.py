@@ -45,8 +45,13 @@ from downhole.control.dhp.references import BitReference
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA
 
-__all__ = ["PlanSettings", "PlannedTrajectory", "plan_trajectory", "planned_controller",
-           "design_dhp_planned"]
+__all__ = [
+    "PlanSettings",
+    "PlannedTrajectory",
+    "design_dhp_planned",
+    "plan_trajectory",
+    "planned_controller",
+]
 
 @dataclass(frozen=True)
 class PlanSettings:

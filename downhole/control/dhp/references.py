@@ -18,7 +18,7 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["BitReference", "REFERENCE_KINDS"]
+__all__ = ["REFERENCE_KINDS", "BitReference"]
 
 REFERENCE_KINDS = ("step", "ramp", "sine", "user")
 
@@ -73,22 +73,22 @@ class BitReference:
 
     # -------------------------------------------------------------------- constructors
     @classmethod
-    def step(cls, axial=0.01, angular=20.0) -> "BitReference":
+    def step(cls, axial=0.01, angular=20.0) -> BitReference:
         """Constant v_d, omega_d from t = 0 (Fig. 4.7: 10 mm/s, 20 rad/s)."""
         return cls("step", float(axial), float(angular))
 
     @classmethod
-    def ramp(cls, t_final=40.0, axial=0.01, angular=20.0) -> "BitReference":
+    def ramp(cls, t_final=40.0, axial=0.01, angular=20.0) -> BitReference:
         """Eqs. 4.48-4.49: low, ramp to 2 x low over the second quarter, hold, ramp back."""
         return cls("ramp", float(axial), float(angular), t_final=float(t_final))
 
     @classmethod
-    def sine(cls, axial=0.02, angular=40.0, frequency=0.1 * math.pi) -> "BitReference":
+    def sine(cls, axial=0.02, angular=40.0, frequency=0.1 * math.pi) -> BitReference:
         """Eq. 4.47: v_d = 20 + 10 sin(0.1 pi t) mm/s, omega_d = 40 + 20 sin(0.1 pi t) rad/s."""
         return cls("sine", float(axial), float(angular), frequency=float(frequency))
 
     @classmethod
-    def user(cls, time, axial, angular) -> "BitReference":
+    def user(cls, time, axial, angular) -> BitReference:
         return cls("user", 0.0, 0.0, time=tuple(map(float, time)),
                    axial_values=tuple(map(float, axial)),
                    angular_values=tuple(map(float, angular)))
@@ -136,7 +136,7 @@ class BitReference:
                 "angular_values": list(self.angular_values)}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "BitReference":
+    def from_dict(cls, d: dict) -> BitReference:
         d = dict(d)
         for k in ("time", "axial_values", "angular_values"):
             if k in d:

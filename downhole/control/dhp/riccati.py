@@ -44,7 +44,7 @@ from numba import int64, njit, uint64
 
 from downhole._blas import chol_solve_right, potrf_upper, syrk_gram
 
-__all__ = ["ModalForm", "draw_offsets", "compiled_offsets", "train_riccati"]
+__all__ = ["ModalForm", "compiled_offsets", "draw_offsets", "train_riccati"]
 
 
 # ----------------------------------------------------------------------------------- samples
@@ -724,7 +724,7 @@ class _Feeder:
         try:
             r = self._produce(i, a, b)
             err = None
-        except BaseException as exc:  # noqa: BLE001 - handed to the main thread
+        except BaseException as exc:
             r, err = -1, exc
         with self._cv:
             if err is not None and self._error is None:

@@ -50,13 +50,29 @@ import numpy as np
 from numba import njit
 
 from downhole.control.affine import ControlAffineModel
-from downhole.control.dhp.riccati import (_chol_upper_lapack, _mu2, _small_inv, _solve_upper,
-                                          compiled_offsets, draw_offsets,
-                                          train_riccati)
+from downhole.control.dhp.riccati import (
+    _chol_upper_lapack,
+    _mu2,
+    _small_inv,
+    _solve_upper,
+    compiled_offsets,
+    draw_offsets,
+    train_riccati,
+)
 from downhole.errors import DownholeError, DownholeInputError
 
-__all__ = ["DHPSettings", "DHPProblem", "DHPTraining", "TrainingDiverged", "LinearBasis",
-           "QuadraticBasis", "train_dhp", "METHODS", "ITERATIVE_METHODS", "finite_horizon_lqr"]
+__all__ = [
+    "ITERATIVE_METHODS",
+    "METHODS",
+    "DHPProblem",
+    "DHPSettings",
+    "DHPTraining",
+    "LinearBasis",
+    "QuadraticBasis",
+    "TrainingDiverged",
+    "finite_horizon_lqr",
+    "train_dhp",
+]
 
 METHODS = ("riccati", "closed_form", "algorithm1", "algorithm1_numpy")
 #: The methods that iterate Algorithm 1 to its fixed point (they need mu < 1).
@@ -364,7 +380,6 @@ def _mu(g, M, Rinv):
 def _centered_fit(delta, Y):
     """LS fit Y ~ c + delta @ Dt over the samples: returns c (q,), Dt (n, q)."""
     N, n = delta.shape
-    q = Y.shape[1]
     Phi = np.empty((N, n + 1))
     Phi[:, 0] = 1.0
     Phi[:, 1:] = delta
@@ -410,10 +425,8 @@ def _closed_form_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, R, ref, n_total, M,
             pred = c + Dt @ deltas[j, s]
             for i in range(n):
                 d = abs(pred[i] - Y[s, i])
-                if d > res:
-                    res = d
-                if abs(Y[s, i]) > big_y:
-                    big_y = abs(Y[s, i])
+                res = max(res, d)
+                big_y = max(big_y, abs(Y[s, i]))
         err_out[k] = res / big_y
         kc[k] = Rinv @ (g.T @ c)
         kd[k] = Rinv @ (g.T @ Dt)
@@ -496,10 +509,8 @@ def _alg1_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, ref, n_total, Dn, c_next, 
             for s in range(N):
                 for i in range(n):
                     d = abs(Ynew[s, i] - Y[s, i])
-                    if d > diff:
-                        diff = d
-                    if abs(Ynew[s, i]) > big:
-                        big = abs(Ynew[s, i])
+                    diff = max(diff, d)
+                    big = max(big, abs(Ynew[s, i]))
             Y = Ynew
             err = diff / big
             if k == rec_step and it < rec_out.shape[0]:

@@ -10,17 +10,37 @@ on the discrete, continuous, 4th- and 12th-order models (:mod:`downhole.control.
 from downhole.control.dp.baseline import best_constant_velocities, constant_velocity_cost
 from downhole.control.dp.customized import solve_customized
 from downhole.control.dp.problem import DPProblem, GridSpec, load_problem, problem_from_dict
-from downhole.control.dp.replay import (ensemble_costs, replay_discrete, replay_epsilon,
-                                        replay_lumped, replay_path)
+from downhole.control.dp.replay import (
+    ensemble_costs,
+    replay_discrete,
+    replay_epsilon,
+    replay_lumped,
+    replay_path,
+)
 from downhole.control.dp.robust import solve_robust
 from downhole.control.dp.solution import DPSolution, load_solution, trajectory_cost
 from downhole.control.dp.standard import solve_standard
 
 __all__ = [
-    "DPProblem", "GridSpec", "load_problem", "problem_from_dict", "solve_customized",
-    "solve_standard", "solve_robust", "solve", "DPSolution", "load_solution", "trajectory_cost",
-    "replay_discrete", "replay_path", "replay_lumped", "replay_epsilon", "ensemble_costs",
-    "best_constant_velocities", "constant_velocity_cost", "METHODS",
+    "METHODS",
+    "DPProblem",
+    "DPSolution",
+    "GridSpec",
+    "best_constant_velocities",
+    "constant_velocity_cost",
+    "ensemble_costs",
+    "load_problem",
+    "load_solution",
+    "problem_from_dict",
+    "replay_discrete",
+    "replay_epsilon",
+    "replay_lumped",
+    "replay_path",
+    "solve",
+    "solve_customized",
+    "solve_robust",
+    "solve_standard",
+    "trajectory_cost",
 ]
 
 METHODS = ("customized", "standard", "robust")

@@ -15,7 +15,7 @@ from downhole.control.dp.kernels import advance
 from downhole.control.dp.problem import DPProblem
 from downhole.control.dp.solution import trajectory_cost
 
-__all__ = ["constant_velocity_run", "constant_velocity_cost", "best_constant_velocities"]
+__all__ = ["best_constant_velocities", "constant_velocity_cost", "constant_velocity_run"]
 
 
 @njit(cache=True)

@@ -21,13 +21,17 @@ import time
 import numpy as np
 
 from downhole.control.dp._progress import chunks, progress_bar
-from downhole.control.dp.kernels import (backward_plain, node_bit_loads, regions_step,
-                                         transition_lists)
+from downhole.control.dp.kernels import (
+    backward_plain,
+    node_bit_loads,
+    regions_step,
+    transition_lists,
+)
 from downhole.control.dp.problem import DPProblem
 from downhole.control.dp.solution import DPSolution
 from downhole.errors import DownholeInputError
 
-__all__ = ["solve_customized", "transitions", "path_solution", "stage_vector", "check_reachable"]
+__all__ = ["check_reachable", "path_solution", "solve_customized", "stage_vector", "transitions"]
 
 
 def stage_vector(problem: DPProblem) -> tuple[np.ndarray, np.ndarray]:

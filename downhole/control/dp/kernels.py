@@ -14,8 +14,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from downhole.bit import (approx_depth_of_cut, approx_depth_rate, bit_forces,
-                          bit_forces_and_slopes)
+from downhole.bit import approx_depth_of_cut, approx_depth_rate, bit_forces, bit_forces_and_slopes
+
 
 class LumpedKernelParams(NamedTuple):
     """The 4th-order lumped model's constants the DP kernels take (seed Eq. 2.1).
@@ -39,10 +39,22 @@ class LumpedKernelParams(NamedTuple):
 
 
 __all__ = [
-    "LumpedKernelParams", "steady_loads", "node_bit_loads", "transition_lists", "backward_plain", "regions_step",
-    "advance", "project_table", "standard_backward", "standard_choose", "robust_forward_step",
-    "robust_forward_step_parallel", "path_load_table",
-    "path_replay", "path_inputs", "discrete_replay",
+    "LumpedKernelParams",
+    "advance",
+    "backward_plain",
+    "discrete_replay",
+    "node_bit_loads",
+    "path_inputs",
+    "path_load_table",
+    "path_replay",
+    "project_table",
+    "regions_step",
+    "robust_forward_step",
+    "robust_forward_step_parallel",
+    "standard_backward",
+    "standard_choose",
+    "steady_loads",
+    "transition_lists",
 ]
 
 _INF = np.inf
@@ -80,8 +92,7 @@ def transition_lists(g2, g4, lumped, p, dt, bounds, use_rates):
     ``use_rates`` the mean top-drive speeds over the step must lie in ``bounds[4:6]`` and
     ``bounds[6:8]``. Returns ``(succ_ptr, succ, pred_ptr, pred)``.
     """
-    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
-                                     lumped.kt, lumped.ct)
+    ka, kt = lumped.ka, lumped.kt
     n2, n4 = g2.size, g4.size
     nn = n2 * n4
     wob, tob = node_bit_loads(g2, g4, p)
@@ -185,10 +196,8 @@ def regions_step(pred_ptr, pred, stage, g2, g4, dt, w1, w3, r1_lo, n_r1, r3_lo, 
             z3 = y3 - s3[n]
             r1 = int(z1) if z1 >= 0.0 else 0
             r3 = int(z3) if z3 >= 0.0 else 0
-            if r1 > top1:
-                r1 = top1
-            if r3 > top3:
-                r3 = top3
+            r1 = min(r1, top1)
+            r3 = min(r3, top3)
             key = (r1 * n_r3 + r3) * nn + n
             c = stage[n] + jm
             if c < best[key]:
@@ -230,7 +239,7 @@ def _slopes(v, w, p):
     r = bit_forces_and_slopes(d, v, w, p)
     cv = r[2] * rate + r[3]
     cw = r[6]
-    return (cv if cv > 0.0 else 0.0), (cw if cw > 0.0 else 0.0)
+    return (max(0.0, cv)), (max(0.0, cw))
 
 
 @njit(cache=True)
@@ -253,8 +262,7 @@ def project_table(g2, g4, fl, tl, lumped, p, dt, nsub, bounds):
 
     The top displacement is held over the step (Eq. 2.12's zero-order hold), so the string force
     relaxes by Ka * (x1 advance). Returns (x2', x4', admissible) arrays of shape (nn, nF*nT)."""
-    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
-                                     lumped.kt, lumped.ct)
+    ka, kt = lumped.ka, lumped.kt
     n4 = g4.size
     nn = g2.size * n4
     nq = fl.size * tl.size
@@ -296,10 +304,8 @@ def _interp(jrow, g2min, h2, n2, g4min, h4, n4, v, w):
         i = n2 - 2
     if j >= n4 - 1:
         j = n4 - 2
-    if i < 0:
-        i = 0
-    if j < 0:
-        j = 0
+    i = max(i, 0)
+    j = max(j, 0)
     tx = min(max(fx - i, 0.0), 1.0)
     ty = min(max(fy - j, 0.0), 1.0)
     out = 0.0
@@ -332,8 +338,7 @@ def standard_backward(x2p, x4p, adm, stage, J, g2, g4, k_hi, k_lo):
                 if not adm[n, q]:
                     continue
                 c = _interp(J[k + 1], g2[0], h2, n2, g4[0], h4, n4, x2p[n, q], x4p[n, q])
-                if c < best:
-                    best = c
+                best = min(best, c)
             J[k, n] = stage[n] + best
 
 
@@ -342,8 +347,7 @@ def standard_choose(v, w, jnext, fl, tl, g2, g4, lumped, p, dt, nsub, bounds):
     """Standard-DP policy at an off-grid state: the input minimizing interpolated J_{k+1}.
 
     Returns (q, x2', x4', dx1, dx3) of the best admissible input (q = -1 if none)."""
-    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
-                                     lumped.kt, lumped.ct)
+    ka, kt = lumped.ka, lumped.kt
     h = dt / nsub
     h2 = g2[1] - g2[0]
     h4 = g4[1] - g4[0]
@@ -392,8 +396,7 @@ def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens,
     """
     nn = cost.size
     ne = len(p_ens)
-    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
-                                     lumped.kt, lumped.ct)
+    ka, kt = lumped.ka, lumped.kt
     n4 = g4.size
     h = dt / nsub
     new_cost = np.full(nn, _INF)
@@ -500,8 +503,7 @@ def path_replay(x2k, x4k, dt, nsub, lumped, p_nom, p_model, out_every):
     (x2, x4) path and applied open loop to the model with bit parameters ``p_model`` (e.g. a
     perturbed epsilon). Returns time, x2, x4, e1 (= x1_path - x1), e3 sampled every
     ``out_every`` substeps."""
-    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
-                                     lumped.kt, lumped.ct)
+    ka, kt = lumped.ka, lumped.kt
     nsteps = x2k.size - 1
     h = dt / nsub
     total = nsteps * nsub
@@ -535,8 +537,7 @@ def path_replay(x2k, x4k, dt, nsub, lumped, p_nom, p_model, out_every):
 def path_inputs(x2k, x4k, dt, times, lumped, p_nom):
     """Top displacements u1(t), u2(t) (m, rad from the hanging start) that make the 4th-order
     model follow the linear (x2, x4) path: u = x_path(t) + (bit load + C x' + M x'') / K."""
-    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
-                                     lumped.kt, lumped.ct)
+    ka, kt = lumped.ka, lumped.kt
     nsteps = x2k.size - 1
     x1s = np.zeros(nsteps + 1)
     x3s = np.zeros(nsteps + 1)
@@ -550,8 +551,7 @@ def path_inputs(x2k, x4k, dt, times, lumped, p_nom):
         k = int(math.floor(t / dt + 1e-9))
         if k >= nsteps:
             k = nsteps - 1
-        if k < 0:
-            k = 0
+        k = max(k, 0)
         tau = t - k * dt
         a = (x2k[k + 1] - x2k[k]) / dt
         b = (x4k[k + 1] - x4k[k]) / dt
@@ -567,8 +567,7 @@ def path_inputs(x2k, x4k, dt, times, lumped, p_nom):
 def discrete_replay(u1, u2, dt, lumped, p):
     """Eq. 2.12 (explicit Euler at the DP step, depth of cut approximated) driven by u1(k), u2(k)
     from the rest state; returns x1..x4 at k = 0..N."""
-    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
-                                     lumped.kt, lumped.ct)
+    ka, kt = lumped.ka, lumped.kt
     n = u1.size
     x = np.zeros((n + 1, 4))
     for k in range(n):

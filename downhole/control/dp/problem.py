@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, StrictInt, ValidationError, field_validator
@@ -30,8 +30,17 @@ from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params import BitParams, LumpedParams, get_preset
 from downhole.params.quantity import Q
 
-__all__ = ["GridSpec", "DPProblem", "DPScenario", "ModelArrays", "load_problem",
-           "load_dp_scenario", "dp_problem_of", "problem_from_dict", "METHOD_NAMES"]
+__all__ = [
+    "METHOD_NAMES",
+    "DPProblem",
+    "DPScenario",
+    "GridSpec",
+    "ModelArrays",
+    "dp_problem_of",
+    "load_dp_scenario",
+    "load_problem",
+    "problem_from_dict",
+]
 
 #: The solvers a problem file may name in ``optimize.method``.
 METHOD_NAMES = ("customized", "standard", "robust")
@@ -101,8 +110,8 @@ class BoundSpec(BaseModel):
 
     force: tuple[Q["force"], Q["force"]] = (0.0, 200.0e3)
     torque: tuple[Q["torque"], Q["torque"]] = (0.0, 30.0e3)
-    top_speed: Optional[tuple[Q["velocity"], Q["velocity"]]] = None
-    rotary_speed: Optional[tuple[Q["angular_velocity"], Q["angular_velocity"]]] = None
+    top_speed: tuple[Q["velocity"], Q["velocity"]] | None = None
+    rotary_speed: tuple[Q["angular_velocity"], Q["angular_velocity"]] | None = None
 
 
 class RobustSpec(BaseModel):
@@ -136,7 +145,7 @@ class ModelSpec(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     preset: str = "table_2_1"
-    epsilon: Optional[Q["pressure"]] = None
+    epsilon: Q["pressure"] | None = None
     bit: dict[str, Any] = Field(default_factory=dict)
 
 
@@ -172,8 +181,8 @@ class DPProblem(BaseModel):
     step: Q["time"] = 0.25
     x2: GridSpec = GridSpec(min=0.0, max=0.02, points=21)
     x4: GridSpec = GridSpec(min=0.0, max=20.0, points=21)
-    x1_regions: Optional[int] = Field(None, le=MAX_GRID_POINTS)
-    x3_regions: Optional[int] = Field(None, le=MAX_GRID_POINTS)
+    x1_regions: int | None = Field(None, le=MAX_GRID_POINTS)
+    x3_regions: int | None = Field(None, le=MAX_GRID_POINTS)
     targets: TargetSpec = TargetSpec()
     weights: WeightSpec = WeightSpec()
     bounds: BoundSpec = BoundSpec()
@@ -217,7 +226,7 @@ class DPProblem(BaseModel):
             bit = bit.model_copy(update={"epsilon": float(self.model.epsilon)})
         return preset.string, bit
 
-    def arrays(self, epsilon_scale: float = 1.0) -> "ModelArrays":
+    def arrays(self, epsilon_scale: float = 1.0) -> ModelArrays:
         """Plain arrays for the compiled kernels, with epsilon scaled by ``epsilon_scale``."""
         string, bit = self.params()
         p = bit.kernel_params()
@@ -237,7 +246,7 @@ class DPProblem(BaseModel):
         return out
 
     # ------------------------------------------------------------------ validation
-    def model_post_init(self, __context) -> None:  # noqa: D401
+    def model_post_init(self, __context) -> None:
         self._check()
 
     def _check(self) -> None:
@@ -352,7 +361,7 @@ class DPProblem(BaseModel):
                     f"string torque of {t:.4g} N m, outside bounds.torque = [{lo:.4g}, {hi:.4g}] "
                     "N m")
 
-    def with_updates(self, **changes) -> "DPProblem":
+    def with_updates(self, **changes) -> DPProblem:
         """A validated copy with top-level fields replaced (nested specs as dicts or objects)."""
         data = self.model_dump()
         for k, v in changes.items():
@@ -364,7 +373,7 @@ class ModelArrays:
     """Plain floats and the bit law's :class:`~downhole.params.bit.BitKernelParams` handed to the
     compiled kernels."""
 
-    __slots__ = ("mass", "inertia", "ka", "ca", "kt", "ct", "bit")
+    __slots__ = ("bit", "ca", "ct", "inertia", "ka", "kt", "mass")
 
     def __init__(self, mass, inertia, ka, ca, kt, ct, bit):
         self.mass, self.inertia = float(mass), float(inertia)
@@ -390,8 +399,7 @@ def _flatten_error(exc: ValidationError) -> tuple[str, str]:
             f"{inner.field}: ") else msg
     field = ".".join(str(p) for p in e.get("loc", ()))
     msg = e.get("msg", str(exc))
-    if msg.startswith("Value error, "):
-        msg = msg[len("Value error, "):]
+    msg = msg.removeprefix("Value error, ")
     if "input" in e and field and not isinstance(e["input"], dict):
         msg += f" (got {e['input']!r})"
     return field, msg
@@ -444,11 +452,11 @@ class DPOptimizeSettings(_FileStrict):
     """``[optimize]``: the problem (the fields of :class:`DPProblem` but ``model``) and the
     solver (``method``; ``--method`` on the command line overrides it)."""
 
-    method: Optional[Literal["customized", "standard", "robust"]] = None
+    method: Literal["customized", "standard", "robust"] | None = None
     horizon: Q["time"] = Field(20.0, gt=0)
     step: Q["time"] = Field(0.25, gt=0)
-    x1_regions: Optional[StrictInt] = Field(None, le=MAX_GRID_POINTS)
-    x3_regions: Optional[StrictInt] = Field(None, le=MAX_GRID_POINTS)
+    x1_regions: StrictInt | None = Field(None, le=MAX_GRID_POINTS)
+    x3_regions: StrictInt | None = Field(None, le=MAX_GRID_POINTS)
     x2: _VelocityGrid = _VelocityGrid(min=0.0, max=0.02, points=21)
     x4: _AngularGrid = _AngularGrid(min=0.0, max=20.0, points=21)
     targets: TargetSpec = TargetSpec()
@@ -494,7 +502,7 @@ def _file_field(field: str) -> str:
     return f"optimize.{field}" if field else ""
 
 
-def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, Optional[str]]:
+def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, str | None]:
     """Validate a parsed problem file: ``(problem, method or None)``.
 
     Raises
@@ -533,7 +541,7 @@ def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, Option
     return problem, sc.optimize.method
 
 
-def load_dp_scenario(path: str | Path) -> tuple[DPProblem, Optional[str]]:
+def load_dp_scenario(path: str | Path) -> tuple[DPProblem, str | None]:
     """Read a problem file (schema in docs/dp.md; examples in ``examples/dp_*.toml``):
     ``(problem, optimize.method or None)``.
 

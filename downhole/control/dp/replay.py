@@ -15,8 +15,13 @@ from downhole.control.dp.kernels import discrete_replay, path_replay
 from downhole.control.dp.solution import DPSolution, trajectory_cost
 from downhole.errors import DownholeInputError
 
-__all__ = ["replay_discrete", "replay_path", "ensemble_costs", "replay_lumped",
-           "replay_epsilon"]
+__all__ = [
+    "ensemble_costs",
+    "replay_discrete",
+    "replay_epsilon",
+    "replay_lumped",
+    "replay_path",
+]
 
 
 def replay_discrete(sol: DPSolution, epsilon_scale: float = 1.0) -> np.ndarray:

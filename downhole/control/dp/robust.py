@@ -15,9 +15,12 @@ import numpy as np
 
 from downhole.control.dp._progress import progress_bar
 from downhole.control.dp.customized import check_reachable, path_solution, transitions
+from downhole.control.dp.kernels import (
+    path_load_table,
+    robust_forward_step,
+    robust_forward_step_parallel,
+)
 from downhole.control.dp.problem import DPProblem
-from downhole.control.dp.kernels import (path_load_table, robust_forward_step,
-                                         robust_forward_step_parallel)
 from downhole.control.dp.solution import DPSolution
 from downhole.errors import DownholeInputError
 

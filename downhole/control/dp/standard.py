@@ -22,7 +22,7 @@ from downhole.control.dp.problem import DPProblem
 from downhole.control.dp.solution import DPSolution, trajectory_cost
 from downhole.errors import DownholeInputError
 
-__all__ = ["solve_standard", "input_levels"]
+__all__ = ["input_levels", "solve_standard"]
 
 
 def input_levels(problem: DPProblem) -> tuple[np.ndarray, np.ndarray]:

@@ -8,12 +8,32 @@ from downhole.control.eid.controller import EIDController, design_eid, load_eid
 from downhole.control.eid.design import ChannelGains, LMIInfeasible, LMIReport
 from downhole.control.eid.envelope import EIDSchedule, operating_point, settle_metrics
 from downhole.control.eid.predictor import PredictiveEID
-from downhole.control.eid.references import (Reference, constant_reference,
-                                             envelope_tracking_reference, rotate_then_drill,
-                                             seed_tracking_reference, startup_reference,
-                                             user_reference)
+from downhole.control.eid.references import (
+                                             Reference,
+                                             constant_reference,
+                                             envelope_tracking_reference,
+                                             rotate_then_drill,
+                                             seed_tracking_reference,
+                                             startup_reference,
+                                             user_reference,
+)
 
-__all__ = ["EIDController", "design_eid", "load_eid", "ChannelGains", "LMIInfeasible",
-           "LMIReport", "Reference", "constant_reference", "seed_tracking_reference",
-           "user_reference", "EIDSchedule", "PredictiveEID", "operating_point", "settle_metrics",
-           "rotate_then_drill", "startup_reference", "envelope_tracking_reference"]
+__all__ = [
+                                             "ChannelGains",
+                                             "EIDController",
+                                             "EIDSchedule",
+                                             "LMIInfeasible",
+                                             "LMIReport",
+                                             "PredictiveEID",
+                                             "Reference",
+                                             "constant_reference",
+                                             "design_eid",
+                                             "envelope_tracking_reference",
+                                             "load_eid",
+                                             "operating_point",
+                                             "rotate_then_drill",
+                                             "seed_tracking_reference",
+                                             "settle_metrics",
+                                             "startup_reference",
+                                             "user_reference",
+]

@@ -65,7 +65,7 @@ class EIDChannelParams(NamedTuple):
     a1: float
     g1: float
     b: float
-    l: float  # noqa: E741 (the seed's symbol)
+    l: float
     kp: float
     kr: float
     br: float
@@ -104,7 +104,7 @@ def eid_step(cp, cs, ch, cpos, y, r, dt, uout, sig):
         a1 = c.a1
         g1 = c.g1
         b = c.b
-        l = c.l  # noqa: E741
+        l = c.l
         kp = c.kp
         kr = c.kr
         br = c.br

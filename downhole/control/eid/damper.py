@@ -14,8 +14,14 @@ from numba import njit
 
 from downhole.bit.law import bit_forces, bit_forces_and_slopes
 
-__all__ = ["DamperParams", "damper_step", "torsional_damper_step", "damper_arrays",
-           "PREDICTION_STEP", "coupled_axial_reference"]
+__all__ = [
+    "PREDICTION_STEP",
+    "DamperParams",
+    "coupled_axial_reference",
+    "damper_arrays",
+    "damper_step",
+    "torsional_damper_step",
+]
 
 
 class DamperParams(NamedTuple):
@@ -161,8 +167,7 @@ def _predict(dh, n, cap, dp, bp, omega, xbuf, ntn):
         else:
             xb = 0.0
         d = nbl * (x - xb)
-        if d < 0.0:
-            d = 0.0
+        d = max(d, 0.0)
         sl = bit_forces_and_slopes(d, v, omega, bp)
         dv = a0 * v + a1 * vd + g1 * dvd + b * ud - (sl[0] - g1 * wd) / m_b
         x += h * v
@@ -212,11 +217,9 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
     if n > 0:
         dh[1, (n - 1) % cap] = (v - dh[0, (n - 1) % cap]) / dt
     om = abs(w)
-    if om < 0.5:
-        om = 0.5
+    om = max(om, 0.5)
     ntn = int(round(2.0 * math.pi / (nbl * om) / dt))
-    if ntn < 1:
-        ntn = 1
+    ntn = max(ntn, 1)
     du = 0.0
     known = True
     if dp.angle_doc:
@@ -234,8 +237,7 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
         xb = 0.0
     if known:
         d = nbl * (x - xb)
-        if d < 0.0:
-            d = 0.0
+        d = max(d, 0.0)
         wob, _ = bit_forces(d, v, om, bp)
         dh[2, k] = wob
         if dp.k_d > 0.0:
@@ -263,8 +265,7 @@ def _surface_at(th_row, x_row, n, cap, target):
     turns forward) and linear interpolation; 0 before the start; the oldest stored X if the
     angle is older than the history."""
     lo = n - cap + 1
-    if lo < 0:
-        lo = 0
+    lo = max(lo, 0)
     if th_row[lo % cap] > target:
         return 0.0 if lo == 0 else x_row[lo % cap]
     hi = n
@@ -278,8 +279,7 @@ def _surface_at(th_row, x_row, n, cap, target):
     t1 = th_row[hi % cap]
     if t1 > t0:
         f = (target - t0) / (t1 - t0)
-        if f > 1.0:
-            f = 1.0
+        f = min(f, 1.0)
         return (1.0 - f) * x_row[lo % cap] + f * x_row[hi % cap]
     return x_row[lo % cap]
 
@@ -340,12 +340,10 @@ def _predict_torsional(dh, n, cap, dp, bp, v, pbuf):
             t0 = pbuf[0, j]
             t1 = pbuf[0, j + 1]
             f = (target - t0) / (t1 - t0) if t1 > t0 else 0.0
-            if f > 1.0:
-                f = 1.0
+            f = min(f, 1.0)
             xs = (1.0 - f) * pbuf[1, j] + f * pbuf[1, j + 1]
         d = dp.n_blades * (x - xs)
-        if d < 0.0:
-            d = 0.0
+        d = max(d, 0.0)
         sl = bit_forces_and_slopes(d, v, w, bp)
         dw = (dp.a0t * w + dp.a1t * wd + dp.g1t * dwd + dp.bt * ud
               - (sl[1] - dp.g1t * td) / dp.bit_inertia)
@@ -378,8 +376,7 @@ def torsional_damper_step(dp, dh, ds, pbuf, bp, v, w, r_w, u_t):
         dh[_DV, (n - 1) % cap] = (v - dh[_V, (n - 1) % cap]) / dp.dt
     xs = _surface_at(dh[_TH], dh[_X], n, cap, th - 2.0 * math.pi / dp.n_blades)
     d = dp.n_blades * (x - xs)
-    if d < 0.0:
-        d = 0.0
+    d = max(d, 0.0)
     dh[_T, k] = bit_forces(d, v, w, bp)[1]
     du = 0.0
     if dp.k_t > 0.0:

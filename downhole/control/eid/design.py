@@ -27,8 +27,14 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["ChannelGains", "LMIReport", "LMIInfeasible", "synthesize_channel", "lmi_blocks",
-           "channel_closed_loop_design"]
+__all__ = [
+    "ChannelGains",
+    "LMIInfeasible",
+    "LMIReport",
+    "channel_closed_loop_design",
+    "lmi_blocks",
+    "synthesize_channel",
+]
 
 
 class LMIInfeasible(DownholeInputError):
@@ -162,7 +168,7 @@ def synthesize_channel(ch: dict, name: str, *, br: float, bf: float, eps: float 
     for nm, val in (("br", br), ("bf", bf)):
         if not np.isfinite(val) or val <= 0:
             raise DownholeInputError(f"{name} channel: {nm} must be positive, got {val}")
-    a0, a1, g1, b = ch["a0"], ch["a1"], ch["g1"], ch["b"]
+    a0, g1, b = ch["a0"], ch["g1"], ch["b"]
     if not abs(g1) < 1.0:
         raise DownholeInputError(f"{name} channel: |G| = {abs(g1):.6g} >= 1, the difference "
                                  "operator is unstable; no LMI can stabilize it")
@@ -221,7 +227,7 @@ def _blame(prob, families) -> str:
     """Which family makes the problem infeasible: drop one family at a time."""
     import cvxpy as cp
 
-    for fam, cons in families.items():
+    for fam in families:
         rest = [c for f, cs in families.items() if f != fam for c in cs]
         try:
             p = cp.Problem(cp.Minimize(0), rest)

@@ -32,9 +32,19 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 
-__all__ = ["ENVELOPE_CANDIDATES", "OperatingPoint", "operating_point", "EIDSchedule",
-           "settle_metrics", "SETTLE_TOLERANCE", "open_loop_abscissa", "envelope_point",
-           "envelope_map", "APPROACH_OMEGA", "DESCENT_RATE"]
+__all__ = [
+    "APPROACH_OMEGA",
+    "DESCENT_RATE",
+    "ENVELOPE_CANDIDATES",
+    "SETTLE_TOLERANCE",
+    "EIDSchedule",
+    "OperatingPoint",
+    "envelope_map",
+    "envelope_point",
+    "open_loop_abscissa",
+    "operating_point",
+    "settle_metrics",
+]
 
 #: Candidate tunings of the axial channel (the torsional channel keeps the default): keyword
 #: arguments of :func:`~downhole.control.eid.design.synthesize_channel`, plus, for the

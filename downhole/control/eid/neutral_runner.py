@@ -16,12 +16,21 @@ import numpy as np
 from numba import njit
 
 from downhole.control.eid._kernel import eid_arrays, eid_step
-from downhole.control.eid.damper import (DamperParams, coupled_axial_reference,
-                                         damper_arrays, damper_step, torsional_damper_step)
-from downhole.string.neutral import (neutral_advance, neutral_record, neutral_top_and_bit,
-                                     neutral_wave_start)
+from downhole.control.eid.damper import (
+    DamperParams,
+    coupled_axial_reference,
+    damper_arrays,
+    damper_step,
+    torsional_damper_step,
+)
+from downhole.string.neutral import (
+    neutral_advance,
+    neutral_record,
+    neutral_top_and_bit,
+    neutral_wave_start,
+)
 
-__all__ = ["EID_CHANNELS", "run_neutral_eid", "make_neutral_runner"]
+__all__ = ["EID_CHANNELS", "make_neutral_runner", "run_neutral_eid"]
 
 #: Channels the EID runner adds to the record (besides the reference, which the core adds).
 EID_CHANNELS = ("measured_axial_velocity", "measured_angular_velocity",

@@ -45,13 +45,24 @@ import math
 import numpy as np
 
 from downhole.bit.law import bit_forces, bit_forces_and_slopes  # noqa: F401
-from downhole.control.eid.damper import (PREDICTION_STEP, DamperParams,  # noqa: F401
-                                         _stride, coupled_axial_reference, damper_arrays,
-                                         damper_step, torsional_damper_step)
+from downhole.control.eid.damper import (
+    PREDICTION_STEP,
+    DamperParams,
+    _stride,
+    coupled_axial_reference,
+    damper_arrays,
+    damper_step,
+    torsional_damper_step,
+)
 from downhole.errors import DownholeInputError
 
-__all__ = ["PredictiveEID", "predictive_closed_loop", "damper_step", "DamperParams",
-           "TORSIONAL_FILTER"]
+__all__ = [
+    "TORSIONAL_FILTER",
+    "DamperParams",
+    "PredictiveEID",
+    "damper_step",
+    "predictive_closed_loop",
+]
 
 #: Bandwidth (rad/s) of the low-pass filter on the torsional damping command: well above the
 #: low-frequency torsional mode it damps (1-3 rad/s), well below the Euler step of its prediction.
@@ -211,8 +222,7 @@ def predictive_closed_loop(controller, model, rop: float, omega: float,
     depth-of-cut coupling k_c the axial reference perturbation is k_c (rop/omega) times the bit
     angular velocity: it enters the internal model (x_R' = B_R (r - x_p)) and the damper,
     whose command acts on the bit tau1 later (a factor exp(-s tau1)). Returns the same keys."""
-    from downhole.control.eid.stability import (_bit_rock_gains, _newton_roots,
-                                                channel_loop_matrices)
+    from downhole.control.eid.stability import _bit_rock_gains, _newton_roots, channel_loop_matrices
 
     mats = [channel_loop_matrices(controller.model_coeffs[i], controller.gains[i],
                                   predictor=controller.predictor,

@@ -20,12 +20,29 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.sim.inputs import sample_signal
-from downhole.sim.references import (Reference, as_reference, constant_reference, eq_3_34,
-                                     eq_3_35, seed_tracking_reference, user_reference)
+from downhole.sim.references import (
+    Reference,
+    as_reference,
+    constant_reference,
+    eq_3_34,
+    eq_3_35,
+    seed_tracking_reference,
+    user_reference,
+)
 
-__all__ = ["Reference", "constant_reference", "seed_tracking_reference", "user_reference",
-           "as_reference", "eq_3_34", "eq_3_35", "rotate_then_drill", "startup_reference",
-           "envelope_tracking_reference", "startup_time"]
+__all__ = [
+    "Reference",
+    "as_reference",
+    "constant_reference",
+    "envelope_tracking_reference",
+    "eq_3_34",
+    "eq_3_35",
+    "rotate_then_drill",
+    "seed_tracking_reference",
+    "startup_reference",
+    "startup_time",
+    "user_reference",
+]
 
 
 def _positive(name, value, allow_zero=False):

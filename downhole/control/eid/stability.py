@@ -19,9 +19,15 @@ import numpy as np
 
 from downhole.bit import bit_forces_and_slopes_py
 
-__all__ = ["channel_loop_matrices", "characteristic_roots", "StabilityReport",
-           "bit_rock_open_loop_roots", "regenerative_closed_loop",
-           "closed_loop_stability", "plot_roots"]
+__all__ = [
+    "StabilityReport",
+    "bit_rock_open_loop_roots",
+    "channel_loop_matrices",
+    "characteristic_roots",
+    "closed_loop_stability",
+    "plot_roots",
+    "regenerative_closed_loop",
+]
 
 _X, _XH, _Z, _XR, _XF = range(5)
 
