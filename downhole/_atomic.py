@@ -2,10 +2,17 @@
 
 Every file a ``downhole`` command writes goes through :func:`atomic_path` (or the
 ``write_*_atomic`` helpers built on it): the writer fills a temporary file in the same folder
-(``.NAME.part-PID.SUFFIX``, hidden, same suffix so that format-sniffing writers such as
+(``.NAME.part-PID-RANDOM.SUFFIX``, hidden, same suffix so that format-sniffing writers such as
 matplotlib and :func:`numpy.savez` behave), the file is flushed to disk (``fsync``) and then
 renamed onto its final name with :func:`os.replace`. A final name therefore always holds a
 complete file; a failed write leaves only the (removed, or after ``kill -9`` stale) temporary.
+
+Temporaries are created by :func:`new_temp` with an exclusive, non-following open
+(``O_CREAT | O_EXCL | O_NOFOLLOW``) under a name with 64 random bits: a symbolic link planted in a
+shared output folder cannot redirect a write (the name cannot be guessed, and an existing entry of
+that name is never opened), and :func:`replace_atomic` renames only a regular file owned by this
+process's user. A symbolic link given as ``--out`` itself is refused by
+:func:`check_output_path`.
 
 A command that writes a *set* of files that belong together (``result.nc`` + ``summary.json`` +
 ``overview.png``; ``solution.npz`` + ``solution.json``; ...) uses :class:`OutputFolder`: before
@@ -33,9 +40,12 @@ This module is part of the core: it imports nothing of downhole but :mod:`downho
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import fnmatch
 import json
 import os
+import secrets
+import stat
 import sys
 import time
 from collections.abc import Iterable, Iterator
@@ -45,6 +55,7 @@ from typing import Self
 from downhole.errors import DownholeInputError
 
 __all__ = [
+    "LOCK_NAME",
     "MARKER",
     "PAUSE_ENV",
     "OutputFile",
@@ -52,6 +63,7 @@ __all__ = [
     "atomic_path",
     "check_output_path",
     "is_incomplete",
+    "new_temp",
     "replace_atomic",
     "sync_files",
     "temp_path",
@@ -64,19 +76,58 @@ __all__ = [
 MARKER = "INCOMPLETE"
 #: Environment variable of the test-only pause between the temporary write and the rename.
 PAUSE_ENV = "DOWNHOLE_TEST_PAUSE_BEFORE_RENAME"
+#: Name of the lock file of an output folder (a file's lock is ``.NAME.lock`` beside it).
+LOCK_NAME = ".downhole.lock"
 _TEMP_GLOB = ".*.part-*"
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 
 
 def temp_path(final: str | os.PathLike) -> Path:
-    """The temporary name, in the same folder, under which ``final`` is written.
+    """A fresh temporary name, in the same folder, under which ``final`` can be written.
 
-    ``out/result.nc`` becomes ``out/.result.part-PID.nc``: hidden, unique to this process, with
-    the final suffix (writers that pick the format from the suffix keep working).
+    ``out/result.nc`` becomes ``out/.result.part-PID-RANDOM.nc``: hidden, with 64 random bits
+    (unguessable, so that nobody can plant a link under it in advance) and the final suffix
+    (writers that pick the format from the suffix keep working). Each call gives a new name; use
+    :func:`new_temp` to also create the file safely.
     """
     final = Path(final)
     suffix = final.suffix if final.suffix != final.name else ""
     stem = final.name[: len(final.name) - len(suffix)] if suffix else final.name
-    return final.with_name(f".{stem}.part-{os.getpid()}{suffix}")
+    return final.with_name(f".{stem}.part-{os.getpid()}-{secrets.token_hex(8)}{suffix}")
+
+
+def new_temp(final: str | os.PathLike) -> Path:
+    """Create the temporary file of ``final`` exclusively, without following links.
+
+    The file is created empty with ``O_CREAT | O_EXCL | O_NOFOLLOW`` (permissions from the
+    umask) under a fresh :func:`temp_path` name; writers then fill it by path.
+
+    Raises
+    ------
+    OSError
+        The folder does not exist or is not writable (or, with odds of 2**-64, the name exists).
+    """
+    tmp = temp_path(final)
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o666)
+    os.close(fd)
+    return tmp
+
+
+def _check_own_regular(tmp: Path, final: Path, allow_empty: bool = False) -> None:
+    """Refuse to rename anything but a regular file of this user (never a planted link), and an
+    empty one unless ``allow_empty`` (a writer that wrote elsewhere, e.g. under another suffix,
+    leaves the exclusive temporary empty)."""
+    try:
+        st = os.lstat(tmp)
+    except FileNotFoundError:
+        raise RuntimeError(f"the writer of {final} produced no file {tmp.name}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise RuntimeError(f"the temporary {tmp} of {final} is not a regular file (a link or "
+                           "another kind of file was put in its place): not renamed")
+    if hasattr(os, "geteuid") and st.st_uid != os.geteuid():
+        raise RuntimeError(f"the temporary {tmp} of {final} belongs to another user: not renamed")
+    if st.st_size == 0 and not allow_empty:
+        raise RuntimeError(f"the writer of {final} produced no file {tmp.name} (it is empty)")
 
 
 def _fsync_path(path: Path) -> None:
@@ -128,7 +179,7 @@ def _test_pause(final: Path) -> None:
 
 
 def replace_atomic(tmp: str | os.PathLike, final: str | os.PathLike, *,
-                   durable: bool = True) -> Path:
+                   durable: bool = True, allow_empty: bool = False) -> Path:
     """Fsync the written temporary ``tmp`` and rename it onto ``final`` (same folder).
 
     For writers that must order several renames themselves (a pair of files); the usual way is
@@ -137,8 +188,7 @@ def replace_atomic(tmp: str | os.PathLike, final: str | os.PathLike, *,
     loss could (used inside real-time loops, where an fsync would cost deadlines).
     """
     tmp, final = Path(tmp), Path(final)
-    if not tmp.is_file():
-        raise RuntimeError(f"the writer of {final} produced no file {tmp.name}")
+    _check_own_regular(tmp, final, allow_empty)
     if durable:
         _fsync_path(tmp)
     _test_pause(final)
@@ -149,7 +199,8 @@ def replace_atomic(tmp: str | os.PathLike, final: str | os.PathLike, *,
 
 
 @contextlib.contextmanager
-def atomic_path(final: str | os.PathLike, *, durable: bool = True) -> Iterator[Path]:
+def atomic_path(final: str | os.PathLike, *, durable: bool = True,
+                allow_empty: bool = False) -> Iterator[Path]:
     """Context manager: yields a temporary path to write ``final``'s content to.
 
     On a normal exit the temporary is fsynced and renamed onto ``final``; on an exception it is
@@ -166,10 +217,10 @@ def atomic_path(final: str | os.PathLike, *, durable: bool = True) -> Iterator[P
     'hello'
     """
     final = Path(final)
-    tmp = temp_path(final)
+    tmp = new_temp(final)
     try:
         yield tmp
-        replace_atomic(tmp, final, durable=durable)
+        replace_atomic(tmp, final, durable=durable, allow_empty=allow_empty)
     finally:
         with contextlib.suppress(FileNotFoundError):
             if tmp.is_file() or tmp.is_symlink():
@@ -179,8 +230,10 @@ def atomic_path(final: str | os.PathLike, *, durable: bool = True) -> Iterator[P
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file, fsync, rename)."""
     path = Path(path)
-    with atomic_path(path) as tmp, open(tmp, "wb") as f:
-        f.write(data)
+    with atomic_path(path, allow_empty=True) as tmp:
+        fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC | _NOFOLLOW)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
     return path
 
 
@@ -232,6 +285,11 @@ def check_output_path(path: str | os.PathLike, *, option: str = "--out",
         raise DownholeInputError(f"{option}: empty path")
     if "\x00" in str(path):
         raise DownholeInputError(f"{option} {path!r}: NUL character in the path")
+    if p.is_symlink():
+        target = os.readlink(p)
+        raise DownholeInputError(
+            f"{where}: is a symbolic link (to {target}); give the {kind} itself (a link in a "
+            "shared folder could redirect the run's writes)")
     if p.exists():
         if kind == "folder" and not p.is_dir():
             raise DownholeInputError(f"{where}: is an existing file, expected a folder")
@@ -241,8 +299,6 @@ def check_output_path(path: str | os.PathLike, *, option: str = "--out",
         if not os.access(folder, os.W_OK | os.X_OK):
             raise DownholeInputError(f"{where}: folder {folder} is not writable")
         return p
-    if p.is_symlink():
-        raise DownholeInputError(f"{where}: is a dangling symbolic link")
     parent = p.parent
     anc = parent
     while not anc.exists() and anc != anc.parent:
@@ -258,6 +314,56 @@ def check_output_path(path: str | os.PathLike, *, option: str = "--out",
     return p
 
 
+class _Lock:
+    """An exclusive, non-blocking ``flock`` on one lock file, held until :meth:`release` or the
+    end of the process (the kernel drops it whatever kills the process)."""
+
+    def __init__(self, path: Path, what: str):
+        self.path = path
+        self.what = what
+        self.fd: int | None = None
+
+    def acquire(self) -> None:
+        if self.fd is not None:
+            return
+        for _ in range(5):
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | _NOFOLLOW, 0o666)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                try:
+                    holder = os.pread(fd, 64, 0).decode("ascii", "replace").strip() or "?"
+                except OSError:
+                    holder = "?"
+                os.close(fd)
+                raise DownholeInputError(
+                    f"{self.what}: another downhole run (pid {holder}) is writing it; wait for "
+                    "that run to end or choose another output") from None
+            except BaseException:
+                os.close(fd)
+                raise
+            # the previous owner unlinks the file as it releases: lock the file that is there
+            try:
+                same = os.fstat(fd).st_ino == os.lstat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                with contextlib.suppress(OSError):
+                    os.ftruncate(fd, 0)
+                    os.pwrite(fd, str(os.getpid()).encode("ascii"), 0)
+                self.fd = fd
+                return
+            os.close(fd)
+        raise DownholeInputError(f"{self.what}: could not lock it (its lock file keeps changing)")
+
+    def release(self) -> None:
+        if self.fd is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)
+            os.close(self.fd)  # closing the last descriptor drops the flock
+            self.fd = None
+
+
 def _marker_text(command: str, state: str) -> str:
     stamp = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())
     return (f"downhole {command}: {state} (pid {os.getpid()}, {stamp}).\n"
@@ -268,11 +374,11 @@ def _marker_text(command: str, state: str) -> str:
 class OutputFolder:
     """The output folder of one command run: marker first, stale files out, marker removed last.
 
-    :meth:`begin` (before the work starts): when the folder exists, write the ``INCOMPLETE``
-    marker, then remove the previous run's files (``owned``) and stale temporaries. A folder
-    that does not exist yet is left alone (nothing stale to hide; a run that fails creates
-    nothing). :meth:`writing` (before the first file is written) creates the folder and the
-    marker if :meth:`begin` did not. :meth:`commit` removes the marker when every file is written.
+    :meth:`begin` (before the work starts): create the folder if needed, lock it (a second run
+    on it raises :class:`~downhole.errors.DownholeInputError`), write the ``INCOMPLETE`` marker,
+    then remove the previous run's files (``owned``) and stale temporaries. :meth:`writing`
+    (before the first file is written) does the same if :meth:`begin` was not called.
+    :meth:`commit` removes the marker when every file is written and releases the lock.
     Used as a context manager: ``begin`` on entry; ``commit`` on a normal exit, :meth:`fail`
     (the reason goes into the marker, when there is one) on an exception.
 
@@ -303,12 +409,15 @@ class OutputFolder:
         self.owned = tuple(owned)
         self.command = command or "run"
         self._marked = False
+        self._lock = _Lock(self.path / LOCK_NAME, f"output folder {self.path}")
 
     @property
     def marker(self) -> Path:
         return self.path / MARKER
 
     def _mark(self) -> None:
+        self.path.mkdir(parents=True, exist_ok=True)
+        self._lock.acquire()
         write_text_atomic(self.marker, _marker_text(self.command, "started"))
         self._marked = True
         for entry in list(self.path.iterdir()):
@@ -321,31 +430,30 @@ class OutputFolder:
         _fsync_dir(self.path)
 
     def begin(self) -> OutputFolder:
-        """Before the work: mark an existing folder incomplete and remove its stale files."""
-        if self.path.is_dir() and not self._marked:
+        """Before the work: create and lock the folder, mark it incomplete, remove stale files."""
+        if not self._marked:
             self._mark()
         return self
 
     def writing(self) -> OutputFolder:
-        """Before the first file: create the folder (and the marker) if needed."""
-        if not self._marked:
-            self.path.mkdir(parents=True, exist_ok=True)
-            self._mark()
-        return self
+        """Before the first file: :meth:`begin` if it was not called."""
+        return self.begin()
 
     def fail(self, reason: str) -> None:
-        """Record why the run did not finish in the marker (the marker stays)."""
+        """Record why the run did not finish in the marker (the marker stays); unlock."""
         if self._marked:
             with contextlib.suppress(OSError):
                 write_text_atomic(self.marker, _marker_text(self.command, f"failed: {reason}"))
+        self._lock.release()
 
     def commit(self) -> None:
-        """Every file is written: remove the marker."""
+        """Every file is written: remove the marker and unlock."""
         _fsync_dir(self.path)
         with contextlib.suppress(FileNotFoundError):
             self.marker.unlink()
         _fsync_dir(self.path)
         self._marked = False
+        self._lock.release()
 
     def __enter__(self) -> Self:
         return self.begin()
@@ -369,12 +477,15 @@ class OutputFile:
     def __init__(self, path: str | os.PathLike, command: str = ""):
         self.path = Path(path)
         self.command = command or "run"
+        self._lock = _Lock(self.path.with_name(f".{self.path.name}.lock"),
+                           f"output file {self.path}")
 
     @property
     def marker(self) -> Path:
         return self.path.with_name(self.path.name + "." + MARKER)
 
     def begin(self) -> OutputFile:
+        self._lock.acquire()
         write_text_atomic(self.marker, _marker_text(self.command, f"writing {self.path.name}"))
         folder = self.path.parent
         stem = temp_path(self.path).name.rsplit(".part-", 1)[0]
@@ -391,8 +502,10 @@ class OutputFile:
     def fail(self, reason: str) -> None:
         with contextlib.suppress(OSError):
             write_text_atomic(self.marker, _marker_text(self.command, f"failed: {reason}"))
+        self._lock.release()
 
     def commit(self) -> None:
         with contextlib.suppress(FileNotFoundError):
             self.marker.unlink()
         _fsync_dir(self.path.parent)
+        self._lock.release()

@@ -19,19 +19,32 @@ module run with ``python -m``, is imported again; a package's ``__main__`` is no
 breaks anyway (a worker killed by the OS, out of memory, ...), instead of reporting every
 remaining task as failed and returning normally.
 
+:func:`worker_pool` is the one way these entry points start a local process pool: ``spawn``
+workers that the kernel kills when their parent ends, however it ends (Linux
+``prctl(PR_SET_PDEATHSIG, SIGKILL)``, set by the worker initializer; a worker whose parent is
+already gone exits at once); SIGTERM and SIGHUP (a closed terminal, a dropped SSH session) in the
+parent become :class:`StopRequested` (a ``SystemExit`` with code 128 + signal) while the pool
+runs, and any exception, SIGINT's ``KeyboardInterrupt`` included, kills the workers instead of
+waiting for their tasks, so no worker outlives an interrupted command.
+
 This module imports nothing of downhole but :mod:`downhole.errors`.
 """
 
 from __future__ import annotations
 
 import ast
+import contextlib
 import os
+import signal
 import sys
+import threading
+from collections.abc import Iterator
 from functools import lru_cache
 
 from downhole.errors import DownholeInputError, WorkerProcessError
 
-__all__ = ["GUARD", "WorkerProcessError", "broken_pool_error", "check_main_guarded"]
+__all__ = ["GUARD", "StopRequested", "WorkerProcessError", "broken_pool_error",
+           "check_main_guarded", "worker_pool"]
 
 GUARD = 'if __name__ == "__main__":'
 
@@ -138,3 +151,77 @@ def broken_pool_error(what: str, serial: str, exc: BaseException) -> WorkerProce
         f"({type(exc).__name__}: {exc}); nothing was returned. If this runs from a script, put "
         f"the call under `{GUARD}`; else the operating system may have killed a worker (memory), "
         f"or use {serial}")
+
+
+class StopRequested(SystemExit):
+    """SIGTERM or SIGHUP arrived while a :func:`worker_pool` ran (exit code 128 + signal)."""
+
+    def __init__(self, signum: int):
+        super().__init__(128 + signum)
+        self.signum = signum
+
+    def __str__(self) -> str:
+        return f"stopped by {signal.Signals(self.signum).name}"
+
+
+def _die_with_parent(parent: int) -> None:
+    """Worker initializer: the kernel kills this worker when its parent ends (Linux)."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG
+    if os.getppid() != parent:  # the parent ended before the line above took effect
+        os._exit(1)
+
+
+def _raise_stop(signum, frame) -> None:
+    raise StopRequested(signum)
+
+
+def _kill_workers(pool) -> None:
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.kill()
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.join(timeout=5.0)
+
+
+@contextlib.contextmanager
+def worker_pool(max_workers: int) -> Iterator:
+    """A ``spawn`` process pool whose workers never outlive the command that started them.
+
+    Parameters
+    ----------
+    max_workers : int
+        Number of worker processes.
+
+    Yields
+    ------
+    concurrent.futures.ProcessPoolExecutor
+        The pool. On a normal exit it is shut down waiting for its tasks; on any exception
+        (SIGINT's ``KeyboardInterrupt``, :class:`StopRequested` from SIGTERM or SIGHUP, a
+        failure) its workers are killed and the exception propagates.
+    """
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    handlers = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            handlers[sig] = signal.signal(sig, _raise_stop)
+    pool = ProcessPoolExecutor(max_workers=max_workers, mp_context=mp.get_context("spawn"),
+                               initializer=_die_with_parent, initargs=(os.getpid(),))
+    try:
+        yield pool
+    except BaseException:
+        _kill_workers(pool)
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    else:
+        pool.shutdown(wait=True)
+    finally:
+        for sig, h in handlers.items():
+            signal.signal(sig, h)

@@ -231,7 +231,9 @@ def old_result(folder: Path, title="OLD RUN") -> None:
 def test_atomic_path_replaces_only_on_success_and_keeps_the_suffix(tmp_path):
     final = tmp_path / "a.npz"
     final.write_text("previous")
-    assert temp_path(final).name == f".a.part-{os.getpid()}.npz"
+    name = temp_path(final).name
+    assert name.startswith(f".a.part-{os.getpid()}-") and name.endswith(".npz")
+    assert temp_path(final) != temp_path(final)  # 64 random bits: a fresh name every time
     with pytest.raises(RuntimeError, match="writer broke"), atomic_path(final) as tmp:
         tmp.write_text("half")
         raise RuntimeError("writer broke")
@@ -263,11 +265,83 @@ def test_output_folder_marks_removes_stale_files_and_commits(tmp_path):
     assert not is_incomplete(d)
 
 
-def test_output_folder_of_a_failed_run_that_did_not_exist_creates_nothing(tmp_path):
+def test_output_folder_is_marked_when_the_run_starts_and_keeps_why_it_failed(tmp_path):
     d = tmp_path / "new"
     with pytest.raises(ZeroDivisionError), OutputFolder(d, ("x",), "t"):
+        assert is_incomplete(d)  # marked at the start, before any file is written
         raise ZeroDivisionError("the run failed")
-    assert not d.exists()
+    assert is_incomplete(d) and "failed: ZeroDivisionError: the run failed" in (
+        d / MARKER).read_text()
+    assert sorted(p.name for p in d.iterdir()) == [MARKER]  # the lock went with the run
+
+
+def test_a_second_run_on_a_locked_folder_is_refused_and_the_first_is_untouched(tmp_path):
+    d = tmp_path / "run"
+    first = OutputFolder(d, ("result.nc",), "simulate").begin()
+    write_text_atomic(d / "result.nc", "first run")
+    with pytest.raises(DownholeInputError,
+                       match=rf"output folder {d}: another downhole run \(pid {os.getpid()}\)"):
+        OutputFolder(d, ("result.nc",), "simulate").begin()
+    assert (d / "result.nc").read_text() == "first run"  # the refused run removed nothing
+    first.commit()
+    assert sorted(p.name for p in d.iterdir()) == ["result.nc"]
+    with OutputFolder(d, ("result.nc",), "simulate"):  # free again once the first one ended
+        pass
+    f1 = OutputFile(tmp_path / "one.nc", "sil").begin()
+    with pytest.raises(DownholeInputError, match="output file .*one.nc: another downhole run"):
+        OutputFile(tmp_path / "one.nc", "sil").begin()
+    f1.commit()
+
+
+def test_a_lock_dies_with_its_process(tmp_path):
+    d = tmp_path / "run"
+    code = ("import sys, time; from downhole._atomic import OutputFolder; "
+            f"OutputFolder({str(d)!r}, ('x',), 't').begin(); print('locked', flush=True); "
+            "time.sleep(600)")
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "locked"
+        with pytest.raises(DownholeInputError, match=f"another downhole run \\(pid {p.pid}\\)"):
+            OutputFolder(d, ("x",), "t").begin()
+    finally:
+        p.kill()
+        p.wait()
+    OutputFolder(d, ("x",), "t").begin().commit()  # kill -9 released it
+
+
+def test_planted_links_are_never_followed(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    d = tmp_path / "shared"
+    d.mkdir()
+    # links at every name the old, predictable scheme would have used, and at the lock
+    for pid in {os.getpid(), os.getppid(), 1}:
+        (d / f".summary.part-{pid}.json").symlink_to(victim)
+    write_json_atomic(d / "summary.json", {"a": 1})
+    assert victim.read_text() == "precious"
+    assert json.loads((d / "summary.json").read_text()) == {"a": 1}
+    (d / ".downhole.lock").symlink_to(victim)
+    with pytest.raises(OSError):  # O_NOFOLLOW: the lock is not taken through a link
+        OutputFolder(d, ("summary.json",), "t").begin()
+    assert victim.read_text() == "precious"
+    # a temporary swapped for a link before its rename is not renamed
+    with pytest.raises(RuntimeError, match="not a regular file"), \
+            atomic_path(d / "x.txt") as tmp:
+        tmp.unlink()
+        tmp.symlink_to(victim)
+    assert not (d / "x.txt").exists() and victim.read_text() == "precious"
+
+
+def test_a_symlinked_out_is_refused(tmp_path):
+    real = tmp_path / "real"
+    real.mkdir()
+    link = tmp_path / "link"
+    link.symlink_to(real)
+    with pytest.raises(DownholeInputError, match=r"--out .*link: is a symbolic link \(to "):
+        check_output_path(link)
+    with pytest.raises(DownholeInputError, match="is a symbolic link"):
+        check_output_path(tmp_path / "dangling", kind="file") if (
+            (tmp_path / "dangling").symlink_to(tmp_path / "nowhere") or True) else None
 
 
 def test_output_file_marker(tmp_path):

@@ -268,3 +268,15 @@ def test_dhp_drives_the_fmu_of_the_state_plant(tmp_path):
     for ch in ("bit_axial_velocity", "bit_angular_velocity", "wob"):
         np.testing.assert_allclose(res[ch], ref[ch], rtol=1e-9, atol=1e-9, err_msg=ch)
     assert res["bit_angular_velocity"][-1] > 5.0  # the step reference is being tracked
+
+
+def test_a_huge_step_is_refused_at_once_not_run_for_hours(lumped_fmu):
+    """A 1 h communication step (7.2e6 plant steps of 0.5 ms) is an FMI error naming the limit,
+    returned before any plant step is taken (the run would otherwise take hours)."""
+    from downhole.sil.fmu_slave import MAX_STEPS_PER_DO_STEP
+
+    limit = MAX_STEPS_PER_DO_STEP * 5e-4
+    with pytest.raises(DownholeInputError,
+                       match=rf"rejected the step at t = 0 s.*above the limit of "
+                             rf"{MAX_STEPS_PER_DO_STEP} per doStep \({limit:g} s\)"):
+        run_fmu_closed_loop(lumped_fmu, Needs(), 7200.0, dt=3600.0)

@@ -233,19 +233,17 @@ def _run_pool(ids: list[str], out_dir: Path, quick: bool, jobs: int, done) -> No
     """Run ``ids`` on ``jobs`` spawned worker processes (one BLAS thread each)."""
     if not ids:
         return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
     from concurrent.futures.process import BrokenProcessPool
 
-    from downhole._workers import broken_pool_error
+    from downhole._workers import broken_pool_error, worker_pool
 
     saved = {v: os.environ.get(v) for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
                                              "MKL_NUM_THREADS", "MPLBACKEND")}
     for v in saved:
         os.environ.setdefault(v, "Agg" if v == "MPLBACKEND" else "1")
     try:
-        with ProcessPoolExecutor(max_workers=min(jobs, len(ids)),
-                                 mp_context=mp.get_context("spawn")) as pool:
+        with worker_pool(min(jobs, len(ids))) as pool:
             futs = {pool.submit(run_one, eid, str(out_dir), quick): eid for eid in ids}
             for f in as_completed(futs):
                 eid = futs[f]
@@ -256,6 +254,8 @@ def _run_pool(ids: list[str], out_dir: Path, quick: bool, jobs: int, done) -> No
                         other.cancel()
                     _crashed(out_dir, eid, exc, quick)
                     raise broken_pool_error(f"reproduce(jobs={jobs})", "jobs=1", exc) from None
+                except (KeyboardInterrupt, SystemExit):  # SIGINT, SIGTERM, SIGHUP: stop
+                    raise
                 except BaseException as exc:
                     claim = _crashed(out_dir, eid, exc, quick)
                 done(eid, claim)

@@ -22,6 +22,7 @@ environment that runs it (the pickled plant needs the downhole version that expo
 """
 
 import json
+import math
 import pickle
 from pathlib import Path
 from xml.etree.ElementTree import Element, SubElement
@@ -33,6 +34,9 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 TIME_OUTPUT = "sim_time"
 #: Default experiment stop time when the resources give none, s.
 DEFAULT_STOP_TIME = 10.0
+#: Most plant steps one ``doStep`` may take (100 s of simulated time at dt = 1 ms): a larger
+#: communication step is refused with an FMI error instead of running for hours.
+MAX_STEPS_PER_DO_STEP = 100_000
 _BASE = {"kilogram": "kg", "meter": "m", "second": "s", "ampere": "A", "kelvin": "K",
          "mole": "mol", "candela": "cd", "radian": "rad"}
 
@@ -192,6 +196,17 @@ class DownholePlant(Fmi2Slave):
         self._set_outputs(self._plant.reset(**self._reset))
 
     def do_step(self, current_time, step_size):
+        if not (isinstance(step_size, (int, float)) and math.isfinite(step_size)
+                and step_size > 0):
+            self.log(f"step size {step_size!r} s is not a positive finite number",
+                     Fmi2Status.error)
+            return False
+        if step_size / self._dt > MAX_STEPS_PER_DO_STEP + 0.5:
+            self.log(f"step size {step_size!r} s needs {step_size / self._dt:.4g} plant steps of "
+                     f"dt = {self._dt!r} s, above the limit of {MAX_STEPS_PER_DO_STEP} per doStep "
+                     f"({MAX_STEPS_PER_DO_STEP * self._dt:g} s): use communication steps of at "
+                     f"most {MAX_STEPS_PER_DO_STEP * self._dt:g} s", Fmi2Status.error)
+            return False
         n = round(step_size / self._dt)
         if n < 1 or abs(n * self._dt - step_size) > 1e-9 * max(1.0, step_size):
             self.log(f"step size {step_size!r} s is not a whole multiple of the plant's dt = "

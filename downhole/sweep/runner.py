@@ -312,16 +312,14 @@ def _execute(args, cases, batches, metrics, window, scheduler, processes, worker
             store(b, run_cases(base, source, names, cases[b.start:b.stop], metrics, window))
         return "serial (this process)"
     if scheduler is None:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from concurrent.futures import as_completed
         from concurrent.futures.process import BrokenProcessPool
 
-        from downhole._workers import broken_pool_error
+        from downhole._workers import broken_pool_error, worker_pool
 
         saved = _limit_threads_env()
         try:
-            with ProcessPoolExecutor(max_workers=min(workers, len(batches)),
-                                     mp_context=mp.get_context("spawn")) as pool:
+            with worker_pool(min(workers, len(batches))) as pool:
                 futs = {pool.submit(run_cases, base, source, names, cases[b.start:b.stop],
                                     metrics, window): b for b in batches}
                 for f in as_completed(futs):

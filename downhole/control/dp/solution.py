@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from downhole._atomic import replace_atomic, temp_path
+from downhole._atomic import new_temp, replace_atomic
 from downhole.errors import DownholeInputError
 
 __all__ = ["DPSolution", "load_solution", "stage_costs", "trajectory_cost"]
@@ -149,7 +149,7 @@ class DPSolution:
         meta = {"format": _FORMAT, "run_id": run_id, "method": self.method,
                 "cost": float(self.cost), "problem": self.problem.model_dump(mode="json"),
                 "info": _jsonable(self.info)}
-        tmp_npz, tmp_js = temp_path(npz), temp_path(js)
+        tmp_npz, tmp_js = new_temp(npz), new_temp(js)
         try:
             np.savez(tmp_npz, run_id=np.array(run_id),
                      **{k: np.asarray(getattr(self, k)) for k in _ARRAYS})
