@@ -315,7 +315,7 @@ def test_token_file_errors_name_the_file(tmp_path, capsys):
                       f'[dashboard]\n{db}\n')
         t = time.monotonic()
         assert main(["sil", str(sc), "--dashboard", "--remote", "--wait", "300"]) == 2
-        assert time.monotonic() - t < 60
+        assert time.monotonic() - t < 250  # it did not wait for the plant's 300 s
         assert word in capsys.readouterr().err
 
 

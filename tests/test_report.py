@@ -42,9 +42,15 @@ PLUGIN = textwrap.dedent('''
                     claim="1 > 2")
         def _false(out_dir, quick):
             return {"measured": {"lhs": 1, "rhs": 2}, "passed": False}
+
+        @experiment("test.slow", title="a timing claim that does not hold", chapter=3,
+                    claim="100x faster than the seed")
+        def _slow(out_dir, quick):
+            return {"measured": {"speed-up": 30}, "passed": False}
 ''')
 
 IDS = ["test.ok", "test.fail", "test.claimfalse"]
+ALL_IDS = [*IDS, "test.slow"]
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +64,7 @@ def plugin(tmp_path_factory):
         yield "dh_test_experiments"
     from downhole.experiments import _REGISTRY
 
-    for eid in IDS:
+    for eid in ALL_IDS:
         _REGISTRY.pop(eid, None)
     sys.modules.pop("dh_test_experiments", None)
 
@@ -95,10 +101,16 @@ def test_cli_reproduce_in_process(tmp_path, plugin, capsys):
 
     out = tmp_path / "cli"
     rc = main(["reproduce", "test.ok", "test.fail", "--out", str(out), "--jobs", "1"])
-    assert rc == 0
+    assert rc == 1  # a failed claim is a failed command
     text = capsys.readouterr().out
     assert "1 passed, 1 failed" in " ".join(text.split())  # rich may wrap lines
     assert "index.html" in text.replace("\n", "")
+    assert "failed claims: test.fail" in " ".join(text.split())
+    assert main(["reproduce", "test.ok", "--out", str(out), "--jobs", "1"]) == 0
+    capsys.readouterr()
+    # a timing claim alone: its own exit code, so that a script can tell load from physics
+    assert main(["reproduce", "test.ok", "test.slow", "--out", str(out), "--jobs", "1"]) == 3
+    assert "only timing claims failed: test.slow" in " ".join(capsys.readouterr().out.split())
     assert main(["reproduce", "no.such.exp", "--out", str(out)]) == 2
     assert "unknown experiment 'no.such.exp'" in capsys.readouterr().err
 

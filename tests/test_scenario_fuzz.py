@@ -30,7 +30,8 @@ from downhole.errors import DownholeInputError
 EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.toml"))
 SEED = int(os.environ.get("DOWNHOLE_FUZZ_SEED", "20261201"))  # other seeds: hunt locally
 VARIANTS_PER_EXAMPLE = int(os.environ.get("DOWNHOLE_FUZZ_VARIANTS", "24"))
-WATCHDOG_S = 10
+WATCHDOG_S = 20  # s of CPU time of this process
+WALL_BACKSTOP_S = 600  # s: only a variant blocked without using CPU reaches it
 
 
 SLOW: list = []  # (seconds, variant): inspect with DOWNHOLE_FUZZ_SLOW=1
@@ -52,16 +53,26 @@ class _Accepted(Exception):
 
 @contextlib.contextmanager
 def watchdog(seconds: int, what: str):
+    """Catch a hang by structure, not by the wall clock: ``seconds`` of this process's CPU time
+    (ITIMER_PROF: a loop that spins; other processes' load does not count), with a wall-clock
+    backstop of ``WALL_BACKSTOP_S`` only for a variant that blocks without using CPU (a FIFO,
+    a socket), far above any loaded machine's time for a refusal."""
     def _alarm(signum, frame):
-        raise _Hang(f"{what}: still running after {seconds} s")
+        kind = "CPU" if signum == signal.SIGPROF else "wall-clock"
+        raise _Hang(f"{what}: still running after {seconds if kind == 'CPU' else WALL_BACKSTOP_S}"
+                    f" s of {kind} time")
 
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.alarm(seconds)
+    old_prof = signal.signal(signal.SIGPROF, _alarm)
+    old_alrm = signal.signal(signal.SIGALRM, _alarm)
+    signal.setitimer(signal.ITIMER_PROF, seconds)
+    signal.alarm(WALL_BACKSTOP_S)
     try:
         yield
     finally:
+        signal.setitimer(signal.ITIMER_PROF, 0)
         signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
+        signal.signal(signal.SIGPROF, old_prof)
+        signal.signal(signal.SIGALRM, old_alrm)
 
 
 # ------------------------------------------------------------------ the commands' entry points

@@ -96,6 +96,17 @@ def reproduce(
     console.print(f"{len(summary['passed'])} passed, {len(summary['failed'])} failed in "
                   f"{summary['wall_seconds']:.1f} s on {summary['jobs']} jobs; "
                   f"report: {out}/index.html")
+    failed = [eid for eid in ids if not claims[eid].get("passed")]
+    if failed:
+        from downhole.report.reproduce import is_timing
+
+        physics = [eid for eid in failed if not is_timing(get_experiment(eid))]
+        if physics:
+            console.print(f"[red]failed claims: {', '.join(physics)}[/] (exit code 1)")
+            raise typer.Exit(1)
+        console.print(f"[yellow]only timing claims failed: {', '.join(failed)}[/] (speed "
+                      "depends on the machine's load; exit code 3)")
+        raise typer.Exit(3)
 
 
 def _git_commit() -> str | None:
