@@ -69,6 +69,7 @@ __all__ = [
     "temp_path",
     "write_bytes_atomic",
     "write_json_atomic",
+    "write_netcdf_atomic",
     "write_text_atomic",
 ]
 
@@ -230,16 +231,51 @@ def atomic_path(final: str | os.PathLike, *, durable: bool = True,
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file, fsync, rename)."""
     path = Path(path)
-    with atomic_path(path, allow_empty=True) as tmp:
-        fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC | _NOFOLLOW)
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
+    try:
+        with atomic_path(path, allow_empty=True) as tmp:
+            fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC | _NOFOLLOW)
+            with os.fdopen(fd, "wb") as f:
+                f.write(data)
+    except OSError as exc:  # name the file the user asked for, not the temporary
+        if exc.filename is None or ".part-" in str(exc.filename):
+            raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
+        raise
     return path
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
     return write_bytes_atomic(path, text.encode("utf-8"))
+
+
+def write_netcdf_atomic(path: str | os.PathLike, dataset) -> Path:
+    """Write an :class:`xarray.Dataset` as NetCDF-4 (h5netcdf) to ``path`` atomically.
+
+    The file is serialized in memory first and written with plain file I/O, so that a full disk
+    (``ENOSPC``) or any other write error is one clean :class:`OSError` with the temporary
+    removed (HDF5 writing straight to a file on a full disk leaves a broken file object that
+    can crash the interpreter at exit).
+
+    Parameters
+    ----------
+    path : path
+        Final file name (``.nc``).
+    dataset : xarray.Dataset
+        What to write.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    OSError
+        The write failed (no space left, quota, read-only file system, ...); ``path`` is left as
+        it was.
+    """
+    data = dataset.to_netcdf(engine="h5netcdf")
+    return write_bytes_atomic(path, bytes(data))
 
 
 def write_json_atomic(path: str | os.PathLike, data, **kwargs) -> Path:

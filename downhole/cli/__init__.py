@@ -41,6 +41,20 @@ def _click_exception_types() -> tuple:
     return tuple(types)
 
 
+def _os_error_line(exc: OSError) -> str:
+    """One line for an operating-system error (``[Errno 28] No space left on device: 'x'``);
+    HDF5's multi-line messages are cut to their first line."""
+    import errno as _errno
+
+    what = exc.strerror or str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    name = exc.filename or ""
+    hint = {_errno.ENOSPC: "free some space or choose another --out",
+            _errno.EDQUOT: "the disk quota is exceeded: free some space or choose another --out",
+            _errno.EROFS: "the file system is read-only: choose another --out"}.get(exc.errno)
+    line = f"{what}" + (f": {name}" if name else "") + (f" ({hint})" if hint else "")
+    return " ".join(line.split())
+
+
 def main(argv: list[str] | None = None) -> int:
     """Console-script entry point."""
     from downhole.errors import DownholeError, DownholeInputError
@@ -60,6 +74,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except DownholeError as exc:  # a run that failed (e.g. went non-finite): exit code 1
         typer.echo(f"error: {exc}", err=True)
+        return 1
+    except OSError as exc:  # the environment: a full disk, a quota, a read-only folder
+        typer.echo(f"error: {_os_error_line(exc)}", err=True)
         return 1
     except KeyError as exc:  # unknown preset / experiment ids carry their message
         typer.echo(f"error: {exc.args[0] if exc.args else exc}", err=True)

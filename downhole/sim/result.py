@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from downhole._atomic import atomic_path
+from downhole._atomic import atomic_path, write_netcdf_atomic
 from downhole.signals import SIGNALS, STANDARD_CHANNELS
 
 __all__ = ["CHANNEL_UNITS", "Result", "load_result"]
@@ -115,12 +115,10 @@ class Result:
     # --- io -----------------------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> Path:
         """Write NetCDF (h5netcdf engine), atomically: written to a temporary file in the same
-        folder, fsynced and renamed (:func:`downhole._atomic.atomic_path`), so a failed or
-        killed write never leaves a half-written file under ``path``."""
-        path = Path(path)
-        with atomic_path(path) as tmp:
-            self.dataset.to_netcdf(tmp, engine="h5netcdf")
-        return path
+        folder, fsynced and renamed (:func:`downhole._atomic.write_netcdf_atomic`), so a failed
+        or killed write never leaves a half-written file under ``path``; a full disk raises one
+        clean :class:`OSError`."""
+        return write_netcdf_atomic(path, self.dataset)
 
     def summary(self, window: tuple[float, float] | None = None) -> dict:
         """Drilling metrics over ``window`` (default: second half of the run).

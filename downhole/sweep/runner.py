@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from downhole._atomic import atomic_path
+from downhole._atomic import write_netcdf_atomic
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.sweep.spec import (
     METRICS,
@@ -451,10 +451,7 @@ def _assemble(specs: list[ParamSpec], cases, results, metrics, window, base, sou
 def save_sweep(ds, path: str | Path) -> Path:
     """Write a sweep dataset as NetCDF (h5netcdf), atomically (temporary file in the same folder,
     fsync, rename: :func:`downhole._atomic.atomic_path`)."""
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        ds.to_netcdf(tmp, engine="h5netcdf")
-    return path
+    return write_netcdf_atomic(path, ds)
 
 
 def load_sweep(path: str | Path):
