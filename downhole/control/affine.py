@@ -431,7 +431,8 @@ class ControlAffineModel:
         Returns
         -------
         ndarray
-            ``zbar * state_scale`` in the unit of each state's kind (m, rad, m/s, rad/s), same shape.
+            ``zbar * state_scale`` in the unit of each state's kind (m, rad, m/s, rad/s),
+            same shape.
         """
         return np.asarray(zbar, float) * self._P
 
