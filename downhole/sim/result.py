@@ -262,9 +262,9 @@ class Result:
         path : str or os.PathLike
             Destination file; its folder must exist.
         units : str or UnitSystem, optional
-            A system name such as ``"oilfield"`` or a :class:`~downhole.units.UnitSystem`: the values
-            are in those display units and every header names its unit, ``wob [klbf]``. Without,
-            the columns are the channel names and the values SI.
+            A system name such as ``"oilfield"`` or a :class:`~downhole.units.UnitSystem`: the
+            values are in those display units and every header names its unit, ``wob [klbf]``.
+            Without, the columns are the channel names and the values SI.
 
         Returns
         -------
