@@ -83,14 +83,54 @@ REFERENCE_RANGES = {
 
 
 def check_range(name: str, value, ranges: dict) -> str | None:
-    """None when ``value`` is a finite number within ``ranges[name]``, else the reason."""
+    """None when ``value`` is a finite number within ``ranges[name]``, else the reason.
+
+    Parameters
+    ----------
+    name : str
+        Command or reference name (its unit, if declared in :mod:`downhole.signals`, is named
+        in the reason).
+    value : object
+        The value, in the signal's SI unit.
+    ranges : dict
+        ``{name: (low, high)}``, SI.
+
+    Returns
+    -------
+    str or None
+        A one-line reason, or None when admissible.
+
+    Raises
+    ------
+    KeyError
+        If ``name`` has no entry in ``ranges``.
+    """
     lo, hi = ranges[name]
     return range_reason(name, value, lo, hi, SIGNALS[name].unit if name in SIGNALS else "")
 
 
 def resolve_ranges(names, overrides: dict | None, what: str) -> dict:
-    """``{name: (low, high)}`` for ``names`` from :data:`COMMAND_RANGES` and ``overrides``;
-    a name without a range is an error naming ``what``."""
+    """``{name: (low, high)}`` for ``names`` from :data:`COMMAND_RANGES` and ``overrides``.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Command names.
+    overrides : dict or None
+        ``{name: (low, high)}`` (SI) replacing or adding to :data:`COMMAND_RANGES`.
+    what : str
+        What the names are (e.g. ``"commands"``), used in the error message.
+
+    Returns
+    -------
+    dict
+        ``{name: (low, high)}`` as floats, SI, for every name.
+
+    Raises
+    ------
+    DownholeInputError
+        If a name has no range (the message names ``what``).
+    """
     ranges = dict(COMMAND_RANGES)
     ranges.update(overrides or {})
     missing = [k for k in names if k not in ranges]
@@ -188,8 +228,18 @@ class SilPlant:
         return out
 
     def check_command(self, command: dict) -> str | None:
-        """None when every command is present, finite and within :attr:`command_ranges`;
-        else the reason (the first offending signal)."""
+        """None when every command is present, finite and within :attr:`command_ranges`.
+
+        Parameters
+        ----------
+        command : dict
+            Command name -> value (SI).
+
+        Returns
+        -------
+        str or None
+            The reason for the first offending signal, or None when admissible.
+        """
         for k in self.command_names:
             if k not in command:
                 return f"{k} is missing"
@@ -211,13 +261,40 @@ class SilPlant:
         return self._last
 
     def reset(self, **start) -> dict:
-        """Reset the plant (``start``: ``start=``, ``set_point=``, ... of
-        :meth:`downhole.sim.plant.Plant.reset`; none: from rest)."""
+        """Reset the plant and return the first observation.
+
+        Parameters
+        ----------
+        **start
+            ``start=``, ``set_point=``, ... of :meth:`downhole.sim.plant.Plant.reset`; none: the
+            plant's :attr:`default_start` (empty: from rest).
+
+        Returns
+        -------
+        dict
+            The flattened observation, signal name -> value (SI).
+        """
         self._last = self._flatten(self.plant.reset(**(start or self.default_start)))
         return dict(self._last)
 
     def step(self, command: dict) -> dict:
-        """Advance one ``dt`` holding ``command`` (every command name required)."""
+        """Advance one ``dt`` holding ``command`` (every command name required).
+
+        Parameters
+        ----------
+        command : dict
+            Command name -> value (SI); extra :attr:`passthrough` names are handed on when present.
+
+        Returns
+        -------
+        dict
+            The flattened observation after the step (the plant's own dict; do not modify it).
+
+        Raises
+        ------
+        DownholeInputError
+            If a command name is missing.
+        """
         try:
             cmd = {k: float(command[k]) for k in self.command_names}
         except KeyError as exc:
@@ -230,7 +307,20 @@ class SilPlant:
         return self._last
 
     def vector(self, obs: dict | None = None, out: np.ndarray | None = None) -> np.ndarray:
-        """Observation values in layout order."""
+        """Observation values in layout order.
+
+        Parameters
+        ----------
+        obs : dict, optional
+            Flattened observation (default: the last one).
+        out : ndarray, optional
+            Array of length ``len(observation_names)`` to fill in place.
+
+        Returns
+        -------
+        ndarray
+            The values (SI) in the order of :attr:`observation_names`, NaN for missing ones.
+        """
         obs = self._last if obs is None else obs
         if out is None:
             out = np.empty(len(self.observation_names))
