@@ -370,11 +370,9 @@ def simulate_fmu(fmu, stop_time: float, step_size: float, start_values: dict | N
         The FMU's outputs over time (attrs ``runner``, ``fmu`` and exported constants such as
         ``bit_radius``).
 
-    Raises
-    ------
-    DownholeInputError
-        If ``fmu`` is not a readable FMI 2.0 co-simulation FMU (FMPy's own errors pass through
-        when the simulation fails).
+    Notes
+    -----
+    FMPy's own errors pass through (e.g. for a missing or invalid FMU).
     """
     import fmpy
 
