@@ -178,7 +178,8 @@ class SurfaceInputs:
         Parameters
         ----------
         hook_load : float, str, tuple or callable
-            Hook load, N (or ``"250 klbf"``); a constant, ``(times, values)`` samples (times in s) or a callable f(t) in SI.
+            Hook load, N (or ``"250 klbf"``); a constant, ``(times, values)`` samples (times
+            in s) or a callable f(t) in SI.
         torque : float, str, tuple or callable
             Surface torque, N m (or ``"10 kft*lbf"``); same forms.
 
