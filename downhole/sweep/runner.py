@@ -40,7 +40,29 @@ def load_sweep_file(path: str | Path) -> tuple[dict, str, dict]:
     """Read a scenario TOML; returns ``(scenario_data, source, sweep_settings)``.
 
     An optional ``[sweep]`` table (``params``, ``metrics``, ``window``, ``random``, ``seed``,
-    ``batch_size``) is split off: it configures the sweep and is not part of the scenario.
+    ``batch_size``, ``stability_map``) is split off: it configures the sweep and is not part of
+    the scenario.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        Scenario TOML file.
+
+    Returns
+    -------
+    scenario_data : dict
+        The parsed scenario without ``[sweep]``.
+    source : str
+        The file's name, for messages.
+    sweep_settings : dict
+        The ``[sweep]`` table (empty if absent).
+
+    Raises
+    ------
+    ScenarioError
+        If the file cannot be read or parsed.
+    DownholeInputError
+        If ``sweep`` is not a table or has an unknown key.
     """
     from downhole.scenario import load_scenario
 
@@ -77,8 +99,28 @@ def run_cases(base: dict, source: str, paths: Sequence[str], cases: Sequence[Seq
               metrics: Sequence[str], window: tuple[float, float] | None):
     """Run ``cases`` (values for ``paths``) one after the other; the task a worker executes.
 
-    Returns a list of ``(metric_values, error_text, seconds)``; a case that raises gives NaN
-    metrics and ``"ExceptionType: message"``.
+    A case that raises gives NaN metrics and ``"ExceptionType: message"``.
+
+    Parameters
+    ----------
+    base : dict
+        The parsed base scenario (copied for each case).
+    source : str
+        Its name, for messages.
+    paths : sequence of str
+        Dotted scenario paths of the swept parameters.
+    cases : sequence of sequence of float
+        One row of values (SI, in the order of ``paths``) per case.
+    metrics : sequence of str
+        Metric names (:data:`downhole.sweep.spec.METRICS`).
+    window : (float, float) or None
+        Time window of the metrics, s; None for the second half of each run.
+
+    Returns
+    -------
+    list of tuple
+        ``(metric_values, error_text, seconds)`` per case: the metric values (SI), ``""`` or
+        the error, and the wall time of the case, s.
     """
     from downhole.scenario import run_scenario
 
@@ -449,8 +491,22 @@ def _assemble(specs: list[ParamSpec], cases, results, metrics, window, base, sou
 
 
 def save_sweep(ds, path: str | Path) -> Path:
-    """Write a sweep dataset as NetCDF (h5netcdf), atomically (temporary file in the same folder,
-    fsync, rename: :func:`downhole._atomic.atomic_path`)."""
+    """Write a sweep dataset as NetCDF (h5netcdf), atomically.
+
+    A temporary file in the same folder, fsync, rename: :func:`downhole._atomic.atomic_path`.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The dataset of :func:`run_sweep`.
+    path : str or pathlib.Path
+        Output file.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     path = Path(path)
     with atomic_path(path) as tmp:
         ds.to_netcdf(tmp, engine="h5netcdf")
@@ -458,7 +514,18 @@ def save_sweep(ds, path: str | Path) -> Path:
 
 
 def load_sweep(path: str | Path):
-    """Load a sweep dataset written by :func:`save_sweep`."""
+    """Load a sweep dataset written by :func:`save_sweep`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        NetCDF file.
+
+    Returns
+    -------
+    xarray.Dataset
+        The dataset, fully loaded in memory (the file is closed).
+    """
     import xarray as xr
 
     with xr.open_dataset(path, engine="h5netcdf") as ds:
@@ -466,7 +533,18 @@ def load_sweep(path: str | Path):
 
 
 def failed_cases(ds) -> list[dict]:
-    """The failed cases of a sweep: ``[{"params": {path: value}, "error": text}, ...]``."""
+    """The failed cases of a sweep: ``[{"params": {path: value}, "error": text}, ...]``.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep dataset (with its ``error`` variable).
+
+    Returns
+    -------
+    list of dict
+        One entry per failed case: the swept parameter values (SI) and the error text.
+    """
     err = ds["error"]
     out = []
     flat = err.stack(_c=err.dims) if err.ndim > 1 else err
