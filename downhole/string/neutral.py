@@ -98,7 +98,21 @@ class NDDEMatrices:
     u_offset: tuple[float, float]
 
     def channel(self, i: int) -> dict:
-        """Scalar coefficients of channel ``i`` (0 axial, 1 torsional)."""
+        """Scalar coefficients of channel ``i`` (0 axial, 1 torsional).
+
+        Parameters
+        ----------
+        i : int
+            0 for the axial channel, 1 for the torsional one.
+
+        Returns
+        -------
+        dict
+            ``a0`` (A0 entry, 1/s), ``a1`` (the delayed-state coefficient, A1 for axial, A2 for
+            torsional, 1/s), ``g1`` (the neutral coefficient, G1 or G2, dimensionless), ``b``
+            (input gain, 1/s), ``h`` (state delay 2 tau, s), ``tau`` (input delay, s) and
+            ``offset`` (input offset: M_S g/alpha_A in m/s for axial, 0 for torsional).
+        """
         a1 = self.A1[0, 0] if i == 0 else self.A2[1, 1]
         g1 = self.G1[0, 0] if i == 0 else self.G2[1, 1]
         return {"a0": float(self.A0[i, i]), "a1": float(a1), "g1": float(g1),
@@ -148,15 +162,50 @@ class NeutralModel:
         return self.params.string_mass * self.params.g / self.params.alpha_axial
 
     def steady_inputs(self, rop: float, omega: float, wob: float, tob: float) -> tuple[float, float]:
-        """Open-loop commands (U_A, U_T) for a steady state: U_A = v + (W + M_S g)/alpha_A,
-        U_T = omega + T/alpha_T."""
+        """Open-loop commands (U_A, U_T) for a steady state.
+
+        U_A = v + (W + M_S g)/alpha_A, U_T = omega + T/alpha_T.
+
+        Parameters
+        ----------
+        rop : float
+            Bit axial velocity v, m/s.
+        omega : float
+            Bit angular velocity, rad/s.
+        wob : float
+            Weight on bit W, N.
+        tob : float
+            Torque on bit T, N m.
+
+        Returns
+        -------
+        (U_A, U_T) : tuple of float
+            Axial command, m/s, and angular command, rad/s.
+        """
         p = self.params
         return (rop + (wob + p.string_mass * p.g) / p.alpha_axial, omega + tob / p.alpha_torsional)
 
     def steady_state(self, u_axial: float, u_angular: float, iterations: int = 200):
-        """Steady drilling state (v, omega, W, T) under constant commands, with the approximated
-        depth of cut d = 2 pi v/omega (fixed point of v = U_A - (W + M_S g)/alpha_A,
-        omega = U_T - T/alpha_T)."""
+        """Steady drilling state (v, omega, W, T) under constant commands.
+
+        With the approximated depth of cut d = 2 pi v/omega: a damped fixed-point iteration of
+        v = U_A - (W + M_S g)/alpha_A, omega = U_T - T/alpha_T.
+
+        Parameters
+        ----------
+        u_axial : float
+            Axial command U_A, m/s.
+        u_angular : float
+            Angular command U_T, rad/s.
+        iterations : int, optional
+            Number of fixed-point iterations (default 200; no convergence check).
+
+        Returns
+        -------
+        (v, omega, wob, tob) : tuple of float
+            Bit axial velocity (m/s), angular velocity (rad/s), weight on bit (N) and torque on bit
+            (N m).
+        """
         p = self.params
         bp = self.bit.kernel_params()
         v, w = u_axial - self.hang_command, u_angular
@@ -181,7 +230,17 @@ class NeutralModel:
             u_offset=(self.hang_command, 0.0))
 
     def with_bit(self, bit: BitParams) -> NeutralModel:
-        """Same string, another bit (e.g. a perturbed epsilon)."""
+        """Same string, another bit (e.g. a perturbed epsilon).
+
+        Parameters
+        ----------
+        bit : BitParams
+            The new bit parameters.
+
+        Returns
+        -------
+        NeutralModel
+        """
         return NeutralModel(self.params, bit, self.axial, self.torsional, self.name)
 
 
