@@ -74,7 +74,7 @@ def syrk_gram(At, G):
 
 @njit(cache=True, nogil=True)
 def potrf_upper(G):
-    """In place: the upper C triangle of G -> the upper Cholesky factor U, G = U^T U (LAPACK dpotrf).
+    """In place: the upper C triangle of G -> its upper Cholesky factor U, G = U^T U (dpotrf).
 
     Parameters
     ----------
