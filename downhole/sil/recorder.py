@@ -149,7 +149,8 @@ def load_chunks(chunk_dir, units: dict | None = None, attrs: dict | None = None)
     units : dict, optional
         Units of channels not declared in :mod:`downhole.signals` (name -> pint unit string).
     attrs : dict, optional
-        Metadata of the Result. ``incomplete = 1`` is added when the folder is still marked as being written.
+        Metadata of the Result; ``incomplete = 1`` is added when the folder is still
+        marked as being written.
 
     Returns
     -------
