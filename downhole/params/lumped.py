@@ -26,6 +26,19 @@ class TwelfthOrderSplit(BaseModel):
     servo_damping_ratio: float = Field(0.7, ge=0)
 
     def model_post_init(self, __context) -> None:
+        """Pydantic hook run after field validation: check the shares.
+
+        Parameters
+        ----------
+        __context : object
+            Pydantic's validation context (unused).
+
+        Raises
+        ------
+        ValueError
+            If ``mass_shares`` or ``compliance_shares`` are not three positive numbers summing to 1
+            (pydantic reports it as a validation error).
+        """
         for name in ("mass_shares", "compliance_shares"):
             vals = getattr(self, name)
             if any(v <= 0 for v in vals) or abs(sum(vals) - 1.0) > 1e-9:

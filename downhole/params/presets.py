@@ -97,7 +97,22 @@ _add(Preset(
 
 
 def get_preset(name: str) -> Preset:
-    """Return the preset called ``name``; raises ``KeyError`` listing the known names."""
+    """Return the preset called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`PRESETS` (e.g. ``"table_2_1"``).
+
+    Returns
+    -------
+    Preset
+
+    Raises
+    ------
+    KeyError
+        If ``name`` is unknown (the message lists the known names).
+    """
     try:
         return PRESETS[name]
     except KeyError:

@@ -24,6 +24,18 @@ class PipeSection(BaseModel):
     density: Q["density"] = Field(7850.0, gt=0)
 
     def model_post_init(self, __context) -> None:
+        """Pydantic hook run after field validation: check the diameters.
+
+        Parameters
+        ----------
+        __context : object
+            Pydantic's validation context (unused).
+
+        Raises
+        ------
+        ValueError
+            If the inner diameter is not smaller than the outer diameter.
+        """
         if self.inner_diameter >= self.outer_diameter:
             raise ValueError(
                 f"inner_diameter ({self.inner_diameter} m) must be smaller than "
