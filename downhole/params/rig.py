@@ -107,7 +107,7 @@ class TopDrive:
             raise DownholeInputError(f"top drive speed must be finite, got {self.speed!r}")
 
     def command(self, t):
-        """Set-point at times ``t``: ``speed``, ramped from 0 over ``ramp_time`` when it is positive.
+        """Set-point at times ``t``: ``speed``, ramped up from 0 over ``ramp_time`` if > 0.
 
         Parameters
         ----------
