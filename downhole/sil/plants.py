@@ -353,6 +353,7 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
     dt : float
         Step, s.
     depth_of_cut : {"delayed", "approximate"}
+        Depth-of-cut model (default ``"delayed"``).
     wob : float
         ``surface``: initial (static) weight on bit, N; the default hook load is the buoyed
         weight minus this.
@@ -360,6 +361,12 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         ``surface`` / ``lumped``: default top-drive speed set-point, rad/s.
     design : str
         ``state``: the hybrid preset whose design FEM the DHP controller was trained on.
+    n_elements : int
+        ``fem``: number of finite elements (default 23).
+    lumped_preset : str
+        ``lumped``: the lumped preset (default ``"table_2_1"``).
+    order : {4, 12}
+        ``lumped``: order of the lumped model (default 4).
     axial_velocity : float
         ``lumped``: default top-drive axial velocity, m/s.
     surface_torque : float
@@ -368,6 +375,11 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         ``state``: use this design model instead of building it from ``design``.
     bit : BitParams, optional
         The bit (default: the model's preset's, Tables 2.1, 3.1, 5.1).
+
+    Returns
+    -------
+    SilPlant
+        The plant with its command layout, open-loop (default) and safe commands.
 
     Raises
     ------

@@ -255,6 +255,10 @@ def neutral_model(string: NeutralStringParams | str = "table_3_1",
     bit : BitParams, optional
         Bit parameters; default the preset's bit (Table 3.1's for a NeutralStringParams).
 
+    Returns
+    -------
+    NeutralModel
+
     Raises
     ------
     DownholeInputError
