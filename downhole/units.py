@@ -873,6 +873,10 @@ def display_units(system="si", overrides=None, **units) -> UnitSystem:
     **units
         The same as keywords, welleng-style: ``display_units("oilfield", torque="kN*m")``.
 
+    Returns
+    -------
+    UnitSystem
+
     Raises
     ------
     DownholeInputError

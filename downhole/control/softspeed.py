@@ -174,6 +174,16 @@ def stick_slip_frequency(system, mode: int = 1, reference_elements: int = 400) -
         that mode's) is tuned to that mode.
     reference_elements : int
         Elements of the fine FEM the frequency is computed on.
+
+    Returns
+    -------
+    float
+        The torsional natural frequency, rad/s.
+
+    Raises
+    ------
+    DownholeInputError
+        If ``mode`` is not an integer from 1 to 20.
     """
     if not (isinstance(mode, int) and not isinstance(mode, bool) and 1 <= mode <= 20):
         raise DownholeInputError(f"stick-slip mode must be an integer 1-20, got {mode!r}")

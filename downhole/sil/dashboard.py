@@ -811,6 +811,17 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
         pint unit (:func:`display_units`).
     max_points : int
         Rows of trend sent at most at once (the history sent to a page that connects).
+
+    Returns
+    -------
+    fastapi.FastAPI
+        The application (serve it with uvicorn; :func:`serve_dashboard` does).
+
+    Raises
+    ------
+    DownholeInputError
+        A malformed token, reference limits that are not finite ``(lo, hi)`` with lo < hi, an
+        unknown unit system, or ``max_points`` < 2.
     """
     from fastapi import FastAPI, HTTPException, Request, WebSocket, WebSocketDisconnect
     from fastapi.responses import HTMLResponse, JSONResponse, Response

@@ -203,11 +203,15 @@ def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = No
     ds : xarray.Dataset
         A grid sweep with ``stick_slip_severity`` and ``bit_bounce_fraction`` (and optionally
         ``mean_wob`` for WOB iso-lines).
+    path : str or pathlib.Path
+        PNG file to write.
     x, y : str, optional
         Dimensions on the horizontal and vertical axes; default: a dimension whose name
         contains ``surface_speed`` or ``angular_velocity`` (rotary speed) on x, the other on y.
     severity_threshold, bounce_threshold : float
         Classification thresholds (see :func:`classify_regimes`).
+    title : str, optional
+        Figure title.
     units : str or UnitSystem, optional
         Display units of the axes (default ``si``: rpm, mm/s, kN).
 
@@ -215,6 +219,11 @@ def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = No
     -------
     xarray.DataArray
         The regime codes (also drawn).
+
+    Raises
+    ------
+    DownholeInputError
+        Not a 2-D grid sweep, an axis that is not a swept parameter, or a missing metric.
     """
     plt = _mpl()
     from matplotlib.colors import BoundaryNorm, ListedColormap
