@@ -745,6 +745,12 @@ def from_directional(model, dt: float = 1e-3, *, state_scale=None, input_scale=(
     Returns
     -------
     ControlAffineModel
+
+    Raises
+    ------
+    DownholeInputError
+        If ``model`` has no ``design_model()`` (not a DirectionalModel), or a scale of the
+        wrong shape or sign.
     """
     from downhole.bit.law import approx_depth_of_cut, bit_forces
     from downhole.contact.softstring import nodal_friction_forces

@@ -167,6 +167,7 @@ def stick_slip_frequency(system, mode: int = 1, reference_elements: int = 400) -
     Parameters
     ----------
     system : DrillingSystem
+        The described system (well, string, bit and Rayleigh damping).
     mode : int
         1 (default): the first torsional mode, the classic stick-slip mode (the frequency the
         lumped chains are matched to, :meth:`DrillingSystem.lumped_derivation`). A string that

@@ -246,6 +246,7 @@ def wave_state(segment: WaveSegment, dt: float, velocity: float = 0.0, tension: 
     Parameters
     ----------
     segment : WaveSegment
+        The segment.
     dt : float
         Simulation step, s (at most ``segment.delay``).
     velocity : float
@@ -259,6 +260,11 @@ def wave_state(segment: WaveSegment, dt: float, velocity: float = 0.0, tension: 
     pos : ndarray (1,) int64
     wp : WaveParams
         See the module docstring.
+
+    Raises
+    ------
+    DownholeInputError
+        If ``dt`` is not positive or exceeds the segment's delay.
     """
     d = segment.delay_steps(dt)
     cap = int(math.ceil(d)) + 3

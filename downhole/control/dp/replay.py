@@ -63,7 +63,13 @@ def replay_path(sol: DPSolution, epsilon_scale: float = 1.0, dt: float = 1e-3,
     Returns
     -------
     dict
-        ``time``, ``x2``, ``x4`` (bit velocities) and ``e1``, ``e3`` (path minus model position).
+        ``time`` (s), ``x2``, ``x4`` (bit velocities, m/s and rad/s) and ``e1``, ``e3`` (path
+        minus model position, m and rad).
+
+    Raises
+    ------
+    DownholeInputError
+        An off-grid (standard DP) solution, or a ``dt`` that does not divide the DP step.
     """
     if not sol.on_grid:
         raise DownholeInputError("replay_path needs an on-grid (customized or robust) solution")
