@@ -118,7 +118,9 @@ def run_closed_loop(plant, controller, duration: float, *, reference=None,
     Parameters
     ----------
     plant : downhole.sim.plant.Plant
-    controller : Controller or any object with ``reset()`` and ``command(t, obs, ref)``
+        The plant (``reset``, ``step``, ``dt``, ``default_command``, ``command_names``).
+    controller : Controller
+        Or any object with ``reset()`` and ``command(t, obs, ref)``.
     duration : float
         Simulated time, s (a whole number of plant steps).
     reference : mapping or callable, optional

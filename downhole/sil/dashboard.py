@@ -314,6 +314,7 @@ class DashboardSession:
     Parameters
     ----------
     runner : RealTimeRunner
+        The SIL runner to drive.
     duration : float, optional
         Simulated seconds of the whole run (None: until stopped).
     controllers : dict, optional
@@ -790,6 +791,7 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
     Parameters
     ----------
     session : DashboardSession
+        The session the page controls and watches.
     token : str, optional
         Required on every request when set.
     publish_hz : float

@@ -43,9 +43,18 @@ class HILStringPlant:
     dt : float
         Step, s.
     coupling : (k_a, c_a, k_t, c_t)
+        Stiffnesses and dampers coupling the last node to the rig's bit: N/m, N s/m, N m/rad,
+        N m s/rad.
     top_drive_inertia : float
-        kg m^2.
+        Top-drive inertia, kg m^2.
 
+    Raises
+    ------
+    DownholeInputError
+        If ``dt`` is not positive.
+
+    Notes
+    -----
     Commands: ``slack_off_force`` (N), ``surface_torque`` (N m), ``bit_axial_velocity`` (m/s),
     ``bit_angular_velocity`` (rad/s; the last two from the rig).
     """
@@ -183,6 +192,7 @@ class SoftwareRig:
     Parameters
     ----------
     bit : BitParams
+        The rig's bit and rock.
     dt : float
         Step, s (the plant's).
     mass, inertia : float

@@ -153,12 +153,16 @@ class SilPlant:
     plant : object
         ``reset() -> dict`` and ``step(command: dict) -> dict``, attribute ``dt``.
     command_names : sequence of str
+        Names of the commands the plant takes (signals of :mod:`downhole.signals`).
     default_command, safe_command : dict
         Open-loop command and the safe state (same keys as ``command_names``).
     name : str
         Description (for Result metadata).
     state_names : sequence of str, optional
         Names of the entries of a vector observation ``"state"`` (flattened into the layout).
+    info : dict, optional
+        Extra description (``model``, ``interface``, ...) kept as :attr:`info`; the plant's
+        bit radius is added as ``bit_radius`` (m) when known.
     command_ranges : dict, optional
         ``{name: (low, high)}`` overriding :data:`COMMAND_RANGES` (every command needs one).
 

@@ -114,6 +114,7 @@ class RealTimeRunner:
     Parameters
     ----------
     plant : SilPlant
+        The plant (its command layout, ranges and safe command).
     controller : object, optional
         In-process controller: ``reset()`` and ``command(t, observation, reference) -> dict``
         naming the plant's commands. In HIL mode it gives the surface commands.
@@ -140,7 +141,8 @@ class RealTimeRunner:
         Re-anchor the clock when more than this far behind, s.
     wait_fraction : float
         Fraction of ``dt`` to wait for a remote command after sending the observation.
-    safety : SafetyPolicy
+    safety : SafetyPolicy, optional
+        Controller-timeout action (default ``SafetyPolicy()``).
     controller_enabled : bool
         Start with the controller on (False: open-loop command).
     spin : float

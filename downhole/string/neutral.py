@@ -558,6 +558,8 @@ class NeutralPlant(Plant):
     dt : float
         Plant step, s (<= tau1).
     depth_of_cut : {"delayed", "approximate"}
+        Depth of cut from the rock-surface memory (delayed, Eqs. 2.9-2.10) or the
+        approximation d = 2 pi v / omega.
     rock_points_per_pitch : int
         Resolution of the rock-surface memory.
 
@@ -699,10 +701,14 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         deviation per controller sample, m/s and rad/s) and optionally ``"wob"``, ``"tob"``
         (N, N m) as bit-force noise (per plant step).
     depth_of_cut : {"delayed", "approximate"}
+        Depth of cut from the rock-surface memory (delayed, Eqs. 2.9-2.10) or the
+        approximation d = 2 pi v / omega.
     record_dt : float, optional
         Output interval, s; default: every step up to 20 000 samples, then thinned.
     seed : int
         Noise seed.
+    rock_points_per_pitch : int
+        Resolution of the rock-surface memory (grid points per blade pitch, default 512).
     control_dt : float, optional
         Python-loop controllers only: controller sample time (a multiple of dt; default dt).
         The command is held between samples.
@@ -710,6 +716,8 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         Ignore a controller's compiled ``neutral_runner`` and step it through the Python loop
         (the EID gives the same numbers either way; for checking controllers stepped from
         Python, e.g. in the SIL loop).
+    attrs : dict, optional
+        Extra metadata merged into the result's attributes.
     start : {"rest", "off_bottom", "steady"}
         Initial state (:data:`downhole.sim.plant.START_MODES`), open loop only: hanging at
         rest; moving at the commands of t = 0 with the bit ``clearance`` m off a flat bottom; or

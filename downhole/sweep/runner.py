@@ -182,7 +182,9 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
         Names from :data:`downhole.sweep.spec.METRICS`.
     random : int, optional
         Monte Carlo: draw this many cases uniformly within the parameter ranges (``START:STOP``)
-        instead of a grid. ``seed`` makes the draw reproducible.
+        instead of a grid.
+    seed : int, optional
+        Seed of the random draw (makes it reproducible).
     window : (float, float) or "START:END", optional
         Time window of the metrics, s; default the second half of each run.
     scheduler : None, "local-cluster", "tcp://HOST:PORT" or distributed.Client
@@ -195,6 +197,9 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
         Cases per task; default about four tasks per worker, at most 64 cases per task.
     progress : callable(done, total), optional
         Called as cases complete.
+    source : str, optional
+        Name of a scenario given as a dict, used in messages (default ``"<dict>"``; a file's
+        own name otherwise).
     on_start : callable(), optional
         Called once, after every input was validated and before the first case runs (the CLI
         marks its output folder incomplete there).
