@@ -86,7 +86,17 @@ class Signal:
 
 @dataclass(frozen=True)
 class Metric:
-    """A scalar summary of a run (see :func:`downhole.analysis.metrics.summarize`)."""
+    """A scalar summary of a run (see :func:`downhole.analysis.metrics.summarize`).
+
+    Attributes
+    ----------
+    name : str
+        Snake-case metric name.
+    unit : str
+        SI unit as a pint string (``"-"`` for ratios).
+    description : str
+        One line.
+    """
 
     name: str
     unit: str

@@ -692,6 +692,8 @@ class UnitSystem:
     overrides : dict
         Per-quantity units: kind (``torque``), alias (``speed``) or signal/metric name
         (``wob``, ``mean_rop``) -> pint unit string. A name beats its kind.
+    figures : bool
+        The figure variant of ``si`` (kN, kN·m, mm/s, rpm, MPa; :meth:`for_figures`).
 
     Examples
     --------

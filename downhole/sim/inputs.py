@@ -105,6 +105,20 @@ class SurfaceInputs:
     Use the constructors: :meth:`velocity` (top-drive axial velocity, m/s, and rotary speed,
     rad/s), :meth:`displacement` (top-drive axial displacement, m, and angle, rad, relative to the
     hanging equilibrium), or :meth:`force` (hook load, N, and surface torque, N m).
+
+    Parameters
+    ----------
+    mode : {"velocity", "displacement", "force"}
+        The kind of inputs.
+    axial, angular : float, str, tuple or callable
+        The axial and angular signals in the units of ``mode`` (see above): constants,
+        quantity strings, ``(times, values)`` samples or callables f(t) in SI; quantities are
+        converted to SI here.
+
+    Raises
+    ------
+    DownholeInputError
+        An unknown mode, or a signal that does not convert.
     """
 
     mode: str

@@ -26,7 +26,18 @@ __all__ = [
 
 @dataclass(frozen=True)
 class Reference:
-    """A pair of signals (axial m/s, angular rad/s): numbers, ``(t, values)`` or ``f(t)``."""
+    """A pair of signals (axial m/s, angular rad/s): numbers, ``(t, values)`` or ``f(t)``.
+
+    Parameters
+    ----------
+    axial : float, tuple or callable
+        Reference bit axial velocity, m/s: a number, ``(times, values)`` samples (times in s,
+        interpolated linearly) or a callable ``f(t)``.
+    angular : float, tuple or callable
+        Reference bit angular velocity, rad/s, of the same forms.
+    name : str, optional
+        Label (default ``"user"``).
+    """
 
     axial: object
     angular: object
