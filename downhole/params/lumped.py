@@ -17,6 +17,15 @@ class TwelfthOrderSplit(BaseModel):
     Defaults are the split of docs/seed-errata.md, which matches the 4th-order model within 2-4 %
     below half the first natural frequency: mass shares 0.02/0.08/0.90 and compliance shares
     (servo : spring 1 : spring 2) = 0.02 : 0.58 : 0.40 of 1/K_a (and 1/K_t).
+
+    Parameters
+    ----------
+    mass_shares : (float, float, float)
+        Shares of the mass and inertia of the three bodies, top first (positive, sum 1).
+    compliance_shares : (float, float, float)
+        Shares of the compliance 1/K of the servo and the two springs (positive, sum 1).
+    servo_damping_ratio : float
+        Damping ratio of the top (servo) stage (dimensionless, default 0.7).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)

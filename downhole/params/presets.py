@@ -20,6 +20,20 @@ class Preset:
 
     ``kind`` tells which model family the string parameters belong to: ``"lumped"`` (Ch. 2),
     ``"neutral"`` (Ch. 3) or ``"directional"`` (Ch. 4/5).
+
+    Attributes
+    ----------
+    name : str
+        Preset name (a key of :data:`PRESETS`).
+    kind : {"lumped", "neutral", "directional"}
+        Model family.
+    description : str
+        One line.
+    string : pydantic.BaseModel
+        The string parameters (:class:`LumpedParams`, :class:`NeutralStringParams` or
+        :class:`DirectionalWellParams`).
+    bit : BitParams
+        The bit.
     """
 
     name: str

@@ -49,7 +49,20 @@ class StringSegment:
 
 @dataclass(frozen=True)
 class Stabilizer:
-    """A stabilizer at ``distance_from_bit`` m with blade ``outer_diameter`` m (torque arm = OD/2)."""
+    """A stabilizer at ``distance_from_bit`` m with blade ``outer_diameter`` m (torque arm = OD/2).
+
+    Parameters
+    ----------
+    distance_from_bit : float
+        Distance from the bit along the string, m (>= 0).
+    outer_diameter : float
+        Blade outer diameter, m (> 0).
+
+    Raises
+    ------
+    DownholeInputError
+        A value that does not convert, or out of range.
+    """
 
     distance_from_bit: float
     outer_diameter: float

@@ -62,7 +62,15 @@ class _ProblemError(DownholeInputError):
 
 
 class GridSpec(BaseModel):
-    """A uniform grid of ``points`` values from ``min`` to ``max`` (both included)."""
+    """A uniform grid of ``points`` values from ``min`` to ``max`` (both included).
+
+    Parameters
+    ----------
+    min, max : float
+        First and last value, in the grid's SI unit (m/s for x2, rad/s for x4).
+    points : int
+        Number of values (at most :data:`MAX_GRID_POINTS`).
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
