@@ -82,6 +82,17 @@ class NDDEMatrices:
     ``x' = A0 x + A1 x(t-h1) + A2 x(t-h2) + G1 x'(t-h1) + G2 x'(t-h2) + Bd d + B u(t - tau)``
     with ``u = [U_A - M_S g/alpha_A, U_T]``, ``d = [-W + Gamma1 W(t-h1), -T + Upsilon1 T(t-h2)]``,
     ``h = 2 tau`` and the input delays ``tau = (tau1, tau2)``.
+
+    Attributes
+    ----------
+    A0, A1, A2, G1, G2, B, Bd, C : ndarray, shape (2, 2)
+        The matrices of the equation above (``C`` the output map, the identity).
+    h1, h2 : float
+        State delays 2 tau1 and 2 tau2, s.
+    tau : (float, float)
+        Input delays (tau1, tau2), s.
+    u_offset : (float, float)
+        Input offsets (M_S g/alpha_A in m/s, 0).
     """
 
     A0: np.ndarray
@@ -125,6 +136,17 @@ class NeutralModel:
     """Immutable neutral-type model: parameters plus derived wave segments and coefficients.
 
     Use :func:`neutral_model` to build it.
+
+    Parameters
+    ----------
+    params : NeutralStringParams
+        The string.
+    bit : BitParams
+        The bit.
+    axial, torsional : WaveSegment
+        The string's axial and torsional wave segments (surface to bit).
+    name : str
+        Label (default ``"neutral"``).
     """
 
     params: NeutralStringParams

@@ -561,7 +561,19 @@ class DPModelSettings(_FileStrict):
 
 
 class DPScenario(_FileStrict):
-    """A whole problem file (``downhole optimize dp``)."""
+    """A whole problem file (``downhole optimize dp``).
+
+    Parameters
+    ----------
+    title, description : str
+        Free text.
+    model : DPModelSettings
+        ``[model]``: ``fidelity = "lumped4"`` and the ``preset``.
+    bit : dict
+        ``[bit]``: bit parameters over the preset's (e.g. ``epsilon``).
+    optimize : DPOptimizeSettings
+        ``[optimize]``: the problem and the solver.
+    """
 
     title: str = ""
     description: str = ""
