@@ -45,8 +45,16 @@ _L, _R, _T, _N = ord("L"), ord("R"), ord("T"), ord("N")
 
 @njit(cache=True, nogil=True)
 def syrk_gram(At, G):
-    """Upper C triangle of G = At At^T (At (p, k), G (p, p)) by BLAS dsyrk; half the
-    multiply-adds of the full product."""
+    """Upper C triangle of G = At At^T by BLAS dsyrk; half the multiply-adds of the full product.
+
+    Parameters
+    ----------
+    At : ndarray, shape (p, k), float64, C-contiguous
+        The factor.
+    G : ndarray, shape (p, p), float64, C-contiguous
+        Output; its upper triangle (row <= column) is overwritten with At At^T, the strict lower
+        triangle is left as it was.
+    """
     p, k = At.shape
     ch = np.empty(2, dtype=np.uint8)
     ch[0] = _L
@@ -66,9 +74,20 @@ def syrk_gram(At, G):
 
 @njit(cache=True, nogil=True)
 def potrf_upper(G):
-    """In place: the upper C triangle of G (symmetric positive definite) -> the upper factor U,
-    G = U^T U (LAPACK dpotrf). Returns LAPACK's info: 0 ok, > 0 not positive definite; -1 for a
-    non-positive or non-finite diagonal (checked first)."""
+    """In place: the upper C triangle of G -> its upper Cholesky factor U, G = U^T U (dpotrf).
+
+    Parameters
+    ----------
+    G : ndarray, shape (p, p), float64, C-contiguous
+        Symmetric positive definite matrix given by its upper triangle; overwritten with U
+        (the strict lower triangle is not referenced).
+
+    Returns
+    -------
+    int
+        LAPACK's info: 0 ok, > 0 not positive definite; -1 for a non-positive or non-finite
+        diagonal (checked first, ``G`` untouched).
+    """
     p = G.shape[0]
     for j in range(p):
         if not (G[j, j] > 0.0 and G[j, j] < np.inf):
@@ -85,8 +104,17 @@ def potrf_upper(G):
 
 @njit(cache=True, nogil=True)
 def chol_solve_right(U, B):
-    """In place: B (p, q) <- (U^T U)^-1 B for the upper C factor U of :func:`potrf_upper`
-    (two BLAS dtrsm; in Fortran terms B^T <- B^T L^-T L^-1 with L = U^T)."""
+    """In place: B (p, q) <- (U^T U)^-1 B for the upper C factor U of :func:`potrf_upper`.
+
+    Two BLAS dtrsm; in Fortran terms B^T <- B^T L^-T L^-1 with L = U^T.
+
+    Parameters
+    ----------
+    U : ndarray, shape (p, p), float64, C-contiguous
+        Upper Cholesky factor from :func:`potrf_upper`.
+    B : ndarray, shape (p, q), float64, C-contiguous
+        Right-hand sides, overwritten with the solution.
+    """
     p = U.shape[0]
     q = B.shape[1]
     ch = np.empty(4, dtype=np.uint8)

@@ -70,13 +70,33 @@ class Signal:
     high: float = math.inf
 
     def admits(self, value: float) -> bool:
-        """True when ``value`` is finite and inside ``[low, high]``."""
+        """True when ``value`` is finite and inside ``[low, high]``.
+
+        Parameters
+        ----------
+        value : float
+            Candidate command value, in the signal's SI unit (:attr:`unit`).
+
+        Returns
+        -------
+        bool
+        """
         return math.isfinite(value) and self.low <= value <= self.high
 
 
 @dataclass(frozen=True)
 class Metric:
-    """A scalar summary of a run (see :func:`downhole.analysis.metrics.summarize`)."""
+    """A scalar summary of a run (see :func:`downhole.analysis.metrics.summarize`).
+
+    Attributes
+    ----------
+    name : str
+        Snake-case metric name.
+    unit : str
+        SI unit as a pint string (``"-"`` for ratios).
+    description : str
+        One line.
+    """
 
     name: str
     unit: str
@@ -90,6 +110,24 @@ METRICS: dict[str, Metric] = {}
 def register_signal(name: str, unit: str, dimension: str, description: str, *,
                     low: float = -math.inf, high: float = math.inf) -> Signal:
     """Declare a signal; returns it. Re-declaring the same signal identically is a no-op.
+
+    Parameters
+    ----------
+    name : str
+        Snake-case signal name.
+    unit : str
+        SI unit as a pint string (``""`` for dimensionless).
+    dimension : str
+        Physical dimension, a key of :data:`downhole.units.SI_UNITS`.
+    description : str
+        One line, with the sign convention where it matters.
+    low, high : float, optional
+        Admissible range as a command, in ``unit`` (default unbounded).
+
+    Returns
+    -------
+    Signal
+        The declared signal (also stored in :data:`SIGNALS`).
 
     Raises
     ------
@@ -110,6 +148,15 @@ def register_signal(name: str, unit: str, dimension: str, description: str, *,
 def signal(name: str) -> Signal:
     """The declared signal ``name``.
 
+    Parameters
+    ----------
+    name : str
+        Signal name.
+
+    Returns
+    -------
+    Signal
+
     Raises
     ------
     KeyError
@@ -123,7 +170,25 @@ def signal(name: str) -> Signal:
 
 
 def unit_of(name: str, default: str | None = None) -> str:
-    """SI unit of signal ``name``; ``default`` when undeclared (KeyError if default is None)."""
+    """SI unit of signal ``name``; ``default`` when undeclared.
+
+    Parameters
+    ----------
+    name : str
+        Signal name.
+    default : str, optional
+        Unit returned for an undeclared name; None (default) makes an undeclared name an error.
+
+    Returns
+    -------
+    str
+        Pint unit string (``""`` for dimensionless).
+
+    Raises
+    ------
+    KeyError
+        If ``name`` is not declared and ``default`` is None.
+    """
     sig = SIGNALS.get(name)
     if sig is None:
         if default is None:
@@ -133,14 +198,45 @@ def unit_of(name: str, default: str | None = None) -> str:
 
 
 def metric_unit(name: str, default: str = "") -> str:
-    """SI unit of metric ``name`` (``"-"`` for ratios), ``default`` when undeclared."""
+    """SI unit of metric ``name`` (``"-"`` for ratios), ``default`` when undeclared.
+
+    Parameters
+    ----------
+    name : str
+        Metric name (:data:`METRICS`).
+    default : str, optional
+        Unit returned for an undeclared name (default ``""``).
+
+    Returns
+    -------
+    str
+    """
     m = METRICS.get(name)
     return m.unit if m is not None else default
 
 
 def range_reason(name: str, value, low: float, high: float, unit: str = "") -> str | None:
-    """Why ``value`` is not a finite number in ``[low, high]`` (None when it is): the one check
-    behind every command and set-point range in plants, the SIL runtime and the UDP link."""
+    """Why ``value`` is not a finite number in ``[low, high]`` (None when it is).
+
+    The one check behind every command and set-point range in plants, the SIL runtime and the
+    UDP link.
+
+    Parameters
+    ----------
+    name : str
+        Name of the value, used in the message.
+    value : object
+        The value to check (anything ``float()`` accepts).
+    low, high : float
+        Admissible range, inclusive, in ``unit``.
+    unit : str, optional
+        Unit printed in the message (default none).
+
+    Returns
+    -------
+    str or None
+        A one-line reason, or None when the value is admissible.
+    """
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -157,6 +253,18 @@ def check_command_value(name: str, value: float) -> str | None:
     """Why ``value`` may not be applied as command ``name`` (None when it may).
 
     Non-finite values are never admissible; declared signals must lie in their range.
+
+    Parameters
+    ----------
+    name : str
+        Command (signal) name.
+    value : float
+        Command value, in the signal's SI unit.
+
+    Returns
+    -------
+    str or None
+        A one-line reason, or None when the value may be applied.
     """
     sig = SIGNALS.get(name)
     if sig is None:

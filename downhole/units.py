@@ -220,10 +220,25 @@ def parse_quantity_string(value: str) -> tuple[float, str]:
 def check_range(value: float, dimension: str) -> float:
     """Return ``value`` if it is finite and inside :data:`RANGES` of ``dimension``.
 
+    Parameters
+    ----------
+    value : float
+        The value, in the SI unit of ``dimension`` (:data:`SI_UNITS`).
+    dimension : str
+        A key of :data:`SI_UNITS`, e.g. ``"length"`` or ``"angular_velocity"``.
+
+    Returns
+    -------
+    float
+        ``value`` unchanged.
+
     Raises
     ------
     UnitError
-        Naming the admissible range in SI units.
+        If ``value`` is not finite or lies outside the admissible range (the message names the
+        range in SI units).
+    KeyError
+        If ``dimension`` is not a key of :data:`RANGES`.
     """
     if not math.isfinite(value):
         raise UnitError(f"expected a finite number, got {value!r}")
@@ -333,8 +348,25 @@ def _own_quantity(value):
 
 
 def as_si(value, dimension: str, what: str) -> float:
-    """``value`` (a number in SI, a quantity string such as ``"5 in"``, or a pint Quantity) as a
-    float in the SI unit of ``dimension``; the API boundary of the public Python constructors.
+    """``value`` as a float in the SI unit of ``dimension``.
+
+    The API boundary of the public Python constructors: :func:`to_si` with its
+    :class:`UnitError` turned into a :class:`~downhole.errors.DownholeInputError`.
+
+    Parameters
+    ----------
+    value : float, int, str or pint.Quantity
+        A number (taken as already SI), a quantity string such as ``"5 in"`` (grammar:
+        :data:`QUANTITY_GRAMMAR`) or a pint Quantity.
+    dimension : str
+        A key of :data:`SI_UNITS`, e.g. ``"length"`` or ``"angular_velocity"``.
+    what : str
+        Name of the value (e.g. the parameter name), prefixed to the error message.
+
+    Returns
+    -------
+    float
+        The value in the SI unit of ``dimension``.
 
     Raises
     ------
@@ -358,16 +390,61 @@ def as_si(value, dimension: str, what: str) -> float:
 
 
 def si_or_number(value, dimension: str, what: str):
-    """``value`` converted by :func:`as_si` when it is a quantity string or a pint Quantity;
-    anything else is returned unchanged (numbers are SI and keep their own checks)."""
+    """``value`` converted by :func:`as_si` when it is a quantity string or a pint Quantity.
+
+    Anything else is returned unchanged (numbers are SI and keep their own checks).
+
+    Parameters
+    ----------
+    value : object
+        A quantity string, a pint Quantity, or anything else (returned as is).
+    dimension : str
+        A key of :data:`SI_UNITS`, e.g. ``"length"`` or ``"angular_velocity"``.
+    what : str
+        Name of the value (e.g. the parameter name), prefixed to the error message.
+
+    Returns
+    -------
+    float or object
+        The SI float for a string or Quantity, otherwise ``value`` itself.
+
+    Raises
+    ------
+    DownholeInputError
+        As :func:`as_si`, for a string or Quantity that does not convert.
+    """
     if isinstance(value, str) or _is_quantity(value):
         return as_si(value, dimension, what)
     return value
 
 
 def as_si_array(values, dimension: str, what: str):
-    """Like :func:`as_si` for an array: a pint Quantity array, a sequence of numbers (SI) or of
-    quantity strings; returns a float ndarray (finite values only)."""
+    """Like :func:`as_si` for an array.
+
+    Parameters
+    ----------
+    values : array_like, str or pint.Quantity
+        A pint Quantity array, a sequence (or nested sequence) of numbers (taken as SI) or of
+        quantity strings / Quantities, or a single quantity string.
+    dimension : str
+        A key of :data:`SI_UNITS`, e.g. ``"length"`` or ``"angular_velocity"``.
+    what : str
+        Name of the value (e.g. the parameter name), prefixed to the error message.
+
+    Returns
+    -------
+    ndarray of float
+        The values in the SI unit of ``dimension``, with the shape of ``values``.
+
+    Raises
+    ------
+    DownholeInputError
+        ``what: <reason>``, when an element cannot be parsed or converted, has the wrong dimension
+        or lies outside :data:`RANGES` (elements given as strings or Quantities), or a value is not
+        finite.
+    KeyError
+        If ``dimension`` is not a key of :data:`SI_UNITS`.
+    """
     import numpy as np
 
     from downhole.errors import DownholeInputError
@@ -403,8 +480,28 @@ def as_si_array(values, dimension: str, what: str):
 
 
 def convert(values, from_unit: str, to_unit: str):
-    """``values`` (a number or an array) converted from ``from_unit`` to ``to_unit`` with pint
-    (downhole's registry). Scalars come back as float."""
+    """``values`` converted from ``from_unit`` to ``to_unit`` with pint (downhole's registry).
+
+    Parameters
+    ----------
+    values : float or array_like
+        The values in ``from_unit``.
+    from_unit : str
+        Pint unit string of ``values``; ``""`` or ``"-"`` for dimensionless.
+    to_unit : str
+        Pint unit string wanted; ``""`` or ``"-"`` for dimensionless.
+
+    Returns
+    -------
+    float or ndarray
+        The converted values; a scalar comes back as float. ``values`` is returned unchanged when
+        both units are dimensionless.
+
+    Raises
+    ------
+    pint.DimensionalityError
+        If the two units are of different dimensions (other pint errors for unknown units).
+    """
     import numpy as np
 
     if (from_unit or "") in ("", "-") and (to_unit or "") in ("", "-"):
@@ -463,8 +560,20 @@ _PRETTY = (("deg_per_100ft", "deg/100ft"), ("deg_per_30m", "deg/30m"), ("kft_lbf
 
 
 def unit_label(unit: str) -> str:
-    """A unit string as printed in tables and axis labels: ``"kft*lbf"`` -> ``"kft·lbf"``,
-    ``"kg/m**3"`` -> ``"kg/m³"``, dimensionless -> ``"-"``."""
+    """A unit string as printed in tables and axis labels.
+
+    ``"kft*lbf"`` -> ``"kft·lbf"``, ``"kg/m**3"`` -> ``"kg/m³"``, dimensionless -> ``"-"``.
+
+    Parameters
+    ----------
+    unit : str or None
+        Pint unit string; ``""``, ``"-"`` or None for dimensionless.
+
+    Returns
+    -------
+    str
+        The printable label.
+    """
     if unit in ("", "-", None):
         return "-"
     for a, b in _PRETTY:
@@ -502,10 +611,20 @@ def _declared(name: str):
 
 
 def parse_unit_override(text: str) -> tuple[str, str]:
-    """``"torque=kN*m"`` -> ``("torque", "kN*m")``, checked (see :meth:`UnitSystem.override`).
+    """``"torque=kN*m"`` -> ``("torque", "kN*m")``, checked (see :func:`display_units`).
 
     The key is a kind (a dimension of :data:`SI_UNITS`, ``diameter``, or an alias of
     :data:`KIND_ALIASES`) or the name of a declared signal or metric (``wob``, ``mean_rop``).
+
+    Parameters
+    ----------
+    text : str
+        The override, ``KEY=UNIT``.
+
+    Returns
+    -------
+    (key, unit) : tuple of str
+        The key and the pint unit string, stripped.
 
     Raises
     ------
@@ -573,6 +692,8 @@ class UnitSystem:
     overrides : dict
         Per-quantity units: kind (``torque``), alias (``speed``) or signal/metric name
         (``wob``, ``mean_rop``) -> pint unit string. A name beats its kind.
+    figures : bool
+        The figure variant of ``si`` (kN, kN·m, mm/s, rpm, MPa; :meth:`for_figures`).
 
     Examples
     --------
@@ -601,7 +722,23 @@ class UnitSystem:
         return base
 
     def kind_unit(self, kind: str) -> str:
-        """Display unit of a kind (``"torque"``, ``"diameter"``, ``"speed"``...)."""
+        """Display unit of a kind (``"torque"``, ``"diameter"``, ``"speed"``...).
+
+        Parameters
+        ----------
+        kind : str
+            A kind of :attr:`kinds` or an alias of :data:`KIND_ALIASES`.
+
+        Returns
+        -------
+        str
+            Pint unit string of that kind in this system (overrides applied).
+
+        Raises
+        ------
+        KeyError
+            If ``kind`` is unknown (the message lists the kinds).
+        """
         kind = KIND_ALIASES.get(kind, kind)
         try:
             return self.kinds[kind]
@@ -628,19 +765,60 @@ class UnitSystem:
         return si_unit, self.kinds.get(kind, si_unit)
 
     def unit_of(self, name: str, si_unit: str | None = None) -> str:
-        """Display unit (pint string; ``""``/``"-"`` dimensionless) of signal or metric ``name``;
-        ``si_unit`` for names not declared in :mod:`downhole.signals`."""
+        """Display unit of signal or metric ``name``.
+
+        Parameters
+        ----------
+        name : str
+            Signal or metric name (:mod:`downhole.signals`).
+        si_unit : str, optional
+            Stored (SI) unit of ``name``, for names not declared in :mod:`downhole.signals`
+            (default: the declared unit).
+
+        Returns
+        -------
+        str
+            Pint unit string (``""``/``"-"`` dimensionless); a name override beats its kind.
+        """
         return self._resolve(name, si_unit)[1]
 
     def label(self, name: str, si_unit: str | None = None) -> str:
-        """Printed display unit of ``name`` (``"kft·lbf"``, ``"-"``)."""
+        """Printed display unit of ``name`` (``"kft·lbf"``, ``"-"``).
+
+        Parameters
+        ----------
+        name : str
+            Signal or metric name.
+        si_unit : str, optional
+            Stored (SI) unit of ``name``, for names not declared in :mod:`downhole.signals`
+            (default: the declared unit).
+
+        Returns
+        -------
+        str
+            :func:`unit_label` of :meth:`unit_of`.
+        """
         return unit_label(self.unit_of(name, si_unit))
 
     def convert(self, name: str, values, si_unit: str | None = None):
         """``(values in the display unit, display unit)`` of SI ``values`` of ``name``.
 
-        ``values`` is a number or an array; a number comes back as float. ``si_unit`` is the
-        stored unit (default: the one :mod:`downhole.signals` declares)."""
+        Parameters
+        ----------
+        name : str
+            Signal or metric name.
+        values : float or array_like
+            Values in the stored SI unit; a number comes back as float.
+        si_unit : str, optional
+            Stored (SI) unit of ``name``, for names not declared in :mod:`downhole.signals`
+            (default: the declared unit).
+
+        Returns
+        -------
+        (values, unit) : tuple
+            The converted values (unchanged when no conversion is needed) and the display unit
+            string.
+        """
         src, dst = self._resolve(name, si_unit)
         if dst == src or dst.replace(" ", "") == src.replace(" ", ""):
             return values, dst
@@ -648,8 +826,22 @@ class UnitSystem:
 
     def convert_summary(self, summary: dict, si_units: dict | None = None
                         ) -> tuple[dict, dict]:
-        """``(values, units)`` of a summary dict of metrics (None / non-numbers kept as is);
-        ``units`` names every metric's display unit (``"-"`` for ratios)."""
+        """``(values, units)`` of a summary dict of metrics in this system.
+
+        Parameters
+        ----------
+        summary : dict
+            Metric name -> value in SI; None and non-numbers are kept as is.
+        si_units : dict, optional
+            Metric name -> stored SI unit, for metrics not declared in :mod:`downhole.signals`.
+
+        Returns
+        -------
+        values : dict
+            Metric name -> value in the display unit.
+        units : dict
+            Metric name -> display unit string (``"-"`` for ratios).
+        """
         values, units = {}, {}
         for k, v in summary.items():
             si = (si_units or {}).get(k)
@@ -682,6 +874,10 @@ def display_units(system="si", overrides=None, **units) -> UnitSystem:
         ``{"torque": "kN*m", "wob": "kN"}`` or ``["torque=kN*m", "wob=kN"]``.
     **units
         The same as keywords, welleng-style: ``display_units("oilfield", torque="kN*m")``.
+
+    Returns
+    -------
+    UnitSystem
 
     Raises
     ------

@@ -22,7 +22,18 @@ SUMMARY_KEYS = ("stick_slip_severity", "stuck_fraction", "bit_bounce_fraction", 
 
 
 def stick_slip_severity(omega: np.ndarray) -> float:
-    """(max - min) / (2 mean) of the bit angular velocity; inf if the mean is <= 0."""
+    """(max - min) / (2 mean) of the bit angular velocity; inf if the mean is <= 0.
+
+    Parameters
+    ----------
+    omega : array_like
+        Bit angular velocity samples, rad/s (non-empty).
+
+    Returns
+    -------
+    float
+        The severity (dimensionless), or ``math.inf``.
+    """
     omega = np.asarray(omega, float)
     mean = float(np.mean(omega))
     if mean <= 0:
@@ -31,11 +42,29 @@ def stick_slip_severity(omega: np.ndarray) -> float:
 
 
 def stick_slip_severity_series(t, omega, window: float, points: int = 400):
-    """Stick-slip severity over time: :func:`stick_slip_severity` of the bit angular velocity in
-    a trailing window of ``window`` s, evaluated at up to ``points`` times.
+    """Stick-slip severity over time in a trailing window.
 
-    Returns ``(times, severity)``; NaN where the window's mean speed is <= 0 (severity infinite)
-    and where less than a full window has elapsed.
+    :func:`stick_slip_severity` of the bit angular velocity in a trailing window of ``window`` s,
+    evaluated at up to ``points`` times.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Sample times, s, increasing.
+    omega : array_like, shape (n,)
+        Bit angular velocity, rad/s.
+    window : float
+        Window length, s (> 0; otherwise empty arrays are returned).
+    points : int, optional
+        Most evaluation times, spread evenly over the samples (default 400).
+
+    Returns
+    -------
+    times : ndarray
+        Evaluation times, s.
+    severity : ndarray
+        Severity (dimensionless); NaN where the window's mean speed is <= 0 (severity infinite)
+        and where less than a full window has elapsed.
 
     Examples
     --------
@@ -63,11 +92,28 @@ def stick_slip_severity_series(t, omega, window: float, points: int = 400):
 def summarize(result, window: tuple[float, float] | None = None) -> dict:
     """Metrics of ``result`` over ``window`` = (t_start, t_end), default the second half.
 
-    Returns a dict with exactly the keys ``stick_slip_severity``, ``stuck_fraction`` (fraction of
-    samples with |omega_bit| < 0.1 rad/s), ``bit_bounce_fraction`` (WOB = 0 or depth of cut <= 0),
-    ``mean_rop`` (m/s), ``mean_bit_angular_velocity`` (rad/s), ``mse`` (mechanical specific energy
-    at the bit, Pa: (WOB/A + 2 pi N TOB/(A ROP)) with means over the window, Teale), and, when
-    reference channels exist, ``tracking_rms_axial`` (m/s) and ``tracking_rms_angular`` (rad/s).
+    Parameters
+    ----------
+    result : Result
+        The run; it needs the channels ``bit_angular_velocity``, ``bit_axial_velocity``,
+        ``wob``, ``tob`` and ``depth_of_cut`` (and the attribute ``bit_radius``, m, for the MSE).
+    window : (float, float), optional
+        ``(t_start, t_end)``, s, inclusive.
+
+    Returns
+    -------
+    dict
+        Exactly the keys ``stick_slip_severity``, ``stuck_fraction`` (fraction of samples with
+        |omega_bit| < 0.1 rad/s), ``bit_bounce_fraction`` (WOB <= 0 or depth of cut <= 0),
+        ``mean_rop`` (m/s), ``mean_bit_angular_velocity`` (rad/s), ``mse`` (mechanical specific
+        energy at the bit, Pa: (WOB/A + 2 pi N TOB/(A ROP)) with means over the window, Teale;
+        NaN without a bit radius or a positive ROP), and, when reference channels exist,
+        ``tracking_rms_axial`` (m/s) and ``tracking_rms_angular`` (rad/s).
+
+    Raises
+    ------
+    ValueError
+        If the result is empty or the window holds no samples.
     """
     t = result.time
     if t.size == 0:

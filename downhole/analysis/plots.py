@@ -19,14 +19,35 @@ _COLORS = {"wob": "tab:blue", "tob": "tab:red", "hook_load": "tab:green",
 
 
 def save_figure(fig, path) -> None:
-    """Save and close ``fig`` (PNG, 120 dpi)."""
+    """Save and close ``fig`` (PNG, 120 dpi).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure; closed in pyplot after saving.
+    path : str or os.PathLike
+        Output file.
+    """
     fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
 
 
 def severity_window(t) -> float:
-    """Window of the stick-slip severity over time, s: 5 s (a few stick-slip periods of a
-    kilometre-long string), a quarter of the run when that is shorter."""
+    """Window of the stick-slip severity over time, s.
+
+    5 s (a few stick-slip periods of a kilometre-long string), a quarter of the run when that
+    is shorter.
+
+    Parameters
+    ----------
+    t : array_like
+        Sample times of the run, s.
+
+    Returns
+    -------
+    float
+        Window length, s (0 for a run of fewer than two samples or no time span).
+    """
     t = np.asarray(t, float)
     span = float(t[-1] - t[0]) if t.size > 1 else 0.0
     return min(5.0, span / 4.0) if span > 0 else 0.0
@@ -67,16 +88,29 @@ def _load_panel(ax, result, t, left: tuple[str, str], right: tuple[str, str], un
 
 
 def plot_overview(result, path=None, title=None, units=None):
-    """The run at a glance, in display ``units`` (a :class:`~downhole.units.UnitSystem` or
-    a system name; default ``si``, whose figures use kN, kN·m, mm/s and rpm).
+    """The run at a glance, in display ``units``.
 
     Panels over time: axial velocities (bit, reference, top drive); rotary speeds of the bit and
     the top drive (surface) in rpm with stuck intervals shaded; the stick-slip severity over a
     moving window (:func:`~downhole.analysis.metrics.stick_slip_severity_series`); WOB and TOB,
     each on its own axis; hook load and surface torque, each on its own axis; the bit's depth.
 
-    Returns the :class:`matplotlib.figure.Figure`, also when it is saved to ``path`` (then it is
-    closed after saving; it can still be inspected or saved again).
+    Parameters
+    ----------
+    result : Result
+        The run.
+    path : str or os.PathLike, optional
+        PNG file to save the figure to (120 dpi); the figure is then closed in pyplot, but can
+        still be inspected or saved again.
+    title : str, optional
+        Figure title.
+    units : str or UnitSystem, optional
+        A :class:`~downhole.units.UnitSystem` or a system name; default ``si``, whose figures
+        use kN, kN·m, mm/s and rpm.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     from downhole.analysis.metrics import STUCK_THRESHOLD, stick_slip_severity_series
     from downhole.units import display_units

@@ -38,7 +38,26 @@ __all__ = [
 
 @njit(cache=True, inline="always")
 def aarsnes_contact_force(d, v, p):
-    """Contact force W_f and its slopes ``(W_f, dW_f/dd, dW_f/dv)`` for d > 0."""
+    """Contact force W_f and its slopes ``(W_f, dW_f/dd, dW_f/dv)`` for d > 0.
+
+    W_f = F_c min(d / d_c, 1) f(v): the contact force rises linearly over the depth of cut
+    ``contact_depth`` d_c and is then independent of d.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m. Meant for d > 0.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    p : BitKernelParams
+        Compiled bit parameters: ``contact_force`` F_c (N), ``contact_depth`` d_c (m), ``a1``,
+        ``b1``.
+
+    Returns
+    -------
+    (W_f, dW_f/dd, dW_f/dv) : tuple of float
+        N, N/m, N s/m.
+    """
     fv, dfv = contact_speed_factor(v, p)
     r = d / p.contact_depth
     dr = 1.0 / p.contact_depth
@@ -51,7 +70,22 @@ def aarsnes_contact_force(d, v, p):
 
 @njit(cache=True, inline="always")
 def aarsnes_wob(d, v, p):
-    """Weight on bit and its slopes ``(WOB, dWOB/dd, dWOB/dv)``; zero for d <= 0."""
+    """Weight on bit and its slopes ``(WOB, dWOB/dd, dWOB/dv)``; zero for d <= 0.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    p : BitKernelParams
+        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
+
+    Returns
+    -------
+    (wob, dwob_dd, dwob_dv) : tuple of float
+        N, N/m, N s/m.
+    """
     if d <= 0.0:
         return 0.0, 0.0, 0.0
     wc, _, kw, _, _ = cutting(d, 0.0, p)
@@ -61,7 +95,20 @@ def aarsnes_wob(d, v, p):
 
 @njit(cache=True, inline="always")
 def aarsnes_friction_factor(omega, p):
-    """k_f = gamma mu a g(omega) of T_f = k_f W_f and dk_f/domega (no factor 1/2)."""
+    """k_f = gamma mu a g(omega) of T_f = k_f W_f and dk_f/domega (no factor 1/2).
+
+    Parameters
+    ----------
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
+
+    Returns
+    -------
+    (k_f, dk_f_domega) : tuple of float
+        The factor, m (N m of torque per N of contact force), and its slope, m s/rad.
+    """
     mugam, dmugam = friction_coefficient(omega, p)
     g, dg = friction_sign(omega, p)
     a = p.radius
@@ -70,7 +117,26 @@ def aarsnes_friction_factor(omega, p):
 
 @njit(cache=True, inline="always")
 def aarsnes_torque(d, wf, omega, p):
-    """TOB and dTOB/domega at depth of cut ``d`` with the contact force ``wf`` held fixed."""
+    """TOB and dTOB/domega at depth of cut ``d`` with the contact force ``wf`` held fixed.
+
+    Zero for d <= 0.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    wf : float
+        Contact force W_f, N.
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
+
+    Returns
+    -------
+    (tob, dtob_domega) : tuple of float
+        Torque on bit, N m, and its slope, N m s/rad.
+    """
     if d <= 0.0:
         return 0.0, 0.0
     _, tc, _, _, dtc_dw = cutting(d, omega, p)
@@ -80,7 +146,25 @@ def aarsnes_torque(d, wf, omega, p):
 
 @njit(cache=True, inline="always")
 def aarsnes_forces_and_slopes(d, v, omega, p):
-    """``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``; zero for d <= 0."""
+    """WOB, TOB and their partial slopes of the Aarsnes law; zero for d <= 0.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
+
+    Returns
+    -------
+    tuple of 7 float
+        ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``: N, N m, N/m, N s/m,
+        N m/m, N m s/m, N m s/rad.
+    """
     if d <= 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     wc, tc, kw, dtc_dd, dtc_dw = cutting(d, omega, p)

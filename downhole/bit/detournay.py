@@ -37,8 +37,24 @@ __all__ = [
 def cutting(d, omega, p):
     """Cutting forces of Eqs. 2.3-2.4 with the backward-rotation correction.
 
-    Returns ``(wob_c, tob_c, dwob_c/dd, dtob_c/dd, dtob_c/domega)`` for d > 0. The cutting torque
-    is switched off for omega <= 0 by a linear ramp over [0, omega_reg]."""
+    The cutting torque is switched off for omega <= 0 by a linear ramp over [0, omega_reg].
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m. Meant for d > 0 (no check here).
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters: ``epsilon`` (intrinsic specific energy, Pa), ``zeta`` (-),
+        ``radius`` a (m), ``omega_reg`` (ramp width, rad/s).
+
+    Returns
+    -------
+    tuple of 5 float
+        ``(wob_c, tob_c, dwob_c/dd, dtob_c/dd, dtob_c/domega)``: N, N m, N/m, N m/m, N m s/rad,
+        with ``wob_c = zeta eps a d`` and ``tob_c = 1/2 eps a^2 d s(omega)``.
+    """
     eps = p.epsilon
     a = p.radius
     kw = p.zeta * eps * a
@@ -56,7 +72,20 @@ def cutting(d, omega, p):
 
 @njit(cache=True, inline="always")
 def contact_speed_factor(v, p):
-    """f(v) = 1 / (1 + exp(a1 v + b1)) of Eq. 2.5 and df/dv (contact lost while the bit lifts)."""
+    """f(v) = 1 / (1 + exp(a1 v + b1)) of Eq. 2.5 and df/dv (contact lost while the bit lifts).
+
+    Parameters
+    ----------
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    p : BitKernelParams
+        Compiled bit parameters: ``a1`` (s/m), ``b1`` (-).
+
+    Returns
+    -------
+    (f, df_dv) : tuple of float
+        The factor in [0, 1] (dimensionless) and its slope, s/m.
+    """
     arg = p.a1 * v + p.b1
     if arg > 50.0:
         return 0.0, 0.0
@@ -68,8 +97,24 @@ def contact_speed_factor(v, p):
 
 @njit(cache=True, inline="always")
 def friction_coefficient(omega, p):
-    """mu * gamma of the wear-flat friction and its omega-slope: Stribeck in |omega| (Eq. 2.8,
-    correction, docs/seed-errata.md) or the constant ``mu_gamma``."""
+    """mu * gamma of the wear-flat friction and its omega-slope.
+
+    Stribeck in |omega| (Eq. 2.8, correction, docs/seed-errata.md) when
+    ``p.friction_stribeck`` is set, otherwise the constant ``mu_gamma``.
+
+    Parameters
+    ----------
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters: ``friction_stribeck``, ``mu_c``, ``mu_s``, ``gamma`` (-),
+        ``gamma_b`` (-), ``v_f`` (rad/s), ``mu_gamma`` (-).
+
+    Returns
+    -------
+    (mu_gamma, dmu_gamma_domega) : tuple of float
+        The product mu gamma (dimensionless) and its slope, s/rad.
+    """
     if p.friction_stribeck > 0.5:
         e = math.exp(-p.gamma_b / p.v_f * abs(omega))
         mu = p.mu_c + (p.mu_s - p.mu_c) * e
@@ -80,7 +125,20 @@ def friction_coefficient(omega, p):
 
 @njit(cache=True, inline="always")
 def friction_sign(omega, p):
-    """g(omega) = tanh(a2 omega + b2) of Eq. 2.6 and dg/domega."""
+    """g(omega) = tanh(a2 omega + b2) of Eq. 2.6 and dg/domega.
+
+    Parameters
+    ----------
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters: ``a2`` (s/rad), ``b2`` (-).
+
+    Returns
+    -------
+    (g, dg_domega) : tuple of float
+        The smoothed sign in [-1, 1] and its slope, s/rad.
+    """
     z = p.a2 * omega + p.b2
     if z > 20.0:
         return 1.0, 0.0  # tanh rounds to +-1 exactly beyond |z| = 19.1: skip it
@@ -92,8 +150,26 @@ def friction_sign(omega, p):
 
 @njit(cache=True, inline="always")
 def wear_flat_force(d, v, p):
-    """Wear-flat contact force W_f of Eq. 2.5 (continuous saturation at d* by default, or the
-    printed piecewise form) and its slopes: ``(W_f, dW_f/dd, dW_f/dv)`` for d > 0."""
+    """Wear-flat contact force W_f of Eq. 2.5 and its slopes, for d > 0.
+
+    Continuous saturation at d* by default (``p.wear_flat_continuous``), or the printed
+    piecewise form (linear spring ``contact_stiffness`` below d*).
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    p : BitKernelParams
+        Compiled bit parameters: ``sigma`` (contact stress, Pa), ``wear_length`` (m),
+        ``radius`` (m), ``d_star`` (m), ``contact_stiffness`` (N/m), ``a1``, ``b1``.
+
+    Returns
+    -------
+    (W_f, dW_f/dd, dW_f/dv) : tuple of float
+        Contact force (N) and its slopes (N/m, N s/m).
+    """
     fv, dfv = contact_speed_factor(v, p)
     full = p.sigma * p.wear_length * p.radius
     if p.wear_flat_continuous > 0.5:
@@ -108,7 +184,22 @@ def wear_flat_force(d, v, p):
 
 @njit(cache=True, inline="always")
 def detournay_wob(d, v, p):
-    """Weight on bit and its slopes ``(WOB, dWOB/dd, dWOB/dv)``; zero for d <= 0."""
+    """Weight on bit and its slopes ``(WOB, dWOB/dd, dWOB/dv)``; zero for d <= 0.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    p : BitKernelParams
+        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
+
+    Returns
+    -------
+    (wob, dwob_dd, dwob_dv) : tuple of float
+        N, N/m, N s/m.
+    """
     if d <= 0.0:
         return 0.0, 0.0, 0.0
     wc, _, kw, _, _ = cutting(d, 0.0, p)
@@ -118,7 +209,20 @@ def detournay_wob(d, v, p):
 
 @njit(cache=True, inline="always")
 def friction_factor(omega, p):
-    """k_f = 1/2 mu gamma a g(omega) of TOB_f = k_f W_f (Eq. 2.6) and dk_f/domega."""
+    """k_f = 1/2 mu gamma a g(omega) of TOB_f = k_f W_f (Eq. 2.6) and dk_f/domega.
+
+    Parameters
+    ----------
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
+
+    Returns
+    -------
+    (k_f, dk_f_domega) : tuple of float
+        The factor, m (N m of torque per N of contact force), and its slope, m s/rad.
+    """
     mugam, dmugam = friction_coefficient(omega, p)
     g, dg = friction_sign(omega, p)
     a = p.radius
@@ -127,8 +231,26 @@ def friction_factor(omega, p):
 
 @njit(cache=True, inline="always")
 def detournay_torque(d, wf, omega, p):
-    """TOB and dTOB/domega at depth of cut ``d`` with the wear-flat force ``wf`` held fixed
-    (what the implicit torsional solve iterates on); zero for d <= 0."""
+    """TOB and dTOB/domega with the wear-flat force ``wf`` held fixed; zero for d <= 0.
+
+    What the implicit torsional solve iterates on.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    wf : float
+        Wear-flat contact force W_f, N.
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
+
+    Returns
+    -------
+    (tob, dtob_domega) : tuple of float
+        Torque on bit, N m, and its slope, N m s/rad.
+    """
     if d <= 0.0:
         return 0.0, 0.0
     _, tc, _, _, dtc_dw = cutting(d, omega, p)
@@ -138,11 +260,27 @@ def detournay_torque(d, wf, omega, p):
 
 @njit(cache=True, inline="always")
 def detournay_forces_and_slopes(d, v, omega, p):
-    """WOB, TOB and their partial slopes for depth of cut ``d`` (m, all blades), axial velocity
-    ``v`` (m/s, positive into the rock) and angular velocity ``omega`` (rad/s).
+    """WOB, TOB and their partial slopes of the Detournay law.
 
-    Returns ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``, all zero for d <= 0.
-    TOB = 1/2 eps a^2 d s(omega) + 1/2 mu gamma a g(omega) W_f (Eqs. 2.4, 2.6)."""
+    TOB = 1/2 eps a^2 d s(omega) + 1/2 mu gamma a g(omega) W_f (Eqs. 2.4, 2.6).
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
+
+    Returns
+    -------
+    tuple of 7 float
+        ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``: N, N m, N/m, N s/m,
+        N m/m, N m s/m, N m s/rad; all zero for d <= 0.
+    """
     if d <= 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     wc, tc, kw, dtc_dd, dtc_dw = cutting(d, omega, p)

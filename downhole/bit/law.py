@@ -121,7 +121,23 @@ _AARSNES = LAW_IDS["aarsnes"]
 
 
 def law_id(name: str) -> int:
-    """Integer id of the law ``name``; ``ValueError`` naming the known laws otherwise."""
+    """Integer id of the bit law ``name``.
+
+    Parameters
+    ----------
+    name : str
+        Registered law name (a key of :data:`LAWS`, e.g. ``"detournay"``).
+
+    Returns
+    -------
+    int
+        The id the compiled dispatch branches on (:data:`downhole.params.bit.LAW_IDS`).
+
+    Raises
+    ------
+    ValueError
+        If ``name`` is not a registered law (the message names the known laws).
+    """
     if name not in LAWS:
         raise ValueError(f"unknown bit law {name!r}: expected one of {sorted(LAWS)}")
     return LAWS[name].law_id
@@ -129,7 +145,27 @@ def law_id(name: str) -> int:
 
 @njit(cache=True, inline="always")
 def bit_wob(d, v, p):
-    """Weight on bit and its partial slopes ``(wob, dwob_dd, dwob_dv)`` of the selected law."""
+    """Weight on bit and its partial slopes ``(wob, dwob_dd, dwob_dv)`` of the selected law.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    p : BitKernelParams
+        Compiled bit parameters (law id ``p.law`` and the law's constants), from
+        :meth:`downhole.params.BitParams.kernel_params`.
+
+    Returns
+    -------
+    wob : float
+        Weight on bit, N.
+    dwob_dd : float
+        dWOB/dd, N/m.
+    dwob_dv : float
+        dWOB/dv, N s/m.
+    """
     if p.law == _AARSNES:
         return aarsnes_wob(d, v, p)
     return detournay_wob(d, v, p)
@@ -137,8 +173,23 @@ def bit_wob(d, v, p):
 
 @njit(cache=True, inline="always")
 def bit_contact_force(d, v, p):
-    """Contact (wear-flat) force of the selected law and its slopes ``(W_f, dW_f/dd, dW_f/dv)``;
-    zero for d <= 0."""
+    """Contact (wear-flat) force of the selected law and its slopes; zero for d <= 0.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    p : BitKernelParams
+        Compiled bit parameters (law id ``p.law`` and the law's constants), from
+        :meth:`downhole.params.BitParams.kernel_params`.
+
+    Returns
+    -------
+    (W_f, dW_f/dd, dW_f/dv) : tuple of float
+        Contact force (N) and its partial slopes (N/m, N s/m).
+    """
     if d <= 0.0:
         return 0.0, 0.0, 0.0
     if p.law == _AARSNES:
@@ -148,9 +199,31 @@ def bit_contact_force(d, v, p):
 
 @njit(cache=True, inline="always")
 def bit_torque_at_contact(d, wf, omega, p):
-    """TOB and dTOB/domega of the selected law at depth of cut ``d`` with the contact force
-    ``wf`` (from :func:`bit_contact_force`) held fixed: the torsional implicit solve iterates on
-    omega only, so the contact force is computed once per step."""
+    """TOB and dTOB/domega of the selected law with the contact force held fixed.
+
+    At depth of cut ``d`` with the contact force ``wf`` (from :func:`bit_contact_force`) held
+    fixed: the torsional implicit solve iterates on omega only, so the contact force is computed
+    once per step.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    wf : float
+        Contact (wear-flat) force W_f, N.
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters (law id ``p.law`` and the law's constants), from
+        :meth:`downhole.params.BitParams.kernel_params`.
+
+    Returns
+    -------
+    tob : float
+        Torque on bit, N m.
+    dtob_domega : float
+        dTOB/domega, N m s/rad.
+    """
     if p.law == _AARSNES:
         return aarsnes_torque(d, wf, omega, p)
     return detournay_torque(d, wf, omega, p)
@@ -160,8 +233,24 @@ def bit_torque_at_contact(d, wf, omega, p):
 def bit_forces_and_slopes(d, v, omega, p):
     """WOB (N), TOB (N m) and their partial slopes of the selected law.
 
-    Returns ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``; all zero for
-    d <= 0 (bit off bottom)."""
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters (law id ``p.law`` and the law's constants), from
+        :meth:`downhole.params.BitParams.kernel_params`.
+
+    Returns
+    -------
+    tuple of 7 float
+        ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``: N, N m, N/m, N s/m,
+        N m/m, N m s/m, N m s/rad; all zero for d <= 0 (bit off bottom).
+    """
     if p.law == _AARSNES:
         return aarsnes_forces_and_slopes(d, v, omega, p)
     return detournay_forces_and_slopes(d, v, omega, p)
@@ -169,15 +258,47 @@ def bit_forces_and_slopes(d, v, omega, p):
 
 @njit(cache=True, inline="always")
 def bit_forces(d, v, omega, p):
-    """Weight and torque on bit ``(wob, tob)`` for total depth of cut ``d`` (m), axial velocity
-    ``v`` (m/s, positive into the rock) and angular velocity ``omega`` (rad/s)."""
+    """Weight and torque on bit ``(wob, tob)`` of the selected law.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters (law id ``p.law`` and the law's constants), from
+        :meth:`downhole.params.BitParams.kernel_params`.
+
+    Returns
+    -------
+    (wob, tob) : tuple of float
+        Weight on bit, N, and torque on bit, N m.
+    """
     r = bit_forces_and_slopes(d, v, omega, p)
     return r[0], r[1]
 
 
 @njit(cache=True, inline="always")
 def approx_depth_of_cut(v, omega, p):
-    """Approximated total depth of cut d = 2 pi v / max(omega, omega*) (Eqs. 2.11, 4.16), m."""
+    """Approximated total depth of cut d = 2 pi v / max(omega, omega*) (Eqs. 2.11, 4.16), m.
+
+    Parameters
+    ----------
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters; ``p.omega_floor`` is omega*, rad/s.
+
+    Returns
+    -------
+    float
+        Depth of cut, m.
+    """
     w = omega
     w = max(w, p.omega_floor)
     return 2.0 * math.pi * v / w
@@ -185,7 +306,20 @@ def approx_depth_of_cut(v, omega, p):
 
 @njit(cache=True, inline="always")
 def approx_depth_rate(omega, p):
-    """dd/dv of the approximated depth of cut: 2 pi / max(omega, omega*), s."""
+    """dd/dv of the approximated depth of cut: 2 pi / max(omega, omega*), s.
+
+    Parameters
+    ----------
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters; ``p.omega_floor`` is omega*, rad/s.
+
+    Returns
+    -------
+    float
+        Slope of :func:`approx_depth_of_cut` with respect to v, s.
+    """
     w = omega
     w = max(w, p.omega_floor)
     return 2.0 * math.pi / w
@@ -198,7 +332,29 @@ def bit_force_slopes(d, v, omega, p, approx):
     Used by the lumped and neutral implicit integrators to apply the stiff regularised friction
     laws implicitly (frozen coefficients). With ``approx`` true the depth of cut follows v and
     omega. Differences of the whole law rather than its analytic slopes: they include the
-    depth-of-cut coupling of the approximated depth and keep these kernels' results unchanged."""
+    depth-of-cut coupling of the approximated depth and keep these kernels' results unchanged.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut, m (ignored when ``approx`` is true).
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    omega : float
+        Bit angular velocity, rad/s.
+    p : BitKernelParams
+        Compiled bit parameters (law id ``p.law`` and the law's constants), from
+        :meth:`downhole.params.BitParams.kernel_params`.
+    approx : bool
+        If true, recompute d from v and omega with :func:`approx_depth_of_cut` at each
+        perturbed point.
+
+    Returns
+    -------
+    (c_axial, c_torsional) : tuple of float
+        ``max(dWOB/dv, 0)`` in N s/m and ``max(dTOB/domega, 0)`` in N m s/rad (as computed;
+        the kernels use them as implicit damper coefficients).
+    """
     hv = 1e-7 + 1e-4 * abs(v)
     hw = 1e-6 + 1e-4 * abs(omega)
     if approx:
@@ -223,7 +379,34 @@ def solve_bit_node(field, den, r, h, x, c0, c1, p):
     ``field`` 0: x is the axial velocity and F = WOB(d = c0 + c1 x, v = x); 1: x is the angular
     velocity and F = TOB(d = c0, v = c1, omega = x). F is non-decreasing in x for the registered
     laws (Stribeck weakening is bracketed), so the root is bracketed as it goes and bisection
-    takes over if Newton leaves the bracket."""
+    takes over if Newton leaves the bracket.
+
+    Parameters
+    ----------
+    field : int
+        0 for the axial equation, 1 for the torsional one.
+    den : float
+        Coefficient of x in the equation (positive; same units as ``h dF/dx``, e.g. kg for
+        the axial field and kg m^2 for the torsional one when the equation is a momentum balance).
+    r : float
+        Right-hand side, in the units of ``den x``.
+    h : float
+        Factor of the bit force in the equation (the step-size weight of the integrator), s.
+    x : float
+        Initial guess of the velocity, m/s (axial) or rad/s (torsional).
+    c0 : float
+        Axial: depth of cut at x = 0, m. Torsional: the depth of cut d, m.
+    c1 : float
+        Axial: dd/dx, s. Torsional: the axial velocity v, m/s (used for the contact force).
+    p : BitKernelParams
+        Compiled bit parameters (law id ``p.law`` and the law's constants), from
+        :meth:`downhole.params.BitParams.kernel_params`.
+
+    Returns
+    -------
+    float
+        The velocity x solving the equation, m/s or rad/s (the last iterate after 60 iterations).
+    """
     lo = -1e300
     hi = 1e300
     wf = bit_contact_force(c0, c1, p)[0] if field == 1 else 0.0
@@ -268,18 +451,85 @@ def _kernel_params(bit) -> BitKernelParams:
 
 
 def bit_forces_py(d, v, omega, bit: BitParams) -> tuple[float, float]:
-    """Convenience wrapper: ``(wob, tob)`` in N and N m for a :class:`BitParams`."""
+    """Convenience wrapper of :func:`bit_forces` for a :class:`BitParams`.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    omega : float
+        Bit angular velocity, rad/s.
+    bit : BitParams or BitKernelParams
+        Bit parameters; a :class:`BitParams` is compiled with ``kernel_params()``.
+
+    Returns
+    -------
+    (wob, tob) : tuple of float
+        Weight on bit, N, and torque on bit, N m.
+
+    Raises
+    ------
+    TypeError
+        If ``bit`` is neither a :class:`BitParams` nor a :class:`BitKernelParams`.
+    """
     return bit_forces(float(d), float(v), float(omega), _kernel_params(bit))
 
 
 def bit_forces_and_slopes_py(d, v, omega, bit: BitParams) -> tuple[float, ...]:
-    """Convenience wrapper of :func:`bit_forces_and_slopes` for a :class:`BitParams`."""
+    """Convenience wrapper of :func:`bit_forces_and_slopes` for a :class:`BitParams`.
+
+    Parameters
+    ----------
+    d : float
+        Total depth of cut (all blades), m.
+    v : float
+        Bit axial velocity, m/s (positive into the rock).
+    omega : float
+        Bit angular velocity, rad/s.
+    bit : BitParams or BitKernelParams
+        Bit parameters; a :class:`BitParams` is compiled with ``kernel_params()``.
+
+    Returns
+    -------
+    tuple of 7 float
+        ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)`` as
+        :func:`bit_forces_and_slopes` (N, N m and their slopes).
+
+    Raises
+    ------
+    TypeError
+        If ``bit`` is neither a :class:`BitParams` nor a :class:`BitKernelParams`.
+    """
     return tuple(float(x) for x in
                  bit_forces_and_slopes(float(d), float(v), float(omega), _kernel_params(bit)))
 
 
 def bit_forces_vec(d, v, omega, bit: BitParams):
-    """Vectorised wrapper over NumPy arrays (for plots and analysis): ``(wob, tob)`` arrays."""
+    """Vectorised wrapper of :func:`bit_forces` over NumPy arrays (for plots and analysis).
+
+    Parameters
+    ----------
+    d : array_like
+        Total depth of cut, m.
+    v : array_like
+        Bit axial velocity, m/s (positive into the rock).
+    omega : array_like
+        Bit angular velocity, rad/s.
+    bit : BitParams or BitKernelParams
+        Bit parameters; a :class:`BitParams` is compiled with ``kernel_params()``.
+
+    Returns
+    -------
+    wob, tob : ndarray
+        Weight on bit (N) and torque on bit (N m), with the broadcast shape of the inputs.
+
+    Raises
+    ------
+    TypeError
+        If ``bit`` is neither a :class:`BitParams` nor a :class:`BitKernelParams`.
+    """
     p = _kernel_params(bit)
     d, v, omega = np.broadcast_arrays(np.asarray(d, float), np.asarray(v, float),
                                       np.asarray(omega, float))

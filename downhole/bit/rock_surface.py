@@ -75,6 +75,11 @@ class RockSurfaceSpec:
         Grid points per blade pitch (default 512).
     memory : bool
         True: hole-bottom memory (max of history). False: the printed Eq. 2.9 (x at t - t_n).
+
+    Raises
+    ------
+    ValueError
+        If ``n_blades`` < 1 or ``points_per_pitch`` < 4.
     """
 
     def __init__(self, n_blades: int, points_per_pitch: int = 512, memory: bool = True):
@@ -90,16 +95,42 @@ class RockSurfaceSpec:
         self.memory = bool(memory)
 
     def params(self, theta_ref: float) -> RockSurfaceParams:
-        """The grid layout for the kernels (:class:`RockSurfaceParams`)."""
+        """The grid layout for the kernels (:class:`RockSurfaceParams`).
+
+        Parameters
+        ----------
+        theta_ref : float
+            Bit angle of grid index 0, rad.
+
+        Returns
+        -------
+        RockSurfaceParams
+        """
         return RockSurfaceParams(theta_ref=float(theta_ref), h=float(self.h), nb=int(self.nb),
                                  cap=int(self.cap), n_blades=float(self.n_blades),
                                  memory=bool(self.memory))
 
 
 def rock_init(spec: RockSurfaceSpec, x0: float, theta0: float):
-    """Fresh state: the bit rests on a flat bottom at ``x0`` (m) with angle ``theta0`` (rad).
+    """Fresh state: the bit rests on a flat bottom at ``x0`` with angle ``theta0``.
 
-    Returns ``(surf, istate, rp)``."""
+    Parameters
+    ----------
+    spec : RockSurfaceSpec
+        Grid layout.
+    x0 : float
+        Bit axial position (and hole bottom), m.
+    theta0 : float
+        Bit angle, rad (grid index 0 sits there).
+
+    Returns
+    -------
+    surf : ndarray, shape (cap,)
+        Flat surface at ``x0``, m.
+    istate : ndarray, shape (1,), int64
+        ``[0]``.
+    rp : RockSurfaceParams
+    """
     surf = np.full(spec.cap, float(x0))
     istate = np.zeros(1, dtype=np.int64)  # j_next = 0: grid point 0 sits at theta0
     return surf, istate, spec.params(theta0)
@@ -109,10 +140,35 @@ def rock_init(spec: RockSurfaceSpec, x0: float, theta0: float):
 def rock_depth_at(surf, j_next, theta_ref, h, nb, cap, nbl, x, theta):
     """Total depth of cut d = n (x - surface) for the bit at axial position x, angle theta.
 
-    Parameters are the grid layout of :meth:`RockSurfaceSpec.params` unpacked (``nb``, ``cap``
-    integers) and ``j_next`` the index of the next grid angle not yet reached. At the cutting
-    front the blade meets the previous blade's surface one pitch back (Eq. 2.10); over angles it
-    already cut (after backward rotation) it meets its own surface."""
+    At the cutting front the blade meets the previous blade's surface one pitch back
+    (Eq. 2.10); over angles it already cut (after backward rotation) it meets its own surface.
+
+    Parameters
+    ----------
+    surf : ndarray, shape (cap,), float64
+        Ring buffer of the rock surface, m.
+    j_next : int
+        Index of the next grid angle not yet reached.
+    theta_ref : float
+        Bit angle of grid index 0, rad.
+    h : float
+        Grid step in angle, rad.
+    nb : int
+        Grid points per blade pitch.
+    cap : int
+        Ring capacity (a power of two).
+    nbl : float
+        Number of blades n.
+    x : float
+        Bit axial position, m (positive downward).
+    theta : float
+        Bit angle, rad.
+
+    Returns
+    -------
+    float
+        Total depth of cut (all blades), m; negative when the bit is off bottom.
+    """
     mask = cap - 1
     jf = (theta - theta_ref) / h
     if jf >= j_next - 1:
@@ -134,9 +190,41 @@ def rock_depth_at(surf, j_next, theta_ref, h, nb, cap, nbl, x, theta):
 @njit(cache=True)
 def rock_advance_to(surf, j_next, theta_ref, h, nb, cap, memory, theta_prev, x_prev, theta_new,
                     x_new):
-    """Record the blade's path from (theta_prev, x_prev) to (theta_new, x_new); returns the new
-    ``j_next``. Nothing is cut while the bit turns backward or stands still, or when the state is
-    not finite (a diverging run). With ``memory`` the surface keeps the maximum (hole bottom)."""
+    """Record the blade's path from (theta_prev, x_prev) to (theta_new, x_new).
+
+    Nothing is cut while the bit turns backward or stands still, or when the state is
+    not finite (a diverging run). With ``memory`` the surface keeps the maximum (hole bottom).
+
+    Parameters
+    ----------
+    surf : ndarray, shape (cap,), float64
+        Ring buffer of the rock surface, m; updated in place.
+    j_next : int
+        Index of the next grid angle not yet reached.
+    theta_ref : float
+        Bit angle of grid index 0, rad.
+    h : float
+        Grid step in angle, rad.
+    nb : int
+        Grid points per blade pitch.
+    cap : int
+        Ring capacity (a power of two).
+    memory : bool
+        Hole-bottom memory (True) or the printed Eq. 2.9.
+    theta_prev : float
+        Bit angle at the start of the step, rad.
+    x_prev : float
+        Bit axial position at the start of the step, m (positive downward).
+    theta_new : float
+        Bit angle at the end of the step, rad.
+    x_new : float
+        Bit axial position at the end of the step, m.
+
+    Returns
+    -------
+    int
+        The new ``j_next``.
+    """
     if not (theta_new > theta_prev) or not math.isfinite(theta_new + x_new):
         return j_next
     a0 = (theta_prev - theta_ref) / h
@@ -168,24 +256,83 @@ def rock_advance_to(surf, j_next, theta_ref, h, nb, cap, memory, theta_prev, x_p
 
 @njit(cache=True, inline="always")
 def rock_depth(surf, istate, rp, x, theta):
-    """:func:`rock_depth_at` on the packed layout ``rp`` and state ``istate = [j_next]``."""
+    """:func:`rock_depth_at` on the packed layout ``rp`` and state ``istate = [j_next]``.
+
+    Parameters
+    ----------
+    surf : ndarray, shape (cap,), float64
+        Ring buffer of the rock surface (axial position of the hole bottom per grid angle),
+        m, x positive downward; updated in place by the advance functions.
+    istate : ndarray, shape (1,), int64
+        ``[j_next]``, the index of the next grid angle not yet reached.
+    rp : RockSurfaceParams
+        Grid layout (:meth:`RockSurfaceSpec.params`).
+    x : float
+        Bit axial position, m (positive downward).
+    theta : float
+        Bit angle, rad.
+
+    Returns
+    -------
+    float
+        Total depth of cut (all blades), m.
+    """
     return rock_depth_at(surf, istate[0], rp.theta_ref, rp.h, rp.nb, rp.cap, rp.n_blades, x,
                          theta)
 
 
 @njit(cache=True)
 def rock_advance(surf, istate, rp, theta_prev, x_prev, theta_new, x_new):
-    """:func:`rock_advance_to` on the packed layout ``rp`` and state ``istate = [j_next]``."""
+    """:func:`rock_advance_to` on the packed layout ``rp`` and state ``istate = [j_next]``.
+
+    Updates ``surf`` and ``istate`` in place.
+
+    Parameters
+    ----------
+    surf : ndarray, shape (cap,), float64
+        Ring buffer of the rock surface (axial position of the hole bottom per grid angle),
+        m, x positive downward; updated in place by the advance functions.
+    istate : ndarray, shape (1,), int64
+        ``[j_next]``, the index of the next grid angle not yet reached.
+    rp : RockSurfaceParams
+        Grid layout (:meth:`RockSurfaceSpec.params`).
+    theta_prev : float
+        Bit angle at the start of the step, rad.
+    x_prev : float
+        Bit axial position at the start of the step, m (positive downward).
+    theta_new : float
+        Bit angle at the end of the step, rad.
+    x_new : float
+        Bit axial position at the end of the step, m.
+    """
     istate[0] = rock_advance_to(surf, istate[0], rp.theta_ref, rp.h, rp.nb, rp.cap, rp.memory,
                                 theta_prev, x_prev, theta_new, x_new)
 
 
 def rock_init_helix(spec: RockSurfaceSpec, x0: float, theta0: float, depth_of_cut: float):
-    """State of a bit cutting steadily: a helical hole bottom with total depth of cut
-    ``depth_of_cut`` (m per revolution, all blades) under the bit at ``x0`` (m), ``theta0`` (rad).
+    """State of a bit cutting steadily: a helical hole bottom under the bit.
 
     The surface recorded one pitch back lies ``depth_of_cut / n`` above the bit, so
-    :func:`rock_depth` returns ``depth_of_cut`` at (x0, theta0). Returns ``(surf, istate, rp)``.
+    :func:`rock_depth` returns ``depth_of_cut`` at (x0, theta0).
+
+    Parameters
+    ----------
+    spec : RockSurfaceSpec
+        Grid layout.
+    x0 : float
+        Bit axial position, m.
+    theta0 : float
+        Bit angle, rad.
+    depth_of_cut : float
+        Total depth of cut, m per revolution (all blades).
+
+    Returns
+    -------
+    surf : ndarray, shape (cap,)
+        Helical surface, m.
+    istate : ndarray, shape (1,), int64
+        ``[0]``.
+    rp : RockSurfaceParams
     """
     surf, istate, rp = rock_init(spec, x0, theta0)
     rise = depth_of_cut / (2.0 * math.pi) * spec.h  # axial advance per grid point

@@ -51,7 +51,22 @@ _DOWN = np.array([0.0, 0.0, 1.0])
 
 @njit(cache=True)
 def normal_force_per_length(tension, kx, ky, kz, gx, gy, gz):
-    """|T dt/ds + w g_perp| for one element, N/m (``k*`` = dt/ds, ``g*`` = w g_perp)."""
+    """|T dt/ds + w g_perp| for one element, N/m.
+
+    Parameters
+    ----------
+    tension : float
+        Effective tension T, N (positive in tension).
+    kx, ky, kz : float
+        Curvature vector dt/ds (north, east, down), 1/m.
+    gx, gy, gz : float
+        Normal weight w g_perp (north, east, down), N/m.
+
+    Returns
+    -------
+    float
+        Soft-string normal force per unit length, N/m.
+    """
     x = tension * kx + gx
     y = tension * ky + gy
     z = tension * kz + gz
@@ -60,8 +75,26 @@ def normal_force_per_length(tension, kx, ky, kz, gx, gy, gz):
 
 @njit(cache=True)
 def element_normal_half(elem, e, tension):
-    """Half the soft-string normal force of element ``e``, ``0.5 L |T dt/ds + w g_perp|`` (N):
-    the share of each of its two end nodes (``elem`` in :data:`ELEM_LAYOUT`)."""
+    """Half the soft-string normal force of element ``e``, ``0.5 L |T dt/ds + w g_perp|`` (N).
+
+    The share of each of its two end nodes (the contact flag of the element is not applied
+    here).
+
+    Parameters
+    ----------
+    elem : ndarray, shape (n, 8)
+        Element data, columns :data:`ELEM_LAYOUT` (length m, dt/ds 1/m, w g_perp N/m, contact
+        flag).
+    e : int
+        Element index.
+    tension : float
+        Effective tension of the element, N (positive in tension).
+
+    Returns
+    -------
+    float
+        Half the element's normal force, N.
+    """
     return 0.5 * elem[e, 0] * normal_force_per_length(tension, elem[e, 1], elem[e, 2],
                                                       elem[e, 3], elem[e, 4], elem[e, 5],
                                                       elem[e, 6])
@@ -74,7 +107,18 @@ def contact_elements(elem):
     An element takes part when its contact flag is set and it is curved or not vertical; a
     straight vertical element has zero curvature and zero normal weight, so its soft-string
     normal force is exactly 0 whatever the tension, and the kernels skip it. The last row of
-    ``elem`` (one per node) is never an element."""
+    ``elem`` (one per node) is never an element.
+
+    Parameters
+    ----------
+    elem : ndarray, shape (n, 8)
+        Element data, columns :data:`ELEM_LAYOUT`.
+
+    Returns
+    -------
+    ndarray of int64
+        Element indices, ascending.
+    """
     out = np.empty(max(elem.shape[0] - 1, 0), np.int64)
     k = 0
     for e in range(elem.shape[0] - 1):
@@ -88,13 +132,53 @@ def contact_elements(elem):
 
 @njit(cache=True)
 def friction_damper(normal_force, mu, v, r_omega, v_eps):
-    """Frozen friction coefficient c = mu N / sqrt(v^2 + (r omega)^2 + v_eps^2), N s/m."""
+    """Frozen friction coefficient c = mu N / sqrt(v^2 + (r omega)^2 + v_eps^2), N s/m.
+
+    Parameters
+    ----------
+    normal_force : float
+        Normal force N, N.
+    mu : float
+        Friction coefficient (dimensionless).
+    v : float
+        Axial velocity, m/s.
+    r_omega : float
+        Circumferential velocity r omega, m/s.
+    v_eps : float
+        Regularization velocity, m/s (> 0).
+
+    Returns
+    -------
+    float
+        The damper coefficient c, N s/m.
+    """
     return mu * normal_force / math.sqrt(v * v + r_omega * r_omega + v_eps * v_eps)
 
 
 @njit(cache=True)
 def friction_forces(normal_force, mu, v, omega, radius, v_eps):
-    """Axial friction force (N) and torque (N m) opposing (v, r omega), regularized."""
+    """Axial friction force (N) and torque (N m) opposing (v, r omega), regularized.
+
+    Parameters
+    ----------
+    normal_force : float
+        Normal force N, N.
+    mu : float
+        Friction coefficient (dimensionless).
+    v : float
+        Axial velocity, m/s.
+    omega : float
+        Angular velocity, rad/s.
+    radius : float
+        Torque arm r, m.
+    v_eps : float
+        Regularization velocity, m/s (> 0).
+
+    Returns
+    -------
+    (force, torque) : tuple of float
+        ``(-c v, -c r^2 omega)``: N and N m, with c from :func:`friction_damper`.
+    """
     c = friction_damper(normal_force, mu, v, radius * omega, v_eps)
     return -c * v, -c * radius * radius * omega
 

@@ -327,6 +327,17 @@ class ControlAffineModel:
             the map is scaled by ``P^-1`` here.
         **kwargs
             Passed to the constructor (names, kinds, nodes, limits, ...).
+
+        Returns
+        -------
+        ControlAffineModel
+            The non-dimensional model.
+
+        Raises
+        ------
+        DownholeInputError
+            Shapes that do not fit, non-positive or non-finite scales, or any check of the
+            constructor.
         """
         A_d = np.asarray(A_d, dtype=float)
         B_d = np.asarray(B_d, dtype=float)
@@ -395,20 +406,86 @@ class ControlAffineModel:
         return self._g * self._P[:, None] / self._U[None, :]
 
     def to_nondim_state(self, z):
+        """Non-dimensional state ``zbar = P^-1 z``.
+
+        Parameters
+        ----------
+        z : array_like, shape (..., n)
+            Physical state(s), each entry in the unit of its kind (m, rad, m/s, rad/s).
+
+        Returns
+        -------
+        ndarray
+            ``z / state_scale``, same shape.
+        """
         return np.asarray(z, float) / self._P
 
     def to_physical_state(self, zbar):
+        """Physical state ``z = P zbar``.
+
+        Parameters
+        ----------
+        zbar : array_like, shape (..., n)
+            Non-dimensional state(s).
+
+        Returns
+        -------
+        ndarray
+            ``zbar * state_scale`` in the unit of each state's kind (m, rad, m/s, rad/s),
+            same shape.
+        """
         return np.asarray(zbar, float) * self._P
 
     def to_nondim_input(self, u):
+        """Non-dimensional input ``ubar = U^-1 u``.
+
+        Parameters
+        ----------
+        u : array_like, shape (..., m)
+            Physical input(s), in the units of :data:`INPUT_UNITS` (N, N m, m, rad).
+
+        Returns
+        -------
+        ndarray
+            ``u / input_scale``, same shape.
+        """
         return np.asarray(u, float) / self._U
 
     def to_physical_input(self, ubar):
+        """Physical input ``u = U ubar``.
+
+        Parameters
+        ----------
+        ubar : array_like, shape (..., m)
+            Non-dimensional input(s).
+
+        Returns
+        -------
+        ndarray
+            ``ubar * input_scale`` in the units of :data:`INPUT_UNITS`, same shape.
+        """
         return np.asarray(ubar, float) * self._U
 
     # ------------------------------------------------------------------ dynamics
     def nonlinear(self, zbar) -> np.ndarray:
-        """``hbar(zbar)`` for a state (n,) or batch (N, n); zeros for a linear model."""
+        """``hbar(zbar)`` for a state (n,) or batch (N, n); zeros for a linear model.
+
+        Parameters
+        ----------
+        zbar : array_like, shape (n,) or (N, n)
+            Non-dimensional state or batch of states.
+
+        Returns
+        -------
+        ndarray, shape (n,) or (N, n)
+            Non-dimensional increment of the nonlinear forces over one step.
+
+        Raises
+        ------
+        DownholeInputError
+            If ``zbar`` does not have ``n_states`` columns, or the model's ``nonlinear`` callable
+            returns an array of another shape.
+        """
         z = np.asarray(zbar, dtype=float)
         single = z.ndim == 1
         zb = z[None, :] if single else z
@@ -425,7 +502,18 @@ class ControlAffineModel:
         return out[0] if single else out
 
     def f(self, zbar) -> np.ndarray:
-        """Drift ``f(zbar) = Abar zbar + hbar(zbar)`` for a state (n,) or a batch (N, n)."""
+        """Drift ``f(zbar) = Abar zbar + hbar(zbar)`` for a state (n,) or a batch (N, n).
+
+        Parameters
+        ----------
+        zbar : array_like, shape (n,) or (N, n)
+            Non-dimensional state or batch of states.
+
+        Returns
+        -------
+        ndarray, shape (n,) or (N, n)
+            Non-dimensional drift.
+        """
         z = np.asarray(zbar, dtype=float)
         lin = z @ self._A.T
         if self._h is None:
@@ -433,7 +521,20 @@ class ControlAffineModel:
         return lin + self.nonlinear(z)
 
     def step(self, zbar, ubar) -> np.ndarray:
-        """``zbar_{k+1} = f(zbar_k) + g ubar_k`` (single state or batch with matching inputs)."""
+        """``zbar_{k+1} = f(zbar_k) + g ubar_k`` (single state or batch with matching inputs).
+
+        Parameters
+        ----------
+        zbar : array_like, shape (n,) or (N, n)
+            Non-dimensional state(s) at step k.
+        ubar : array_like, shape (m,) or (N, m)
+            Non-dimensional input(s) at step k.
+
+        Returns
+        -------
+        ndarray, shape (n,) or (N, n)
+            Non-dimensional state(s) at step k + 1.
+        """
         return self.f(zbar) + np.asarray(ubar, dtype=float) @ self._g.T
 
     def jacobian(self, zbar=None, kind: str = "seed") -> np.ndarray:
@@ -442,6 +543,23 @@ class ControlAffineModel:
         ``kind="seed"``: ``P^-1 A_d P`` (constant, Eq. 4.31's approximation; ``zbar`` ignored).
         ``kind="exact"``: adds ``d hbar/d zbar`` at ``zbar`` (a state (n,) -> (n, n), or a batch
         (N, n) -> (N, n, n)) from ``nonlinear_jacobian`` or central differences.
+
+        Parameters
+        ----------
+        zbar : array_like, shape (n,) or (N, n), optional
+            Non-dimensional state or batch; required for ``kind="exact"``.
+        kind : {"seed", "exact"}
+            Which Jacobian (default ``"seed"``).
+
+        Returns
+        -------
+        ndarray, shape (n, n) or (N, n, n)
+            The non-dimensional Jacobian (the read-only ``linear`` matrix for ``"seed"``).
+
+        Raises
+        ------
+        DownholeInputError
+            An unknown ``kind``, or ``kind="exact"`` without ``zbar``.
         """
         if kind == "seed":
             return self._A
@@ -470,7 +588,25 @@ class ControlAffineModel:
 
     # ------------------------------------------------------------------ bookkeeping
     def indices(self, kind: str, node: int | None = None) -> np.ndarray:
-        """State indices of ``kind`` (optionally only at ``node``; ``node="bit"`` allowed)."""
+        """State indices of ``kind`` (optionally only at ``node``; ``node="bit"`` allowed).
+
+        Parameters
+        ----------
+        kind : str
+            One of :data:`STATE_KINDS`.
+        node : int or "bit", optional
+            Node index (0 = top), or ``"bit"`` for :attr:`bit_node`; None for all nodes.
+
+        Returns
+        -------
+        ndarray of int
+            Matching state indices, ascending (possibly empty).
+
+        Raises
+        ------
+        DownholeInputError
+            If ``kind`` is not one of :data:`STATE_KINDS`.
+        """
         if kind not in STATE_KINDS:
             raise DownholeInputError(f"kind must be one of {STATE_KINDS}, got {kind!r}")
         if node == "bit":
@@ -479,7 +615,25 @@ class ControlAffineModel:
                          if k == kind and (node is None or nd == node)], dtype=int)
 
     def index(self, kind: str, node) -> int:
-        """The single state index of ``kind`` at ``node`` (int or ``"bit"``)."""
+        """The single state index of ``kind`` at ``node`` (int or ``"bit"``).
+
+        Parameters
+        ----------
+        kind : str
+            One of :data:`STATE_KINDS`.
+        node : int or "bit"
+            Node index (0 = top) or ``"bit"``.
+
+        Returns
+        -------
+        int
+            The state index.
+
+        Raises
+        ------
+        DownholeInputError
+            If ``kind`` is unknown or the model has not exactly one such state at ``node``.
+        """
         idx = self.indices(kind, node)
         if idx.size != 1:
             raise DownholeInputError(f"model {self.name!r} has {idx.size} states of kind "
@@ -514,7 +668,25 @@ class ControlAffineModel:
 def scale_from_trajectory(z, floor=None) -> np.ndarray:
     """Eq. 4.17's scale: the maximum |z_i| over a physical trajectory ``z`` (T, n).
 
-    ``floor`` (scalar or (n,)) keeps states that stay near zero from getting a tiny scale."""
+    Parameters
+    ----------
+    z : array_like, shape (T, n)
+        Physical state trajectory (each state in the unit of its kind: m, rad, m/s, rad/s).
+    floor : float or array_like of shape (n,), optional
+        Lower bound of each scale, in the same units; keeps states that stay near zero from
+        getting a tiny scale.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Positive state scale ``P`` (physical units per non-dimensional unit).
+
+    Raises
+    ------
+    DownholeInputError
+        If ``z`` is not two-dimensional, or some scale is zero (a state identically zero and no
+        positive ``floor``).
+    """
     z = np.asarray(z, dtype=float)
     if z.ndim != 2:
         raise DownholeInputError(f"z must be a (T, n) trajectory, got shape {z.shape}")
@@ -573,6 +745,12 @@ def from_directional(model, dt: float = 1e-3, *, state_scale=None, input_scale=(
     Returns
     -------
     ControlAffineModel
+
+    Raises
+    ------
+    DownholeInputError
+        If ``model`` has no ``design_model()`` (not a DirectionalModel), or a scale of the
+        wrong shape or sign.
     """
     from downhole.bit.law import approx_depth_of_cut, bit_forces
     from downhole.contact.softstring import nodal_friction_forces

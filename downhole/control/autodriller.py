@@ -157,7 +157,23 @@ class AutoDriller(Controller):
         self._v = None
 
     def wob_estimate(self, observation: Mapping[str, float]) -> float:
-        """Surface WOB estimate W_hang - hook load, N."""
+        """Surface WOB estimate W_hang - hook load, N.
+
+        Parameters
+        ----------
+        observation : mapping
+            Must hold ``hook_load``, N.
+
+        Returns
+        -------
+        float
+            Estimated weight on bit, N.
+
+        Raises
+        ------
+        DownholeInputError
+            If the hook load is not finite.
+        """
         hook = float(observation["hook_load"])
         if not math.isfinite(hook):
             raise DownholeInputError(f"AutoDriller: observation hook_load = {hook!r} is not "
@@ -184,6 +200,32 @@ class AutoDriller(Controller):
 
     def command(self, t: float, observation: Mapping[str, float],
                 reference: Mapping[str, float] | None = None) -> dict:
+        """One controller step: the block (top-drive axial) velocity command.
+
+        WOB mode: a PI on the WOB estimate; ROP mode: the ROP set-point, reduced when the WOB
+        exceeds ``wob_max``. The command is rate- and magnitude-limited, with anti-windup.
+
+        Parameters
+        ----------
+        t : float
+            Time, s (unused).
+        observation : mapping
+            Must hold ``hook_load`` (N); ``top_drive_axial_velocity`` (m/s) is the starting
+            velocity at the first call when present.
+        reference : mapping, optional
+            ``reference_wob`` (N) or ``reference_axial_velocity`` (m/s), used when neither ``wob``
+            nor ``rop`` was given.
+
+        Returns
+        -------
+        dict
+            ``{"top_drive_axial_velocity": m/s}``, positive downward.
+
+        Raises
+        ------
+        DownholeInputError
+            A non-finite hook load or set-point, or no set-point at all.
+        """
         wob_sp, rop_sp = self._set_points(reference)
         wob = self.wob_estimate(observation)
         if self._v is None:

@@ -49,7 +49,23 @@ class Controller:
 
     def command(self, t: float, observation: Mapping[str, float],
                 reference: Mapping[str, float] | None = None) -> dict:  # pragma: no cover
-        """Commands at time ``t`` (s) from the observation and the reference."""
+        """Commands at time ``t`` (s) from the observation and the reference.
+
+        Parameters
+        ----------
+        t : float
+            Time, s.
+        observation : mapping
+            Observed signal name -> value (SI; at least the names in :attr:`needs`).
+        reference : mapping, optional
+            Reference signal name -> value (SI), e.g. ``reference_axial_velocity`` (m/s) and
+            ``reference_angular_velocity`` (rad/s).
+
+        Returns
+        -------
+        dict
+            Command name -> value (SI), the names of :attr:`commands`.
+        """
         raise NotImplementedError
 
 
@@ -64,6 +80,18 @@ def check_pair(controller, plant) -> str | None:
     A controller can drive a plant when the plant observes every signal it ``needs`` and takes
     every command it sets. Controllers that declare nothing are not checked here (duck typing);
     their first command is checked by the plant.
+
+    Parameters
+    ----------
+    controller : Controller or object
+        Its optional ``needs`` and ``commands`` are compared.
+    plant : Plant or object
+        Its optional ``observation_names`` and ``command_names`` are compared.
+
+    Returns
+    -------
+    str or None
+        A one-line reason, or None.
     """
     needs = _declared(controller, "needs")
     commands = _declared(controller, "commands")
@@ -90,7 +118,9 @@ def run_closed_loop(plant, controller, duration: float, *, reference=None,
     Parameters
     ----------
     plant : downhole.sim.plant.Plant
-    controller : Controller or any object with ``reset()`` and ``command(t, obs, ref)``
+        The plant (``reset``, ``step``, ``dt``, ``default_command``, ``command_names``).
+    controller : Controller
+        Or any object with ``reset()`` and ``command(t, obs, ref)``.
     duration : float
         Simulated time, s (a whole number of plant steps).
     reference : mapping or callable, optional

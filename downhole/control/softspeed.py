@@ -100,7 +100,29 @@ def softspeed_tuning(impedance: float, frequency: float, inertia: float,
 
 
 def top_drive_impedance(kp: float, ki: float, inertia: float, omega: float) -> complex:
-    """Z_td(i w) = P + i (w J - I / w) of a PI speed-controlled top drive, N m s/rad."""
+    """Z_td(i w) = P + i (w J - I / w) of a PI speed-controlled top drive, N m s/rad.
+
+    Parameters
+    ----------
+    kp : float
+        Proportional gain P, N m s/rad.
+    ki : float
+        Integral gain I, N m/rad.
+    inertia : float
+        Top-drive inertia J, kg m^2.
+    omega : float
+        Angular frequency w, rad/s (positive).
+
+    Returns
+    -------
+    complex
+        The drive's impedance, N m s/rad.
+
+    Raises
+    ------
+    DownholeInputError
+        If ``omega`` is not a positive finite number.
+    """
     w = _number("top_drive_impedance", "omega", omega)
     return complex(kp, w * inertia - ki / w)
 
@@ -110,6 +132,29 @@ def reflection_coefficient(impedance: float, kp: float, ki: float, inertia: floa
     """Speed-wave reflection coefficient (Z - Z_td) / (Z + Z_td) of the top drive at ``omega``.
 
     -1: a clamped (stiff) top, 0: a matched (absorbing) top, +1: a free top.
+
+    Parameters
+    ----------
+    impedance : float
+        Characteristic torsional impedance Z of the top pipe, N m s/rad.
+    kp : float
+        Proportional gain P, N m s/rad.
+    ki : float
+        Integral gain I, N m/rad.
+    inertia : float
+        Top-drive inertia J, kg m^2.
+    omega : float
+        Angular frequency, rad/s (positive).
+
+    Returns
+    -------
+    complex
+        The reflection coefficient (dimensionless).
+
+    Raises
+    ------
+    DownholeInputError
+        If ``omega`` is not a positive finite number.
     """
     ztd = top_drive_impedance(kp, ki, inertia, omega)
     return (impedance - ztd) / (impedance + ztd)
@@ -122,6 +167,7 @@ def stick_slip_frequency(system, mode: int = 1, reference_elements: int = 400) -
     Parameters
     ----------
     system : DrillingSystem
+        The described system (well, string, bit and Rayleigh damping).
     mode : int
         1 (default): the first torsional mode, the classic stick-slip mode (the frequency the
         lumped chains are matched to, :meth:`DrillingSystem.lumped_derivation`). A string that
@@ -129,6 +175,16 @@ def stick_slip_frequency(system, mode: int = 1, reference_elements: int = 400) -
         that mode's) is tuned to that mode.
     reference_elements : int
         Elements of the fine FEM the frequency is computed on.
+
+    Returns
+    -------
+    float
+        The torsional natural frequency, rad/s.
+
+    Raises
+    ------
+    DownholeInputError
+        If ``mode`` is not an integer from 1 to 20.
     """
     if not (isinstance(mode, int) and not isinstance(mode, bool) and 1 <= mode <= 20):
         raise DownholeInputError(f"stick-slip mode must be an integer 1-20, got {mode!r}")
@@ -187,7 +243,18 @@ class TopDriveSpeedPI(Controller):
         self._theta = 0.0
 
     def impedance(self, omega: float) -> complex:
-        """The drive's impedance Z_td(i omega) seen by the string, N m s/rad."""
+        """The drive's impedance Z_td(i omega) seen by the string, N m s/rad.
+
+        Parameters
+        ----------
+        omega : float
+            Angular frequency, rad/s (positive).
+
+        Returns
+        -------
+        complex
+            :func:`top_drive_impedance` of this drive's gains and inertia.
+        """
         return top_drive_impedance(self.kp, self.ki, self.inertia, omega)
 
     def _set_point(self, reference):
@@ -205,6 +272,32 @@ class TopDriveSpeedPI(Controller):
 
     def command(self, t: float, observation: Mapping[str, float],
                 reference: Mapping[str, float] | None = None) -> dict:
+        """One controller step: the top-drive speed command.
+
+        The rotor is advanced by one ``dt`` under P (omega_sp - omega) + I theta_e minus the
+        measured surface torque; the first call starts bumplessly from the observed drive speed.
+        The command is clipped to [0, max_speed] with anti-windup.
+
+        Parameters
+        ----------
+        t : float
+            Time, s (unused).
+        observation : mapping
+            Must hold ``surface_torque`` (N m); ``top_drive_angular_velocity`` (rad/s) is used at
+            the first call when present.
+        reference : mapping, optional
+            ``reference_angular_velocity`` (rad/s), the set-point when ``speed`` was not given.
+
+        Returns
+        -------
+        dict
+            ``{"top_drive_angular_velocity": rad/s}``.
+
+        Raises
+        ------
+        DownholeInputError
+            A non-finite surface torque, or no usable set-point.
+        """
         sp = self._set_point(reference)
         torque = float(observation["surface_torque"])
         if not math.isfinite(torque):
@@ -288,7 +381,18 @@ class SoftSpeed(TopDriveSpeedPI):
         super().__init__(kp, ki, inertia, speed=speed, max_speed=max_speed, dt=dt)
 
     def reflection(self, omega: float | None = None) -> complex:
-        """Reflection coefficient of the tuned drive at ``omega`` (default: w_s)."""
+        """Reflection coefficient of the tuned drive at ``omega`` (default: w_s).
+
+        Parameters
+        ----------
+        omega : float, optional
+            Angular frequency, rad/s (default: the tuned stick-slip frequency w_s).
+
+        Returns
+        -------
+        complex
+            :func:`reflection_coefficient` against the top pipe's impedance.
+        """
         return reflection_coefficient(self.pipe_impedance, self.kp, self.ki, self.inertia,
                                       self.frequency if omega is None else omega)
 

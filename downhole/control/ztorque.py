@@ -27,7 +27,18 @@ __all__ = ["ZTorque", "torsional_impedance"]
 
 
 def torsional_impedance(section) -> float:
-    """Characteristic torsional impedance J sqrt(rho G) of a pipe section, N m s/rad."""
+    """Characteristic torsional impedance J sqrt(rho G) of a pipe section, N m s/rad.
+
+    Parameters
+    ----------
+    section : PipeSection
+        The pipe's cross-section and material.
+
+    Returns
+    -------
+    float
+        The impedance, N m s/rad.
+    """
     return float(section.torsional_impedance)
 
 
@@ -81,6 +92,30 @@ class ZTorque(Controller):
 
     def command(self, t: float, observation: Mapping[str, float],
                 reference: Mapping[str, float] | None = None) -> dict:
+        """One controller step: the impedance-matching top-drive speed command.
+
+        ``w = w_sp - gain (T - T_mean) / Z`` with T_mean a first-order low-pass (time constant
+        ``tau``) of the surface torque, clipped to [0, 2 |w_sp|].
+
+        Parameters
+        ----------
+        t : float
+            Time, s (unused).
+        observation : mapping
+            Must hold ``surface_torque``, N m.
+        reference : mapping, optional
+            ``reference_angular_velocity`` (rad/s), the set-point when ``speed`` was not given.
+
+        Returns
+        -------
+        dict
+            ``{"top_drive_angular_velocity": rad/s}``.
+
+        Raises
+        ------
+        DownholeInputError
+            If no set-point is available.
+        """
         torque = float(observation["surface_torque"])
         if self.speed is not None:
             sp = self.speed

@@ -16,8 +16,27 @@ __all__ = ["NULL", "read_las", "write_las"]
 
 
 def read_las(path: str | os.PathLike):
-    """Read a time-indexed LAS file written by :func:`write_las` back into a Result (curves of
-    declared signals written in other units, e.g. oilfield, are converted back to SI)."""
+    """Read a time-indexed LAS file written by :func:`write_las` back into a Result.
+
+    Curves of declared signals written in other units (e.g. oilfield) are converted back to SI;
+    the run's metadata (e.g. ``bit_radius``, back in m) is restored as attributes.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        LAS file.
+
+    Returns
+    -------
+    Result
+        Channels in SI, with attribute ``source`` = ``path``.
+
+    Raises
+    ------
+    DownholeInputError
+        If the first curve is not the TIME index, or a curve's unit does not convert to its
+        signal's SI unit.
+    """
     import lasio
 
     from downhole.sim.result import Result

@@ -17,6 +17,15 @@ class TwelfthOrderSplit(BaseModel):
     Defaults are the split of docs/seed-errata.md, which matches the 4th-order model within 2-4 %
     below half the first natural frequency: mass shares 0.02/0.08/0.90 and compliance shares
     (servo : spring 1 : spring 2) = 0.02 : 0.58 : 0.40 of 1/K_a (and 1/K_t).
+
+    Parameters
+    ----------
+    mass_shares : (float, float, float)
+        Shares of the mass and inertia of the three bodies, top first (positive, sum 1).
+    compliance_shares : (float, float, float)
+        Shares of the compliance 1/K of the servo and the two springs (positive, sum 1).
+    servo_damping_ratio : float
+        Damping ratio of the top (servo) stage (dimensionless, default 0.7).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -26,6 +35,19 @@ class TwelfthOrderSplit(BaseModel):
     servo_damping_ratio: float = Field(0.7, ge=0)
 
     def model_post_init(self, __context) -> None:
+        """Pydantic hook run after field validation: check the shares.
+
+        Parameters
+        ----------
+        __context : object
+            Pydantic's validation context (unused).
+
+        Raises
+        ------
+        ValueError
+            If ``mass_shares`` or ``compliance_shares`` are not three positive numbers summing to 1
+            (pydantic reports it as a validation error).
+        """
         for name in ("mass_shares", "compliance_shares"):
             vals = getattr(self, name)
             if any(v <= 0 for v in vals) or abs(sum(vals) - 1.0) > 1e-9:

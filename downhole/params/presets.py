@@ -20,6 +20,20 @@ class Preset:
 
     ``kind`` tells which model family the string parameters belong to: ``"lumped"`` (Ch. 2),
     ``"neutral"`` (Ch. 3) or ``"directional"`` (Ch. 4/5).
+
+    Attributes
+    ----------
+    name : str
+        Preset name (a key of :data:`PRESETS`).
+    kind : {"lumped", "neutral", "directional"}
+        Model family.
+    description : str
+        One line.
+    string : pydantic.BaseModel
+        The string parameters (:class:`LumpedParams`, :class:`NeutralStringParams` or
+        :class:`DirectionalWellParams`).
+    bit : BitParams
+        The bit.
     """
 
     name: str
@@ -97,7 +111,22 @@ _add(Preset(
 
 
 def get_preset(name: str) -> Preset:
-    """Return the preset called ``name``; raises ``KeyError`` listing the known names."""
+    """Return the preset called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`PRESETS` (e.g. ``"table_2_1"``).
+
+    Returns
+    -------
+    Preset
+
+    Raises
+    ------
+    KeyError
+        If ``name`` is unknown (the message lists the known names).
+    """
     try:
         return PRESETS[name]
     except KeyError:

@@ -107,7 +107,18 @@ class TopDrive:
             raise DownholeInputError(f"top drive speed must be finite, got {self.speed!r}")
 
     def command(self, t):
-        """Set-point (rad/s, or N m in torque mode) at times ``t`` (array)."""
+        """Set-point at times ``t``: ``speed``, ramped up from 0 over ``ramp_time`` if > 0.
+
+        Parameters
+        ----------
+        t : array_like
+            Times, s.
+
+        Returns
+        -------
+        ndarray
+            Set-point shaped like ``t``: rad/s, or N m in torque mode.
+        """
         import numpy as np
 
         t = np.asarray(t, float)

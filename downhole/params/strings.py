@@ -13,7 +13,23 @@ __all__ = ["DirectionalWellParams", "NeutralStringParams", "PipeSection"]
 
 
 class PipeSection(BaseModel):
-    """A uniform tubular: geometry and material, SI units."""
+    """A uniform tubular: geometry and material, SI units.
+
+    Parameters
+    ----------
+    outer_diameter : float
+        Outer diameter, m (> 0).
+    inner_diameter : float
+        Inner diameter, m (>= 0, smaller than the outer diameter).
+    young_modulus : float
+        Young's modulus E, Pa (default 2.11e11).
+    shear_modulus : float
+        Shear modulus G, Pa (default 7.93e10).
+    density : float
+        Density rho of the material, kg/m^3 (default 7850).
+
+    Values may be given as quantity strings (``"5 in"``); they are stored in SI.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -24,6 +40,18 @@ class PipeSection(BaseModel):
     density: Q["density"] = Field(7850.0, gt=0)
 
     def model_post_init(self, __context) -> None:
+        """Pydantic hook run after field validation: check the diameters.
+
+        Parameters
+        ----------
+        __context : object
+            Pydantic's validation context (unused).
+
+        Raises
+        ------
+        ValueError
+            If the inner diameter is not smaller than the outer diameter.
+        """
         if self.inner_diameter >= self.outer_diameter:
             raise ValueError(
                 f"inner_diameter ({self.inner_diameter} m) must be smaller than "
@@ -65,6 +93,25 @@ class NeutralStringParams(BaseModel):
 
     Table 3.1 prints G in N s/m and J in kg m^2; J is the polar moment of area in m^4
     (1.9085e-5 from the diameters). Table 3.1 omits the friction coefficient; mu = 0.7 works.
+
+    Parameters
+    ----------
+    length : float
+        String length L, m.
+    pipe : PipeSection
+        The pipe.
+    alpha_axial : float
+        Axial top damper alpha_A to the commanded velocity (Eq. 3.5), N s/m.
+    alpha_torsional : float
+        Torsional top damper alpha_T, N m s/rad.
+    string_mass : float
+        String mass M_S, kg.
+    bit_mass : float
+        Bit (bottom-hole) mass M_B, kg.
+    bit_inertia : float
+        Bit (bottom-hole) moment of inertia, kg m^2.
+    g : float
+        Gravity, m/s^2.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -86,6 +133,35 @@ class DirectionalWellParams(BaseModel):
     radius R_C and angle theta_CD. Table 5.1's J = 1.72e-5 m^4 is replaced by the polar moment of
     the given diameters (1.909e-5 m^4); the seed leaves the top-drive inertia and PI gains out:
     J_td = 500 kg m^2, Kp = 1e4 N m s/rad, Ki = 2e3 N m/rad reproduce its stick-slip.
+
+    Parameters
+    ----------
+    pipe : PipeSection
+        The pipe (E = 210 GPa, G = 80.8 GPa by default).
+    length_ab, length_bc : float
+        Lengths of the sections AB and BC, m.
+    arc_radius_cd : float
+        Radius R_C of the arc CD, m.
+    arc_angle_cd : float
+        Angle theta_CD of the arc CD, rad.
+    rayleigh_alpha, rayleigh_beta : float
+        Rayleigh damping C = alpha M + beta K: alpha in 1/s, beta in s.
+    wellbore_stiffness : float
+        Wellbore contact stiffness of Table 5.1, N/m (kept with the table; the soft-string
+        contact model does not use it).
+    wellbore_friction : float
+        Wellbore friction coefficient mu (dimensionless).
+    wellbore_radius : float
+        Wellbore radius of Table 5.1, m (kept with the table; the soft-string contact model
+        does not use it).
+    top_drive_inertia : float
+        Top-drive inertia J_td, kg m^2.
+    top_drive_kp : float
+        Top-drive PI proportional gain, N m s/rad.
+    top_drive_ki : float
+        Top-drive PI integral gain, N m/rad.
+    g : float
+        Gravity, m/s^2.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)

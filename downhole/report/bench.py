@@ -20,10 +20,23 @@ def _ratio(v) -> str:
 
 
 def bench_markdown(report: dict, source: str = "bench.json") -> str:
-    """Markdown of a ``downhole bench`` report: one row per case with downhole's seconds, the
-    seed's published seconds, the ratio to the seed and to the in-run baseline, and the machine.
+    """Markdown of a ``downhole bench`` report.
 
-    Ratios are "times faster": seed_seconds / seconds and baseline_seconds / seconds.
+    One row per case with downhole's seconds, the seed's published seconds, the ratio to the
+    seed and to the in-run baseline, and the machine. Ratios are "times faster":
+    seed_seconds / seconds and baseline_seconds / seconds.
+
+    Parameters
+    ----------
+    report : dict
+        The parsed ``bench.json`` (``machine``, ``run``, ``cases``).
+    source : str, optional
+        Name of the report file, quoted in the page (default ``"bench.json"``).
+
+    Returns
+    -------
+    str
+        The Markdown page (``docs/performance.md``).
     """
     m = report.get("machine", {})
     meta = report.get("run", {})

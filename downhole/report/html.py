@@ -141,7 +141,21 @@ def _experiment_html(exp, folder: Path) -> tuple[str, str]:
 
 def build_index(out_dir: str | Path, title: str = "downhole: reproduction of the dissertation"
                 ) -> Path:
-    """Write ``out_dir/index.html`` over every registered experiment (run or not) and return it."""
+    """Write ``out_dir/index.html`` over every registered experiment (run or not) and return it.
+
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+        Reproduction output folder (its ``reproduce.json`` and each experiment's folder are
+        read when present).
+    title : str, optional
+        Page title.
+
+    Returns
+    -------
+    pathlib.Path
+        The page written (atomically).
+    """
     from downhole import __version__
     from downhole.experiments import all_experiments
 

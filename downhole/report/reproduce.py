@@ -101,7 +101,30 @@ def _publish(stage_parent: Path, out_dir: Path, eid: str) -> None:
 def run_one(eid: str, out_dir: str | Path, quick: bool) -> dict:
     """Run experiment ``eid`` into ``out_dir/eid``; never raises for the experiment's own errors.
 
-    Returns the claim dict (as written to ``claim.json``) plus ``seconds``.
+    The run happens in a staging folder that replaces ``out_dir/eid`` when done; stdout and
+    stderr go to ``run.log``, a failure's traceback to ``error.log``.
+
+    Parameters
+    ----------
+    eid : str
+        Experiment id.
+    out_dir : str or pathlib.Path
+        Output folder of the reproduction.
+    quick : bool
+        Run the experiment's quick variant.
+
+    Returns
+    -------
+    dict
+        The claim dict (as written to ``claim.json``: ``id``, ``claim``, ``measured``,
+        ``passed``, ...) plus ``seconds`` (wall time, s), ``quick`` and, on failure, ``error``.
+
+    Raises
+    ------
+    DownholeInputError
+        If ``out_dir/eid`` exists and is not an experiment folder of a reproduction.
+    KeyboardInterrupt
+        Passed through.
     """
     os.environ.setdefault("MPLBACKEND", "Agg")
     from downhole.experiments import get_experiment, run_experiment
@@ -170,8 +193,37 @@ def reproduce(ids: list[str], out_dir: str | Path, quick: bool = False, jobs: in
               on_start: Callable[[str], None] | None = None) -> dict:
     """Run ``ids`` into ``out_dir`` with ``jobs`` worker processes and write ``index.html``.
 
-    Experiments known to be long (from an earlier run's ``claim.json``) start first. Returns the
-    run summary (also written to ``out_dir/reproduce.json``).
+    Experiments known to be long (from an earlier run's ``claim.json``) start first; experiments
+    whose claim is about speed (:func:`is_timing`) run alone after the others.
+
+    Parameters
+    ----------
+    ids : list of str
+        Experiment ids.
+    out_dir : str or pathlib.Path
+        Output folder.
+    quick : bool, optional
+        Run the quick variants (default False).
+    jobs : int, optional
+        Worker processes (default: the number of cores; 1 runs in this process).
+    progress : callable(eid, claim), optional
+        Called as each experiment finishes.
+    on_start : callable(eid), optional
+        Called before each experiment starts (only with ``jobs = 1``).
+
+    Returns
+    -------
+    dict
+        The run summary (also written to ``out_dir/reproduce.json``): ``passed``, ``failed``,
+        ``errors``, ``seconds`` per experiment, ``wall_seconds``, ``machine``, ...
+
+    Raises
+    ------
+    KeyError
+        An unknown experiment id (before anything runs).
+    DownholeInputError
+        An output folder that may not be written (before anything runs), or a script without
+        the ``if __name__ == "__main__"`` guard when ``jobs > 1``.
     """
     from downhole.experiments import get_experiment
     from downhole.report.html import build_index
@@ -272,7 +324,17 @@ _TIMING = re.compile(r"computation(al)? (time|expense)|training time|\bfaster\b|
 
 
 def is_timing(exp) -> bool:
-    """True for experiments whose claim is about speed (run alone, not beside other jobs)."""
+    """True for experiments whose claim is about speed (run alone, not beside other jobs).
+
+    Parameters
+    ----------
+    exp : Experiment
+        A registered experiment (its ``title`` and ``claim`` are searched).
+
+    Returns
+    -------
+    bool
+    """
     return bool(_TIMING.search(exp.title) or _TIMING.search(exp.claim))
 
 

@@ -130,10 +130,22 @@ UNIT_SYSTEMS = _named_systems()
 
 
 def display_units(system="metric") -> dict:
-    """``{quantity: {"unit": label, "pint": unit, "factor": f}}`` of a unit system (a name of
-    :data:`UNIT_SYSTEMS`, a mapping quantity -> pint unit, or a
-    :class:`downhole.units.UnitSystem`): a value in SI times ``factor`` is the value in the
-    display unit (factors from pint, downhole's registry).
+    """Display units of the dashboard's quantities in a unit system.
+
+    A value in SI times ``factor`` is the value in the display unit (factors from pint,
+    downhole's registry).
+
+    Parameters
+    ----------
+    system : str, dict or UnitSystem, optional
+        A name of :data:`UNIT_SYSTEMS` (default ``"metric"``), a mapping quantity -> pint unit
+        (quantities ``rotary_speed``, ``torque``, ``force``, ``rop``, ``depth``), or a
+        :class:`downhole.units.UnitSystem`.
+
+    Returns
+    -------
+    dict
+        ``{quantity: {"unit": label, "pint": unit, "factor": f}}``.
 
     Raises
     ------
@@ -171,8 +183,21 @@ def rolling_severity(omega, window_rows: int, context: int = 0):
 
     Row ``i`` gets the severity of ``omega[max(0, i - window_rows + 1) : i + 1]`` (the same
     formula as :func:`downhole.analysis.metrics.stick_slip_severity`), NaN where that mean is
-    not positive. The first ``context`` rows only serve as history: the result has
-    ``len(omega) - context`` rows.
+    not positive. The first ``context`` rows only serve as history.
+
+    Parameters
+    ----------
+    omega : array_like, shape (n,)
+        Bit angular velocity samples, rad/s.
+    window_rows : int
+        Window length in samples (at least 1 is used).
+    context : int, optional
+        Number of leading rows that are history only (default 0).
+
+    Returns
+    -------
+    ndarray, shape (n - context,)
+        Severity (dimensionless) per row.
     """
     import numpy as np
     from scipy.ndimage import maximum_filter1d, minimum_filter1d
@@ -201,7 +226,17 @@ _SECURITY_HEADERS = [(b"x-frame-options", b"DENY"),
 
 
 def is_loopback(host: str) -> bool:
-    """True for 127.0.0.0/8, ::1 and ``localhost``."""
+    """True for 127.0.0.0/8, ::1 and ``localhost``.
+
+    Parameters
+    ----------
+    host : str
+        Host name or IP address (IPv6 optionally in brackets).
+
+    Returns
+    -------
+    bool
+    """
     if host == "localhost":
         return True
     try:
@@ -279,6 +314,7 @@ class DashboardSession:
     Parameters
     ----------
     runner : RealTimeRunner
+        The SIL runner to drive.
     duration : float, optional
         Simulated seconds of the whole run (None: until stopped).
     controllers : dict, optional
@@ -406,11 +442,18 @@ class DashboardSession:
 
     # ------------------------------------------------------------------ operator actions
     def select_controller(self, name: str) -> None:
-        """``"off"``: controller off (the open-loop driller set-points drive the plant);
-        another name of :attr:`controllers`: build it, switch the runner to it
+        """Switch the controller the operator chose, or turn it off.
+
+        ``"off"``: controller off (the open-loop driller set-points drive the plant); another name
+        of :attr:`controllers`: build it, switch the runner to it
         (:meth:`~downhole.sil.runtime.RealTimeRunner.switch_controller`, at the next step) and
         turn it on. A controller that sets only some commands is completed by the manual
         command (:class:`~downhole.sil.controllers.ManualFill`).
+
+        Parameters
+        ----------
+        name : str
+            ``"off"`` or a key of :attr:`controllers`.
 
         Raises
         ------
@@ -436,9 +479,26 @@ class DashboardSession:
 
     def set_setpoints(self, surface_speed: float | None = None, wob: float | None = None,
                       rop: float | None = None, limits: dict | None = None) -> dict:
-        """Apply driller set-points (SI: rad/s, N, m/s; None leaves one as it is): the
-        reference and the open-loop command (module docstring). Everything is checked
-        before anything is applied.
+        """Apply driller set-points: the reference and the open-loop command (module docstring).
+
+        Everything is checked before anything is applied.
+
+        Parameters
+        ----------
+        surface_speed : float, optional
+            Surface rotary speed, rad/s (None: unchanged).
+        wob : float, optional
+            Weight on bit, N, >= 0 (None: unchanged).
+        rop : float, optional
+            Rate of penetration, m/s (None: unchanged).
+        limits : dict, optional
+            ``{"axial": (lo, hi), "angular": (lo, hi)}`` in m/s and rad/s
+            (default :data:`DEFAULT_REFERENCE_LIMITS`).
+
+        Returns
+        -------
+        dict
+            The current set-points ``{"surface_speed", "wob", "rop"}``, SI.
 
         Raises
         ------
@@ -522,9 +582,25 @@ class DashboardSession:
         return out
 
     def trend(self, since: int, max_points: int = 4000) -> tuple[dict, int]:
-        """The recorded rows from row number ``since`` on (rows overwritten in the ring are
-        skipped), thinned to at most ``max_points``, as ``{channel: [values]}`` (SI; NaN as
-        None) with ``stick_slip_severity``; and the row number to ask from next time."""
+        """The recorded rows from row number ``since`` on, for the page's trend plots.
+
+        Rows overwritten in the ring are skipped; the rows are thinned to at most ``max_points``.
+
+        Parameters
+        ----------
+        since : int
+            First row number wanted (the value returned by the previous call; 0 at first).
+        max_points : int, optional
+            Most rows returned (default 4000).
+
+        Returns
+        -------
+        data : dict
+            ``{channel: [values]}`` (SI; NaN as None) with ``stick_slip_severity``; empty when there
+            is nothing new.
+        next : int
+            The row number to ask from next time.
+        """
         import numpy as np
 
         rec = self.runner.recorder
@@ -715,6 +791,7 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
     Parameters
     ----------
     session : DashboardSession
+        The session the page controls and watches.
     token : str, optional
         Required on every request when set.
     publish_hz : float
@@ -736,6 +813,17 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
         pint unit (:func:`display_units`).
     max_points : int
         Rows of trend sent at most at once (the history sent to a page that connects).
+
+    Returns
+    -------
+    fastapi.FastAPI
+        The application (serve it with uvicorn; :func:`serve_dashboard` does).
+
+    Raises
+    ------
+    DownholeInputError
+        A malformed token, reference limits that are not finite ``(lo, hi)`` with lo < hi, an
+        unknown unit system, or ``max_points`` < 2.
     """
     from fastapi import FastAPI, HTTPException, Request, WebSocket, WebSocketDisconnect
     from fastapi.responses import HTMLResponse, JSONResponse, Response
@@ -888,6 +976,13 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
 def check_dashboard_settings(host: str, token: str | None) -> None:
     """Refuse settings the dashboard will not serve with (called before a run starts).
 
+    Parameters
+    ----------
+    host : str
+        Address the server binds.
+    token : str or None
+        Access token required on every request, or None.
+
     Raises
     ------
     DownholeInputError
@@ -925,21 +1020,58 @@ def serve_dashboard(runner, host: str = "127.0.0.1", port: int = 8765,
                     units="metric", controllers: dict | None = None,
                     controller_name: str | None = None, on_run_start=None,
                     on_run_end=None) -> DashboardSession:
-    """Serve the dashboard (blocking) until Ctrl-C or, with ``exit_after_run`` and a
-    ``duration``, the run's end.
+    """Serve the dashboard (blocking) until Ctrl-C or, with ``exit_after_run``, the run's end.
 
-    Parameters are those of :func:`make_app` and :class:`DashboardSession`; ``token_source``
-    (a file path or a scenario field) is printed instead of the token, of which at most a
-    4-character prefix is shown. ``autostart`` starts the run at once (False: it waits for
-    the operator's Start on the page); ``on_run_start()`` is called when the run starts the
-    first time (:class:`DashboardSession` ``on_start``), ``on_run_end()`` (in a thread) when
-    it has used up its duration. Returns the session.
+    ``token_source`` is printed instead of the token, of which at most a 4-character prefix is
+    shown.
+
+    Parameters
+    ----------
+    runner : RealTimeRunner
+        The SIL runner to drive.
+    host : str, optional
+        Address to bind (default ``"127.0.0.1"``).
+    port : int, optional
+        TCP port (default 8765; 0: any free port).
+    token : str, optional
+        Access token required on every request.
+    duration : float, optional
+        Simulated seconds of the whole run, s (None: until stopped).
+    publish_hz : float, optional
+        WebSocket updates per second, Hz (default 20).
+    autostart : bool, optional
+        Start the run at once (default); False: it waits for the operator's Start on the page.
+    allowed_hosts, allowed_origins : iterable of str, optional
+        Extra Host names and origins, as :func:`make_app`.
+    token_source : str, optional
+        Where the token came from (a file path or a scenario field), printed instead of it.
+    reference_limits : dict, optional
+        ``{"axial": (lo, hi), "angular": (lo, hi)}`` in m/s and rad/s, as :func:`make_app`.
+    exit_after_run : bool, optional
+        Stop serving when the run has used up its ``duration`` (default True).
+    units : str, dict or UnitSystem, optional
+        Display unit system (default ``"metric"``), as :func:`display_units`.
+    controllers : dict, optional
+        ``{name: (label, factory)}``, as :class:`DashboardSession`.
+    controller_name : str, optional
+        Name of the runner's controller among ``controllers``.
+    on_run_start : callable, optional
+        Called without arguments when the run starts the first time
+        (:class:`DashboardSession` ``on_start``).
+    on_run_end : callable, optional
+        Called without arguments (in a thread) when the run has used up its duration.
+
+    Returns
+    -------
+    DashboardSession
+        The session, after the server has stopped.
 
     Raises
     ------
     DownholeInputError
         ``host`` is not a loopback address and no ``token`` (of at least
-        :data:`MIN_REMOTE_TOKEN` characters) is given.
+        :data:`MIN_REMOTE_TOKEN` characters) is given, or other settings :func:`make_app`
+        refuses.
     """
     import uvicorn
 

@@ -98,13 +98,27 @@ def _build(out: Path, resources: Callable[[Path], list], units=None) -> Path:
 
 
 def export_fmu(scenario, out="plant.fmu", *, units=None) -> Path:
-    """Build ``out`` (an ``.fmu``) from a SIL scenario file (validated first); ``units``: the
-    display unit system of its variables (``"oilfield"``, ``docs/units.md``; values stay SI).
+    """Build ``out`` (an ``.fmu``) from a SIL scenario file (validated first).
 
     The plant is the scenario's ``[plant]`` (``model`` selects the fidelity: ``lumped`` with
     ``order = 4 | 12``, ``fem``, ``hybrid24 | hybrid68 | hybrid108``); for a plant built in
     Python (e.g. any fidelity of a :class:`~downhole.system.DrillingSystem`) use
     :func:`export_plant_fmu`.
+
+    Parameters
+    ----------
+    scenario : str or os.PathLike
+        SIL scenario TOML file (copied into the FMU's resources).
+    out : str or os.PathLike, optional
+        FMU file to write (default ``"plant.fmu"``); must end in ``.fmu``.
+    units : str or UnitSystem, optional
+        Display unit system of the FMU's variables (``"oilfield"``, ``docs/units.md``); values
+        stay SI.
+
+    Returns
+    -------
+    pathlib.Path
+        The FMU written.
 
     Raises
     ------
@@ -232,15 +246,38 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
 
 def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: float = 10.0,
                  rop: float = 0.0, depth_of_cut: str = "delayed", integrator: str = "newmark"):
-    """The velocity-driven plant of ``model`` (``system.build(fidelity)``) that
-    :func:`export_system_fmu` wraps: commands ``top_drive_axial_velocity`` (m/s) and
-    ``top_drive_angular_velocity`` (rad/s) at every fidelity.
+    """The velocity-driven plant of ``model`` that :func:`export_system_fmu` wraps.
 
-    ``lumped4`` / ``lumped12``: :class:`~downhole.sim.LumpedPlant` (velocity-driven top, the
-    given ``integrator``); ``neutral``: :class:`~downhole.string.neutral.NeutralPlant`;
-    ``fem`` / ``hybrid``: :class:`~downhole.string.fem.DirectionalPlant` with the rig's PI top
-    drive (``surface_speed`` its default set-point) and a velocity-servo hook (block velocity
-    ``rop``).
+    Commands ``top_drive_axial_velocity`` (m/s) and ``top_drive_angular_velocity`` (rad/s) at
+    every fidelity. ``lumped4`` / ``lumped12``: :class:`~downhole.sim.LumpedPlant`
+    (velocity-driven top, the given ``integrator``); ``neutral``:
+    :class:`~downhole.string.neutral.NeutralPlant`; ``fem`` / ``hybrid``:
+    :class:`~downhole.string.fem.DirectionalPlant` with the rig's PI top drive
+    (``surface_speed`` its default set-point) and a velocity-servo hook (block velocity ``rop``).
+
+    Parameters
+    ----------
+    system : DrillingSystem
+        The described system (its rig's top drive and hook are used for ``fem`` / ``hybrid``).
+    model : object
+        ``system.build(fidelity)``.
+    fidelity : str
+        ``"lumped4"``, ``"lumped12"``, ``"neutral"``, ``"fem"`` or ``"hybrid"``.
+    dt : float
+        Plant step, s.
+    surface_speed : float, optional
+        Top-drive speed set-point of the PI drive, rad/s (default 10; fem/hybrid only).
+    rop : float, optional
+        Hook block velocity, m/s (default 0; fem/hybrid only).
+    depth_of_cut : {"delayed", "approximate"}, optional
+        Depth-of-cut model (default ``"delayed"``).
+    integrator : {"newmark", "euler"}, optional
+        Integrator of the lumped plants (default ``"newmark"``).
+
+    Returns
+    -------
+    Plant
+        A plant of the :class:`~downhole.sim.plant.Plant` contract.
     """
     if fidelity in ("lumped4", "lumped12"):
         from downhole.sim import LumpedPlant
@@ -264,11 +301,29 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
 
 def export_system_fmu(scenario, out="plant.fmu", *, fidelity: str | None = None,
                       units=None) -> Path:
-    """Build ``out`` from a scenario that describes the system (``[model] fidelity``) at
-    ``fidelity`` (default: the file's): the plant of :func:`system_plant` with the scenario's
+    """Build ``out`` from a scenario that describes the system (``[model] fidelity``).
+
+    At ``fidelity`` (default: the file's): the plant of :func:`system_plant` with the scenario's
     ``[simulation] dt`` (default: the fidelity's), ``depth_of_cut``, ``integrator`` and
     ``start``; the inputs start at the scenario's set-points (``[operation] rop`` or the ROP of
     the steady bit state at ``wob``, and ``surface_speed``).
+
+    Parameters
+    ----------
+    scenario : str or os.PathLike
+        System scenario TOML file.
+    out : str or os.PathLike, optional
+        FMU file to write (default ``"plant.fmu"``); must end in ``.fmu``.
+    units : str or UnitSystem, optional
+        Display unit system of the FMU's variables (``"oilfield"``, ``docs/units.md``); values
+        stay SI.
+    fidelity : str, optional
+        Fidelity to export (default: the scenario's ``[model] fidelity``).
+
+    Returns
+    -------
+    pathlib.Path
+        The FMU written.
 
     Raises
     ------
@@ -296,7 +351,29 @@ def export_system_fmu(scenario, out="plant.fmu", *, fidelity: str | None = None,
 
 def simulate_fmu(fmu, stop_time: float, step_size: float, start_values: dict | None = None
                  ) -> Result:
-    """Run ``fmu`` open loop with FMPy (co-simulation) and return the outputs as a Result."""
+    """Run ``fmu`` open loop with FMPy (co-simulation) and return the outputs as a Result.
+
+    Parameters
+    ----------
+    fmu : str or os.PathLike
+        FMI 2.0 co-simulation FMU.
+    stop_time : float
+        Simulated time, s.
+    step_size : float
+        Output interval (communication step), s.
+    start_values : dict, optional
+        Variable name -> start value (e.g. ``command_<name>`` inputs, SI).
+
+    Returns
+    -------
+    Result
+        The FMU's outputs over time (attrs ``runner``, ``fmu`` and exported constants such as
+        ``bit_radius``).
+
+    Notes
+    -----
+    FMPy's own errors pass through (e.g. for a missing or invalid FMU).
+    """
     import fmpy
 
     rec = fmpy.simulate_fmu(str(fmu), stop_time=stop_time, output_interval=step_size,
@@ -335,8 +412,18 @@ def _model_description(fmu: Path):
 
 
 def fmu_signals(fmu) -> dict:
-    """The signals an FMU exchanges: ``{"commands": {name: start}, "observations": [names],
-    "step_size": default step or None}``; commands are the inputs ``command_<name>``.
+    """The signals an FMU exchanges.
+
+    Parameters
+    ----------
+    fmu : str or os.PathLike
+        FMU file.
+
+    Returns
+    -------
+    dict
+        ``{"commands": {name: start}, "observations": [names], "step_size": default step (s)
+        or None}``; commands are the inputs ``command_<name>`` without the prefix.
 
     Raises
     ------

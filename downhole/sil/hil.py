@@ -43,9 +43,18 @@ class HILStringPlant:
     dt : float
         Step, s.
     coupling : (k_a, c_a, k_t, c_t)
+        Stiffnesses and dampers coupling the last node to the rig's bit: N/m, N s/m, N m/rad,
+        N m s/rad.
     top_drive_inertia : float
-        kg m^2.
+        Top-drive inertia, kg m^2.
 
+    Raises
+    ------
+    DownholeInputError
+        If ``dt`` is not positive.
+
+    Notes
+    -----
     Commands: ``slack_off_force`` (N), ``surface_torque`` (N m), ``bit_axial_velocity`` (m/s),
     ``bit_angular_velocity`` (rad/s; the last two from the rig).
     """
@@ -92,6 +101,32 @@ class HILStringPlant:
                 "top_drive_angular_velocity": float(z[n2 + 1])}
 
     def step(self, command: dict) -> dict:
+        """Advance the string one ``dt`` with the surface commands and the rig's bit velocities.
+
+        The coupling force and torque between the last node and the rig's bit (springs and dampers
+        ``coupling``) act on the last node; the rig's bit position and angle are integrated from
+        its velocities.
+
+        Parameters
+        ----------
+        command : dict
+            ``slack_off_force`` (N), ``surface_torque`` (N m), ``bit_axial_velocity`` (m/s) and
+            ``bit_angular_velocity`` (rad/s).
+
+        Returns
+        -------
+        dict
+            The observation: ``time`` (s), last-node and bit velocities (m/s, rad/s), ``wob`` (N)
+            and ``tob`` (N m) (the coupling loads), ``hook_load`` (N), ``surface_torque`` (N m) and
+            the top-drive velocities (m/s, rad/s).
+
+        Raises
+        ------
+        DownholeInputError
+            If a command is missing.
+        SimulationDiverged
+            If the string state is no longer finite.
+        """
         try:
             s, tq, vb, wb = (float(command[k]) for k in self.command_names)
         except KeyError as exc:
@@ -157,6 +192,7 @@ class SoftwareRig:
     Parameters
     ----------
     bit : BitParams
+        The rig's bit and rock.
     dt : float
         Step, s (the plant's).
     mass, inertia : float
@@ -178,7 +214,23 @@ class SoftwareRig:
         self.st = np.zeros(6)
 
     def command(self, t, observation, reference=None) -> dict:
-        """Bit velocities answering the string's last-node velocities (one step)."""
+        """Bit velocities answering the string's last-node velocities (one step).
+
+        Parameters
+        ----------
+        t : float
+            Time, s (unused).
+        observation : mapping
+            ``last_node_axial_velocity`` (m/s) and ``last_node_angular_velocity`` (rad/s).
+        reference : mapping, optional
+            Unused (controller signature).
+
+        Returns
+        -------
+        dict
+            ``bit_axial_velocity`` (m/s) and ``bit_angular_velocity`` (rad/s) of the rig's bit
+            after the step.
+        """
         _rig_step(self.st, float(observation["last_node_axial_velocity"]),
                   float(observation["last_node_angular_velocity"]), self.dt, self.par,
                   self.bitp)
@@ -190,8 +242,35 @@ def build_hil_plant(model: str = "hybrid68", *, dt: float = 1e-3, wob: float = 1
                     surface_torque: float = 15e3, coupling=COUPLING):
     """A :class:`~downhole.sil.plants.SilPlant` over :class:`HILStringPlant` (HIL mode).
 
-    Default (open-loop) command: slack-off ``wob`` N and ``surface_torque`` N m; safe: both 0.
-    The rig's bit velocities are merged in by the runtime."""
+    Default (open-loop) command: slack-off ``wob`` and ``surface_torque``; safe: both 0. The
+    rig's bit velocities are merged in by the runtime.
+
+    Parameters
+    ----------
+    model : str, optional
+        A hybrid preset name (default ``"hybrid68"``); any other name gives the default FEM
+        string.
+    dt : float, optional
+        Step, s (default 1e-3).
+    wob : float, optional
+        Open-loop slack-off force, N (default 120e3).
+    surface_torque : float, optional
+        Open-loop surface torque, N m (default 15e3).
+    coupling : (k_a, c_a, k_t, c_t), optional
+        Coupling stiffnesses and dampers between the last node and the rig's bit: N/m,
+        N s/m, N m/rad, N m s/rad (must equal the rig's).
+
+    Returns
+    -------
+    SilPlant
+        Commands ``slack_off_force`` and ``surface_torque``; ``bit_axial_velocity`` and
+        ``bit_angular_velocity`` pass through from the rig.
+
+    Raises
+    ------
+    DownholeInputError
+        If ``dt`` is not positive or a command is outside its admissible range.
+    """
     from downhole.sil.plants import SilPlant
     from downhole.string.fem import fem_model
     from downhole.string.hybrid import HYBRID_PRESETS, hybrid_model

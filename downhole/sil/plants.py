@@ -83,14 +83,54 @@ REFERENCE_RANGES = {
 
 
 def check_range(name: str, value, ranges: dict) -> str | None:
-    """None when ``value`` is a finite number within ``ranges[name]``, else the reason."""
+    """None when ``value`` is a finite number within ``ranges[name]``, else the reason.
+
+    Parameters
+    ----------
+    name : str
+        Command or reference name (its unit, if declared in :mod:`downhole.signals`, is named
+        in the reason).
+    value : object
+        The value, in the signal's SI unit.
+    ranges : dict
+        ``{name: (low, high)}``, SI.
+
+    Returns
+    -------
+    str or None
+        A one-line reason, or None when admissible.
+
+    Raises
+    ------
+    KeyError
+        If ``name`` has no entry in ``ranges``.
+    """
     lo, hi = ranges[name]
     return range_reason(name, value, lo, hi, SIGNALS[name].unit if name in SIGNALS else "")
 
 
 def resolve_ranges(names, overrides: dict | None, what: str) -> dict:
-    """``{name: (low, high)}`` for ``names`` from :data:`COMMAND_RANGES` and ``overrides``;
-    a name without a range is an error naming ``what``."""
+    """``{name: (low, high)}`` for ``names`` from :data:`COMMAND_RANGES` and ``overrides``.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Command names.
+    overrides : dict or None
+        ``{name: (low, high)}`` (SI) replacing or adding to :data:`COMMAND_RANGES`.
+    what : str
+        What the names are (e.g. ``"commands"``), used in the error message.
+
+    Returns
+    -------
+    dict
+        ``{name: (low, high)}`` as floats, SI, for every name.
+
+    Raises
+    ------
+    DownholeInputError
+        If a name has no range (the message names ``what``).
+    """
     ranges = dict(COMMAND_RANGES)
     ranges.update(overrides or {})
     missing = [k for k in names if k not in ranges]
@@ -113,12 +153,16 @@ class SilPlant:
     plant : object
         ``reset() -> dict`` and ``step(command: dict) -> dict``, attribute ``dt``.
     command_names : sequence of str
+        Names of the commands the plant takes (signals of :mod:`downhole.signals`).
     default_command, safe_command : dict
         Open-loop command and the safe state (same keys as ``command_names``).
     name : str
         Description (for Result metadata).
     state_names : sequence of str, optional
         Names of the entries of a vector observation ``"state"`` (flattened into the layout).
+    info : dict, optional
+        Extra description (``model``, ``interface``, ...) kept as :attr:`info`; the plant's
+        bit radius is added as ``bit_radius`` (m) when known.
     command_ranges : dict, optional
         ``{name: (low, high)}`` overriding :data:`COMMAND_RANGES` (every command needs one).
 
@@ -188,8 +232,18 @@ class SilPlant:
         return out
 
     def check_command(self, command: dict) -> str | None:
-        """None when every command is present, finite and within :attr:`command_ranges`;
-        else the reason (the first offending signal)."""
+        """None when every command is present, finite and within :attr:`command_ranges`.
+
+        Parameters
+        ----------
+        command : dict
+            Command name -> value (SI).
+
+        Returns
+        -------
+        str or None
+            The reason for the first offending signal, or None when admissible.
+        """
         for k in self.command_names:
             if k not in command:
                 return f"{k} is missing"
@@ -211,13 +265,40 @@ class SilPlant:
         return self._last
 
     def reset(self, **start) -> dict:
-        """Reset the plant (``start``: ``start=``, ``set_point=``, ... of
-        :meth:`downhole.sim.plant.Plant.reset`; none: from rest)."""
+        """Reset the plant and return the first observation.
+
+        Parameters
+        ----------
+        **start
+            ``start=``, ``set_point=``, ... of :meth:`downhole.sim.plant.Plant.reset`; none: the
+            plant's :attr:`default_start` (empty: from rest).
+
+        Returns
+        -------
+        dict
+            The flattened observation, signal name -> value (SI).
+        """
         self._last = self._flatten(self.plant.reset(**(start or self.default_start)))
         return dict(self._last)
 
     def step(self, command: dict) -> dict:
-        """Advance one ``dt`` holding ``command`` (every command name required)."""
+        """Advance one ``dt`` holding ``command`` (every command name required).
+
+        Parameters
+        ----------
+        command : dict
+            Command name -> value (SI); extra :attr:`passthrough` names are handed on when present.
+
+        Returns
+        -------
+        dict
+            The flattened observation after the step (the plant's own dict; do not modify it).
+
+        Raises
+        ------
+        DownholeInputError
+            If a command name is missing.
+        """
         try:
             cmd = {k: float(command[k]) for k in self.command_names}
         except KeyError as exc:
@@ -230,7 +311,20 @@ class SilPlant:
         return self._last
 
     def vector(self, obs: dict | None = None, out: np.ndarray | None = None) -> np.ndarray:
-        """Observation values in layout order."""
+        """Observation values in layout order.
+
+        Parameters
+        ----------
+        obs : dict, optional
+            Flattened observation (default: the last one).
+        out : ndarray, optional
+            Array of length ``len(observation_names)`` to fill in place.
+
+        Returns
+        -------
+        ndarray
+            The values (SI) in the order of :attr:`observation_names`, NaN for missing ones.
+        """
         obs = self._last if obs is None else obs
         if out is None:
             out = np.empty(len(self.observation_names))
@@ -263,6 +357,7 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
     dt : float
         Step, s.
     depth_of_cut : {"delayed", "approximate"}
+        Depth-of-cut model (default ``"delayed"``).
     wob : float
         ``surface``: initial (static) weight on bit, N; the default hook load is the buoyed
         weight minus this.
@@ -270,6 +365,12 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         ``surface`` / ``lumped``: default top-drive speed set-point, rad/s.
     design : str
         ``state``: the hybrid preset whose design FEM the DHP controller was trained on.
+    n_elements : int
+        ``fem``: number of finite elements (default 23).
+    lumped_preset : str
+        ``lumped``: the lumped preset (default ``"table_2_1"``).
+    order : {4, 12}
+        ``lumped``: order of the lumped model (default 4).
     axial_velocity : float
         ``lumped``: default top-drive axial velocity, m/s.
     surface_torque : float
@@ -278,6 +379,11 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         ``state``: use this design model instead of building it from ``design``.
     bit : BitParams, optional
         The bit (default: the model's preset's, Tables 2.1, 3.1, 5.1).
+
+    Returns
+    -------
+    SilPlant
+        The plant with its command layout, open-loop (default) and safe commands.
 
     Raises
     ------

@@ -62,7 +62,15 @@ class RingRecorder:
             write_json_atomic(self.chunk_dir / "channels.json", list(self.channels), indent=None)
 
     def append(self, row: np.ndarray) -> None:
-        """Add one row (values in channel order); copies it."""
+        """Add one row (values in channel order); copies it.
+
+        A full chunk is written to disk (:meth:`flush`) when the recorder has a chunk folder.
+
+        Parameters
+        ----------
+        row : ndarray, shape (len(channels),)
+            One sample of every channel, SI.
+        """
         self.buf[self.count % self.capacity] = row
         self.count += 1
         if self.chunk_dir is not None:
@@ -104,7 +112,24 @@ class RingRecorder:
         return dict(zip(self.channels, self.buf[(self.count - 1) % self.capacity].tolist()))
 
     def to_result(self, units: dict | None = None, attrs: dict | None = None) -> Result:
-        """The rows in memory as a Result (``time`` channel as the time axis)."""
+        """The rows in memory as a Result (``time`` channel as the time axis).
+
+        Parameters
+        ----------
+        units : dict, optional
+            Units of channels not declared in :mod:`downhole.signals` (name -> pint unit string).
+        attrs : dict, optional
+            Metadata of the Result.
+
+        Returns
+        -------
+        Result
+
+        Raises
+        ------
+        ValueError
+            If there is no ``time`` channel.
+        """
         return _to_result(self.channels, self.rows(), units, attrs)
 
 
@@ -115,7 +140,27 @@ def _to_result(channels, data, units, attrs):
 
 
 def load_chunks(chunk_dir, units: dict | None = None, attrs: dict | None = None) -> Result:
-    """Reassemble the chunk files of a run into one Result."""
+    """Reassemble the chunk files of a run into one Result.
+
+    Parameters
+    ----------
+    chunk_dir : str or os.PathLike
+        Folder with ``channels.json`` and ``chunk_*.npz``.
+    units : dict, optional
+        Units of channels not declared in :mod:`downhole.signals` (name -> pint unit string).
+    attrs : dict, optional
+        Metadata of the Result; ``incomplete = 1`` is added when the folder is still
+        marked as being written.
+
+    Returns
+    -------
+    Result
+
+    Raises
+    ------
+    DownholeInputError
+        If the folder has no ``channels.json`` or no chunk files.
+    """
     import json
 
     chunk_dir = Path(chunk_dir)

@@ -114,6 +114,7 @@ class RealTimeRunner:
     Parameters
     ----------
     plant : SilPlant
+        The plant (its command layout, ranges and safe command).
     controller : object, optional
         In-process controller: ``reset()`` and ``command(t, observation, reference) -> dict``
         naming the plant's commands. In HIL mode it gives the surface commands.
@@ -140,7 +141,8 @@ class RealTimeRunner:
         Re-anchor the clock when more than this far behind, s.
     wait_fraction : float
         Fraction of ``dt`` to wait for a remote command after sending the observation.
-    safety : SafetyPolicy
+    safety : SafetyPolicy, optional
+        Controller-timeout action (default ``SafetyPolicy()``).
     controller_enabled : bool
         Start with the controller on (False: open-loop command).
     spin : float
@@ -255,14 +257,22 @@ class RealTimeRunner:
         raise DownholeInputError(why)
 
     def set_reference(self, axial: float | None = None, angular: float | None = None) -> None:
-        """Change the bit-velocity reference (m/s, rad/s) seen by the controller.
+        """Change the bit-velocity reference seen by the controller.
+
+        Parameters
+        ----------
+        axial : float, optional
+            Reference bit axial velocity, m/s (None: unchanged).
+        angular : float, optional
+            Reference bit angular velocity, rad/s (None: unchanged).
 
         Raises
         ------
         DownholeInputError
             A value that is not finite or outside
             :data:`~downhole.sil.plants.REFERENCE_RANGES` (counted as ``rejected_setpoints``;
-            the reference is unchanged)."""
+            the reference is unchanged).
+        """
         new = dict(self.reference)
         for k, v in (("axial", axial), ("angular", angular)):
             if v is None:
@@ -275,7 +285,14 @@ class RealTimeRunner:
         self._event("reference_change", f"axial={new['axial']:g} angular={new['angular']:g}")
 
     def set_controller_enabled(self, on: bool) -> None:
-        """Controller on (and re-armed after a safe action) or off (open-loop command)."""
+        """Controller on (and re-armed after a safe action) or off (open-loop command).
+
+        Parameters
+        ----------
+        on : bool
+            True: the controller drives the plant (and :meth:`arm` is called); False: the manual
+            (open-loop) command does.
+        """
         self.controller_enabled = bool(on)
         if on:
             self.arm()
@@ -292,12 +309,18 @@ class RealTimeRunner:
     def set_manual_command(self, **values) -> None:
         """Change the open-loop command (used while the controller is off).
 
+        Parameters
+        ----------
+        **values
+            Command name -> value in its SI unit (a subset of the plant's commands).
+
         Raises
         ------
         DownholeInputError
             An unknown name, or a value that is not finite or outside the plant's
             :attr:`~downhole.sil.plants.SilPlant.command_ranges` (counted as
-            ``rejected_setpoints``; nothing is changed)."""
+            ``rejected_setpoints``; nothing is changed).
+        """
         new = dict(self.manual_command)
         for k, v in values.items():
             if k not in self.manual_command:
@@ -336,6 +359,13 @@ class RealTimeRunner:
         admissibility check as every other. A safe action in progress stays in force until
         :meth:`arm` (the dashboard's "controller on"). Thread-safe; while stopped the switch is
         made at once.
+
+        Parameters
+        ----------
+        controller : Controller
+            An object with ``reset()`` and ``command(t, observation, reference)``.
+        name : str, optional
+            Label of the controller in events and the dashboard (default: its class name).
 
         Raises
         ------
@@ -570,10 +600,21 @@ class RealTimeRunner:
 
     # ---------------------------------------------------------------- the loop
     def wait_for_controller(self, timeout: float) -> bool:
-        """Block until a remote peer has connected and answered a readiness probe (an
-        observation of the initial state with sim_time = -1) - True - or ``timeout`` s pass
-        (False). The clock starts only after this, so a slow-starting controller does not
-        make the first steps run open loop."""
+        """Block until a remote peer has connected and answered a readiness probe.
+
+        The probe is an observation of the initial state with sim_time = -1. The clock starts only
+        after this, so a slow-starting controller does not make the first steps run open loop.
+
+        Parameters
+        ----------
+        timeout : float
+            Longest wait, s (wall-clock).
+
+        Returns
+        -------
+        bool
+            True when the controller answered (or there is no UDP link), False on timeout.
+        """
         if self.link is None:
             return True
         obs = self._controller_obs(self.plant.reset())
@@ -597,12 +638,25 @@ class RealTimeRunner:
     def run(self, duration: float | None = None, *, reset: bool = True) -> Result:
         """Run for ``duration`` s of simulated time (None: until :meth:`stop`).
 
+        Parameters
+        ----------
+        duration : float, optional
+            Simulated time to run, s (positive; None: until :meth:`stop`).
+        reset : bool, optional
+            Warm up, reset the plant, the runner's state and the controller first (default True);
+            False continues from the last observation.
+
         Returns
         -------
         Result
             Recorded channels (the plant's, the commands as ``command_<name>``, the references,
             ``wall_lag``, ``exec_time``, ``controller_on``, ``safe_action``); attrs ``stats``,
             ``events`` (JSON) and ``link_counters``.
+
+        Raises
+        ------
+        DownholeInputError
+            If ``duration`` is not a positive finite number.
         """
         if duration is not None and not (isinstance(duration, (int, float))
                                          and math.isfinite(duration) and duration > 0):

@@ -18,7 +18,29 @@ Signal = float | Callable | tuple
 
 
 def sample_signal(sig: Signal, t: np.ndarray, name: str) -> np.ndarray:
-    """Evaluate ``sig`` at times ``t``."""
+    """Evaluate ``sig`` at times ``t``.
+
+    Parameters
+    ----------
+    sig : float, tuple or callable
+        A constant, a callable f(t) (vectorized over arrays; a scalar result is broadcast), or
+        ``(times, values)`` samples (1-D, equal length, times in s non-decreasing) interpolated
+        linearly and held constant outside.
+    t : ndarray
+        Sample times, s.
+    name : str
+        Name of the signal, used in error messages.
+
+    Returns
+    -------
+    ndarray
+        The values at ``t`` (the signal's own unit), shaped like ``t``.
+
+    Raises
+    ------
+    DownholeInputError
+        A malformed signal, a result of the wrong shape, or non-finite values.
+    """
     if callable(sig):
         out = np.asarray(sig(t), dtype=float)
         if out.shape == ():
@@ -83,6 +105,20 @@ class SurfaceInputs:
     Use the constructors: :meth:`velocity` (top-drive axial velocity, m/s, and rotary speed,
     rad/s), :meth:`displacement` (top-drive axial displacement, m, and angle, rad, relative to the
     hanging equilibrium), or :meth:`force` (hook load, N, and surface torque, N m).
+
+    Parameters
+    ----------
+    mode : {"velocity", "displacement", "force"}
+        The kind of inputs.
+    axial, angular : float, str, tuple or callable
+        The axial and angular signals in the units of ``mode`` (see above): constants,
+        quantity strings, ``(times, values)`` samples or callables f(t) in SI; quantities are
+        converted to SI here.
+
+    Raises
+    ------
+    DownholeInputError
+        An unknown mode, or a signal that does not convert.
     """
 
     mode: str
@@ -99,26 +135,104 @@ class SurfaceInputs:
 
     @classmethod
     def velocity(cls, axial: Signal = 0.01, angular: Signal = 10.0) -> SurfaceInputs:
-        """Top-drive axial velocity (m/s, or a quantity such as ``"30 ft/h"``) and rotary speed
-        (rad/s, or ``"120 rpm"``): constants, ``(times, values)`` or callables f(t) in SI."""
+        """Velocity-driven top: top-drive axial velocity and rotary speed.
+
+        Parameters
+        ----------
+        axial : float, str, tuple or callable, optional
+            Top-drive axial velocity, m/s (default 0.01), or a quantity such as ``"30 ft/h"``; a
+            constant, ``(times, values)`` samples (times in s) or a callable f(t) in SI.
+        angular : float, str, tuple or callable, optional
+            Top-drive rotary speed, rad/s (default 10), or ``"120 rpm"``; same forms.
+
+        Returns
+        -------
+        SurfaceInputs
+
+        Raises
+        ------
+        DownholeInputError
+            A value that is not a number, a quantity of the right dimension or a valid signal.
+        """
         return cls("velocity", axial, angular)
 
     @classmethod
     def displacement(cls, time, axial, angular) -> SurfaceInputs:
-        """Top-drive axial displacement (m) and angle (rad) at ``time`` (s); arrays of numbers
-        in SI, of quantity strings or pint Quantity arrays."""
+        """Displacement-driven top: axial displacement and angle at ``time``.
+
+        Relative to the hanging equilibrium; arrays of numbers in SI, of quantity strings or pint
+        Quantity arrays.
+
+        Parameters
+        ----------
+        time : array_like
+            Sample times, s.
+        axial : array_like
+            Top-drive axial displacement at ``time``, m.
+        angular : array_like
+            Top-drive angle at ``time``, rad.
+
+        Returns
+        -------
+        SurfaceInputs
+
+        Raises
+        ------
+        DownholeInputError
+            Values that do not convert to finite SI numbers, or arrays of unequal length.
+        """
         t = as_si_array(time, "time", "displacement input time")
         return cls("displacement", (t, as_si_array(axial, "length", "displacement input axial")),
                    (t, as_si_array(angular, "angle", "displacement input angular")))
 
     @classmethod
     def force(cls, hook_load: Signal, torque: Signal) -> SurfaceInputs:
-        """Hook load (N, or ``"250 klbf"``) and surface torque (N m, or ``"10 kft*lbf"``)."""
+        """Force-driven top: hook load and surface torque.
+
+        Parameters
+        ----------
+        hook_load : float, str, tuple or callable
+            Hook load, N (or ``"250 klbf"``); a constant, ``(times, values)`` samples (times
+            in s) or a callable f(t) in SI.
+        torque : float, str, tuple or callable
+            Surface torque, N m (or ``"10 kft*lbf"``); same forms.
+
+        Returns
+        -------
+        SurfaceInputs
+
+        Raises
+        ------
+        DownholeInputError
+            A value that is not a number, a quantity of the right dimension or a valid signal.
+        """
         return cls("force", hook_load, torque)
 
     def sample(self, t: np.ndarray):
-        """Arrays (2, len(t)) of (position, velocity) for velocity/displacement modes, or
-        (force, 0) for force mode, rows = (axial, torsional)."""
+        """Sample the inputs at ``t``; rows = (axial, torsional).
+
+        Velocity mode: positions are the trapezoidal integral of the velocities (from 0);
+        displacement mode: velocities are ``np.gradient`` of the displacements. Both assume a
+        uniform step ``t[1] - t[0]``.
+
+        Parameters
+        ----------
+        t : ndarray, shape (n,)
+            Uniformly spaced times, s.
+
+        Returns
+        -------
+        pos : ndarray, shape (2, n)
+            Velocity/displacement modes: top axial position (m) and angle (rad). Force mode: hook
+            load (N) and surface torque (N m).
+        vel : ndarray, shape (2, n)
+            Top axial velocity (m/s) and angular velocity (rad/s); zeros in force mode.
+
+        Raises
+        ------
+        DownholeInputError
+            If a signal cannot be evaluated at ``t``.
+        """
         dt = t[1] - t[0] if t.size > 1 else 1.0
         pos = np.zeros((2, t.size))
         vel = np.zeros((2, t.size))

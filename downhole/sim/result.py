@@ -76,6 +76,18 @@ class Result:
     # --- access -------------------------------------------------------------------------------
     @classmethod
     def from_dataset(cls, ds: xr.Dataset) -> Result:
+        """Wrap an existing :class:`xarray.Dataset` (no copy, no checks).
+
+        Parameters
+        ----------
+        ds : xarray.Dataset
+            Channels over the ``time`` coordinate, with ``units`` attributes (as written by
+            :meth:`save`).
+
+        Returns
+        -------
+        Result
+        """
         obj = cls.__new__(cls)
         obj.dataset = ds
         return obj
@@ -103,10 +115,40 @@ class Result:
         return name == "time" or name in self.dataset
 
     def units(self, name: str) -> str:
+        """Unit string of channel ``name`` (``""`` if it has none).
+
+        Parameters
+        ----------
+        name : str
+            Channel name.
+
+        Returns
+        -------
+        str
+            The ``units`` attribute of the channel, e.g. ``"N"`` or ``"rad/s"``.
+
+        Raises
+        ------
+        KeyError
+            If there is no channel ``name``.
+        """
         return self.dataset[name].attrs.get("units", "")
 
     def window(self, t_start: float | None = None, t_end: float | None = None) -> Result:
-        """A Result restricted to ``t_start <= t <= t_end``."""
+        """A Result restricted to ``t_start <= t <= t_end``.
+
+        Parameters
+        ----------
+        t_start : float, optional
+            Start time, s (default: the first sample).
+        t_end : float, optional
+            End time, s (default: the last sample).
+
+        Returns
+        -------
+        Result
+            A view of the samples in the window (bounds inclusive).
+        """
         t = self.time
         lo = t[0] if t_start is None else t_start
         hi = t[-1] if t_end is None else t_end
@@ -114,30 +156,66 @@ class Result:
 
     # --- io -----------------------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> Path:
-        """Write NetCDF (h5netcdf engine), atomically: written to a temporary file in the same
-        folder, fsynced and renamed (:func:`downhole._atomic.write_netcdf_atomic`), so a failed
-        or killed write never leaves a half-written file under ``path``; a full disk raises one
-        clean :class:`OSError`."""
+        """Write NetCDF (h5netcdf engine), atomically.
+
+        Serialized in memory, written to a temporary file in the same folder, fsynced and
+        renamed (:func:`downhole._atomic.write_netcdf_atomic`), so a failed or killed write never
+        leaves a half-written file under ``path``; a full disk raises one clean
+        :class:`OSError`.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Destination file; its folder must exist.
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
         return write_netcdf_atomic(path, self.dataset)
 
     def summary(self, window: tuple[float, float] | None = None) -> dict:
         """Drilling metrics over ``window`` (default: second half of the run).
 
-        See :func:`downhole.analysis.metrics.summarize` for the definitions."""
+        See :func:`downhole.analysis.metrics.summarize` for the definitions.
+
+        Parameters
+        ----------
+        window : (float, float), optional
+            ``(t_start, t_end)``, s.
+
+        Returns
+        -------
+        dict
+            Metric name -> value in SI (None where undefined).
+        """
         from downhole.analysis.metrics import summarize
 
         return summarize(self, window)
 
     def plot(self, path: str | os.PathLike | None = None, title: str | None = None,
              units=None):
-        """Overview figure (velocities, rotary speeds and stick-slip, WOB/TOB, hook load and
-        surface torque, depth), in the display ``units`` (``"oilfield"``, ``"metric"`` or a
-        :class:`~downhole.units.UnitSystem`; default SI with kN, kN m and rpm).
+        """Overview figure of the run.
 
-        Returns the :class:`matplotlib.figure.Figure`. With ``path`` it is also saved
-        (atomically, PNG at 120 dpi) and released from pyplot's figure manager, so that a loop
-        that saves many plots keeps no figures open; the returned figure stays usable
-        (``fig.savefig``, ``fig.axes``).
+        Velocities, rotary speeds and stick-slip, WOB/TOB, hook load and surface torque, depth, in
+        the display ``units``. With ``path`` the figure is also saved (atomically, PNG at 120 dpi)
+        and released from pyplot's figure manager, so that a loop that saves many plots keeps no
+        figures open; the returned figure stays usable (``fig.savefig``, ``fig.axes``).
+
+        Parameters
+        ----------
+        path : str or os.PathLike, optional
+            PNG file to write.
+        title : str, optional
+            Figure title.
+        units : str or UnitSystem, optional
+            ``"si"``, ``"oilfield"``, ``"metric"`` or a :class:`~downhole.units.UnitSystem`
+            (default SI with kN, kN m and rpm).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
         """
         from downhole.analysis.plots import plot_overview
 
@@ -177,10 +255,20 @@ class Result:
     def to_csv(self, path: str | os.PathLike, units=None) -> Path:
         """Write the 1-D channels as CSV with a ``time`` column (atomically).
 
-        With ``units`` (a system name such as ``"oilfield"`` or a
-        :class:`~downhole.units.UnitSystem`) the values are in those display units and every
-        header names its unit, ``wob [klbf]``; without, the columns are the channel names and
-        the values SI."""
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Destination file; its folder must exist.
+        units : str or UnitSystem, optional
+            A system name such as ``"oilfield"`` or a :class:`~downhole.units.UnitSystem`: the
+            values are in those display units and every header names its unit, ``wob [klbf]``.
+            Without, the columns are the channel names and the values SI.
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
         one_d = [n for n in self.channels if self.dataset[n].ndim == 1]
         if units is None:
             with atomic_path(path) as tmp:
@@ -201,9 +289,21 @@ class Result:
         return Path(path)
 
     def to_las(self, path: str | os.PathLike, **kwargs) -> Path:
-        """Write the 1-D channels as a time-indexed LAS 2.0 file, atomically (keywords:
-        ``well``, ``channels``, ``company``, ``field``, ``summary``, ``units``; see
-        :func:`downhole.sim.las.write_las`, also :func:`downhole.io.write_las`)."""
+        """Write the 1-D channels as a time-indexed LAS 2.0 file, atomically.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Destination file; its folder must exist.
+        **kwargs
+            ``well``, ``channels``, ``company``, ``field``, ``summary``, ``units``; see
+            :func:`downhole.sim.las.write_las` (also :func:`downhole.io.write_las`).
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
         from downhole.sim.las import write_las
 
         with atomic_path(path) as tmp:
@@ -227,6 +327,17 @@ def _attr(v):
 
 
 def load_result(path: str | os.PathLike) -> Result:
-    """Load a Result saved by :meth:`Result.save`."""
+    """Load a Result saved by :meth:`Result.save`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        NetCDF file.
+
+    Returns
+    -------
+    Result
+        The run, fully loaded in memory (the file is closed).
+    """
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         return Result.from_dataset(ds.load())

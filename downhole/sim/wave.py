@@ -164,7 +164,24 @@ class WaveSegment:
         return self.length / self.wave_speed
 
     def delay_steps(self, dt: float) -> float:
-        """tau / dt; raises if below 1 (the line must not be shorter than one step)."""
+        """One-way delay in simulation steps, tau / dt.
+
+        Parameters
+        ----------
+        dt : float
+            Simulation step, s.
+
+        Returns
+        -------
+        float
+            ``delay / dt`` (dimensionless, >= 1).
+
+        Raises
+        ------
+        DownholeInputError
+            If ``dt`` is not a positive finite number, or if the delay is shorter than one step
+            (the line must not be shorter than one step).
+        """
         dt = _positive("dt", dt)
         d = self.delay / dt
         if d < 1.0:
@@ -197,7 +214,28 @@ def segments_from_pipe(pipe, length: float) -> tuple[WaveSegment, WaveSegment]:
 
 
 def initial_waves(impedance: float, velocity: float = 0.0, tension: float = 0.0):
-    """Waves ``(a, b)`` of a line in a uniform state: v = a + b, N = Z (b - a)."""
+    """Waves ``(a, b)`` of a line in a uniform state: v = a + b, N = Z (b - a).
+
+    Parameters
+    ----------
+    impedance : float
+        Characteristic impedance Z, N s/m (axial) or N m s/rad (torsional).
+    velocity : float, optional
+        Uniform velocity v of the line, m/s or rad/s (default 0).
+    tension : float, optional
+        Uniform dynamic force N carried by the waves, N or N m, tension positive (default 0).
+
+    Returns
+    -------
+    (a, b) : tuple of float
+        Downward and upward waves, in velocity units (m/s or rad/s):
+        ``((v - N/Z) / 2, (v + N/Z) / 2)``.
+
+    Raises
+    ------
+    DownholeInputError
+        If ``impedance`` is not a positive finite number.
+    """
     z = _positive("impedance", impedance)
     return 0.5 * (velocity - tension / z), 0.5 * (velocity + tension / z)
 
@@ -208,6 +246,7 @@ def wave_state(segment: WaveSegment, dt: float, velocity: float = 0.0, tension: 
     Parameters
     ----------
     segment : WaveSegment
+        The segment.
     dt : float
         Simulation step, s (at most ``segment.delay``).
     velocity : float
@@ -221,6 +260,11 @@ def wave_state(segment: WaveSegment, dt: float, velocity: float = 0.0, tension: 
     pos : ndarray (1,) int64
     wp : WaveParams
         See the module docstring.
+
+    Raises
+    ------
+    DownholeInputError
+        If ``dt`` is not positive or exceeds the segment's delay.
     """
     d = segment.delay_steps(dt)
     cap = int(math.ceil(d)) + 3
@@ -243,21 +287,59 @@ def _sample(hist, row, k, cap, init):
 
 @njit(cache=True)
 def wave_read_plan(lag_steps):
-    """Loop-invariant part of a read ``lag_steps`` steps behind the current time: the integer
-    offset ``floor(-lag_steps)`` and the interpolation weight ``-lag_steps - floor(-lag_steps)``
-    (both exact). A kernel computes them once per call and reads with :func:`wave_read_at`."""
+    """Loop-invariant part of a read ``lag_steps`` steps behind the current time.
+
+    The integer offset ``floor(-lag_steps)`` and the interpolation weight
+    ``-lag_steps - floor(-lag_steps)`` (both exact). A kernel computes them once per call and
+    reads with :func:`wave_read_at`.
+
+    Parameters
+    ----------
+    lag_steps : float
+        Lag behind the current time, in simulation steps (delay / dt).
+
+    Returns
+    -------
+    off : int
+        Integer sample offset, ``floor(-lag_steps)`` (<= -1 for ``lag_steps`` >= 1).
+    frac : float
+        Interpolation weight in [0, 1) of sample ``n + off + 1``.
+    """
     off = int(math.floor(-lag_steps))
     return off, -lag_steps - off
 
 
 @njit(cache=True, inline="always")
 def wave_read_at(hist, n, off, frac, cap, a_init, b_init):
-    """Outgoing waves ``(a_out_B, b_out_C)`` at time ``t_{n + off + frac}`` (``off``, ``frac``
-    from :func:`wave_read_plan`; linear interpolation between samples ``n + off`` and
-    ``n + off + 1``; before the first sample the initial waves).
+    """Outgoing waves ``(a_out_B, b_out_C)`` at time ``t_{n + off + frac}``.
+
+    ``off``, ``frac`` come from :func:`wave_read_plan`; linear interpolation between samples
+    ``n + off`` and ``n + off + 1``; before the first sample the initial waves.
 
     Inlined into the calling kernel at Numba IR level: LLVM leaves this call in place, which
-    costs ~5 % of a small hybrid step (24 states)."""
+    costs ~5 % of a small hybrid step (24 states).
+
+    Parameters
+    ----------
+    hist : ndarray, shape (2, cap), float64
+        Ring buffers of past outgoing waves (row 0 ``a_out`` at B, row 1 ``b_out`` at C), m/s or
+        rad/s.
+    n : int
+        Current sample index (number of samples pushed).
+    off : int
+        Integer offset from :func:`wave_read_plan`.
+    frac : float
+        Interpolation weight from :func:`wave_read_plan`.
+    cap : int
+        Length of the ring buffers.
+    a_init, b_init : float
+        Outgoing waves before the first sample, m/s or rad/s.
+
+    Returns
+    -------
+    (a, b) : tuple of float
+        Interpolated ``a_out`` leaving B and ``b_out`` leaving C, m/s or rad/s.
+    """
     k0 = n + off
     a = (1.0 - frac) * _sample(hist, 0, k0, cap, a_init) + frac * _sample(hist, 0, k0 + 1, cap,
                                                                           a_init)
@@ -268,21 +350,68 @@ def wave_read_at(hist, n, off, frac, cap, a_init, b_init):
 
 @njit(cache=True)
 def wave_read(hist, pos, wp, lag_steps):
-    """Outgoing waves ``(a_out_B, b_out_C)`` at time ``t_n - lag_steps * dt`` (linear
-    interpolation; ``lag_steps`` >= 1 and <= cap - 2)."""
+    """Outgoing waves ``(a_out_B, b_out_C)`` at time ``t_n - lag_steps * dt``.
+
+    Linear interpolation; ``lag_steps`` >= 1 and <= cap - 2.
+
+    Parameters
+    ----------
+    hist : ndarray, shape (2, cap), float64
+        Ring buffers of past outgoing waves (see :func:`wave_state`).
+    pos : ndarray, shape (1,), int64
+        Number ``n`` of samples pushed (the current time is ``t_n``).
+    wp : WaveParams
+        Constant part of the state.
+    lag_steps : float
+        Lag behind the current time, in simulation steps.
+
+    Returns
+    -------
+    (a, b) : tuple of float
+        ``a_out`` leaving B and ``b_out`` leaving C at that time, m/s or rad/s.
+    """
     off, frac = wave_read_plan(lag_steps)
     return wave_read_at(hist, pos[0], off, frac, wp.cap, wp.a_init, wp.b_init)
 
 
 @njit(cache=True)
 def wave_incoming(hist, pos, wp):
-    """Incoming waves at the current time ``t_n``: ``(a_in at C, b_in at B)``."""
+    """Incoming waves at the current time ``t_n``: ``(a_in at C, b_in at B)``.
+
+    Parameters
+    ----------
+    hist : ndarray, shape (2, cap), float64
+        Ring buffers of past outgoing waves (see :func:`wave_state`).
+    pos : ndarray, shape (1,), int64
+        Number ``n`` of samples pushed.
+    wp : WaveParams
+        Constant part of the state; the read lags ``wp.delay_steps`` steps.
+
+    Returns
+    -------
+    (a_in, b_in) : tuple of float
+        Downward wave arriving at C and upward wave arriving at B, m/s or rad/s.
+    """
     return wave_read(hist, pos, wp, wp.delay_steps)
 
 
 @njit(cache=True)
 def wave_push(hist, pos, wp, a_out_b, b_out_c):
-    """Store the outgoing waves of the current time ``t_n`` and advance to ``t_{n+1}``."""
+    """Store the outgoing waves of the current time ``t_n`` and advance to ``t_{n+1}``.
+
+    Parameters
+    ----------
+    hist : ndarray, shape (2, cap), float64
+        Ring buffers, written in place at slot ``n % cap``.
+    pos : ndarray, shape (1,), int64
+        Sample counter ``n``, incremented in place.
+    wp : WaveParams
+        Constant part of the state (``cap``).
+    a_out_b : float
+        Downward wave leaving B, m/s or rad/s.
+    b_out_c : float
+        Upward wave leaving C, m/s or rad/s.
+    """
     cap = wp.cap
     k = pos[0] % cap
     hist[0, k] = a_out_b
@@ -292,9 +421,31 @@ def wave_push(hist, pos, wp, a_out_b, b_out_c):
 
 @njit(cache=True)
 def wave_step_at(hist, n, cap, z, v_b, v_c, a_in, b_in):
-    """:func:`wave_step` with the clock ``n``, ``cap`` and ``Z`` in the caller's locals: store
-    the outgoing waves of ``t_n`` in slot ``n % cap`` and return the end forces of ``t_n``
-    (the caller advances ``n``)."""
+    """:func:`wave_step` with the clock ``n``, ``cap`` and ``Z`` in the caller's locals.
+
+    Store the outgoing waves of ``t_n`` in slot ``n % cap`` and return the end forces of ``t_n``
+    (the caller advances ``n``).
+
+    Parameters
+    ----------
+    hist : ndarray, shape (2, cap), float64
+        Ring buffers, written in place.
+    n : int
+        Current sample index.
+    cap : int
+        Length of the ring buffers.
+    z : float
+        Characteristic impedance Z, N s/m or N m s/rad.
+    v_b, v_c : float
+        Velocities of the end nodes B and C at ``t_n``, m/s or rad/s (downward / forward positive).
+    a_in, b_in : float
+        Incoming waves at C and at B (from :func:`wave_read_at`), m/s or rad/s.
+
+    Returns
+    -------
+    (F_B, F_C) : tuple of float
+        Forces of the line on B and C, downward positive, N (or N m), as :func:`wave_end_forces`.
+    """
     k = n % cap
     hist[0, k] = v_b - b_in
     hist[1, k] = v_c - a_in
@@ -303,9 +454,30 @@ def wave_step_at(hist, n, cap, z, v_b, v_c, a_in, b_in):
 
 @njit(cache=True)
 def wave_step(hist, pos, wp, v_b, v_c, a_in, b_in):
-    """End of one step at ``t_n``: push the outgoing waves ``(v_B - b_in, v_C - a_in)``,
-    advance to ``t_{n+1}`` and return the forces of the line on its ends at ``t_n``,
-    ``(F_B, F_C)`` as :func:`wave_end_forces` (``a_in, b_in`` from :func:`wave_incoming`)."""
+    """End of one step at ``t_n``: store the outgoing waves and advance to ``t_{n+1}``.
+
+    Pushes the outgoing waves ``(v_B - b_in, v_C - a_in)``, advances to ``t_{n+1}`` and returns
+    the forces of the line on its ends at ``t_n``, ``(F_B, F_C)`` as :func:`wave_end_forces`
+    (``a_in, b_in`` from :func:`wave_incoming`).
+
+    Parameters
+    ----------
+    hist : ndarray, shape (2, cap), float64
+        Ring buffers, written in place.
+    pos : ndarray, shape (1,), int64
+        Sample counter ``n``, incremented in place.
+    wp : WaveParams
+        Constant part of the state (``impedance``, ``cap``).
+    v_b, v_c : float
+        Velocities of the end nodes B and C at ``t_n``, m/s or rad/s.
+    a_in, b_in : float
+        Incoming waves at C and at B, m/s or rad/s.
+
+    Returns
+    -------
+    (F_B, F_C) : tuple of float
+        Forces of the line on B and C, downward positive, N (or N m).
+    """
     f = wave_step_at(hist, pos[0], wp.cap, wp.impedance, v_b, v_c, a_in, b_in)
     pos[0] += 1
     return f
@@ -313,22 +485,63 @@ def wave_step(hist, pos, wp, v_b, v_c, a_in, b_in):
 
 @njit(cache=True)
 def wave_source_forces(z, a_in, b_in):
-    """The part of the end forces known before the step, ``(2 Z b_in, 2 Z a_in)``: an implicit
-    integrator applies these as forces and ``Z`` as a damper on each end node, since
-    ``F_B = 2 Z b_in - Z v_B`` and ``F_C = 2 Z a_in - Z v_C``."""
+    """The part of the end forces known before the step, ``(2 Z b_in, 2 Z a_in)``.
+
+    An implicit integrator applies these as forces and ``Z`` as a damper on each end node, since
+    ``F_B = 2 Z b_in - Z v_B`` and ``F_C = 2 Z a_in - Z v_C``.
+
+    Parameters
+    ----------
+    z : float
+        Characteristic impedance Z, N s/m or N m s/rad.
+    a_in, b_in : float
+        Incoming waves at C and at B, m/s or rad/s.
+
+    Returns
+    -------
+    (S_B, S_C) : tuple of float
+        Known forces on B and C, downward positive, N (or N m).
+    """
     return 2.0 * z * b_in, 2.0 * z * a_in
 
 
 @njit(cache=True)
 def wave_outgoing(v_b, v_c, a_in, b_in):
-    """Outgoing waves ``(a_out = v_B - b_in, b_out = v_C - a_in)``."""
+    """Outgoing waves ``(a_out = v_B - b_in, b_out = v_C - a_in)``.
+
+    Parameters
+    ----------
+    v_b, v_c : float
+        Velocities of the end nodes B and C, m/s or rad/s.
+    a_in, b_in : float
+        Incoming waves at C and at B, m/s or rad/s.
+
+    Returns
+    -------
+    (a_out, b_out) : tuple of float
+        Downward wave leaving B and upward wave leaving C, m/s or rad/s.
+    """
     return v_b - b_in, v_c - a_in
 
 
 @njit(cache=True)
 def wave_end_forces(z, v_b, v_c, a_in, b_in):
-    """Forces of the line on its ends, downward positive:
-    ``(Z (2 b_in - v_B), Z (2 a_in - v_C))``."""
+    """Forces of the line on its ends, downward positive.
+
+    Parameters
+    ----------
+    z : float
+        Characteristic impedance Z, N s/m or N m s/rad.
+    v_b, v_c : float
+        Velocities of the end nodes B and C, m/s or rad/s.
+    a_in, b_in : float
+        Incoming waves at C and at B, m/s or rad/s.
+
+    Returns
+    -------
+    (F_B, F_C) : tuple of float
+        ``(Z (2 b_in - v_B), Z (2 a_in - v_C))``, N (or N m).
+    """
     return z * (2.0 * b_in - v_b), z * (2.0 * a_in - v_c)
 
 
@@ -340,6 +553,15 @@ def static_end_forces(segment: WaveSegment, bottom_tension: float,
     axis, e.g. rho A g cos(inclination)), the line pulls B down with ``N_s(0)`` and C up with
     ``N_C``. Add these to :func:`wave_end_forces`, whose waves carry the deviations.
 
+    Parameters
+    ----------
+    segment : WaveSegment
+        The segment (its ``length`` L, m, is used).
+    bottom_tension : float
+        Static tension N_C at the lower end C, N (tension positive).
+    weight_per_length : float, optional
+        Axial weight per unit length w, N/m (default 0: uniform tension).
+
     Returns
     -------
     (F_B, F_C) : tuple of float
@@ -349,7 +571,21 @@ def static_end_forces(segment: WaveSegment, bottom_tension: float,
 
 
 def line_preload(bottom_tension: float, line_weight: float) -> tuple[float, float]:
-    """Static forces ``(N_C + W, -N_C)`` of a hanging line of total axial weight ``W`` (N) on
-    B and C, downward positive (:func:`static_end_forces` with ``W = w L``)."""
+    """Static forces ``(N_C + W, -N_C)`` of a hanging line on B and C, downward positive.
+
+    :func:`static_end_forces` with ``W = w L``.
+
+    Parameters
+    ----------
+    bottom_tension : float
+        Static tension N_C at the lower end C, N (tension positive).
+    line_weight : float
+        Total axial weight W of the line, N.
+
+    Returns
+    -------
+    (F_B, F_C) : tuple of float
+        ``(N_C + W, -N_C)``, N.
+    """
     n_c = float(bottom_tension)
     return n_c + float(line_weight), -n_c

@@ -49,7 +49,20 @@ class StringSegment:
 
 @dataclass(frozen=True)
 class Stabilizer:
-    """A stabilizer at ``distance_from_bit`` m with blade ``outer_diameter`` m (torque arm = OD/2)."""
+    """A stabilizer at ``distance_from_bit`` m with blade ``outer_diameter`` m (torque arm = OD/2).
+
+    Parameters
+    ----------
+    distance_from_bit : float
+        Distance from the bit along the string, m (>= 0).
+    outer_diameter : float
+        Blade outer diameter, m (> 0).
+
+    Raises
+    ------
+    DownholeInputError
+        A value that does not convert, or out of range.
+    """
 
     distance_from_bit: float
     outer_diameter: float
@@ -83,6 +96,25 @@ def pipe_section(outer_diameter: float, inner_diameter: float, **material) -> Pi
     """A :class:`PipeSection` with precise errors for negative or inverted diameters.
 
     Every value is a number in SI or a quantity (``"5 in"``, ``"30e6 psi"``, a pint Quantity).
+
+    Parameters
+    ----------
+    outer_diameter : float, str or pint.Quantity
+        Outer diameter, m (> 0).
+    inner_diameter : float, str or pint.Quantity
+        Inner diameter, m (>= 0, smaller than the outer diameter).
+    **material
+        Optional ``young_modulus`` (Pa), ``shear_modulus`` (Pa) and ``density`` (kg/m^3);
+        defaults: those of :class:`PipeSection` (steel).
+
+    Returns
+    -------
+    PipeSection
+
+    Raises
+    ------
+    DownholeInputError
+        An unknown keyword, a value that does not convert, or diameters out of order.
 
     Examples
     --------
@@ -159,7 +191,28 @@ class DrillString:
     @classmethod
     def uniform(cls, length: float, section: PipeSection, mud_density: float = 0.0,
                 g: float = 9.81) -> DrillString:
-        """One uniform pipe of ``length`` m (or a quantity such as ``"15000 ft"``)."""
+        """One uniform pipe of ``length`` m (or a quantity such as ``"15000 ft"``).
+
+        Parameters
+        ----------
+        length : float, str or pint.Quantity
+            String length, m.
+        section : PipeSection
+            The pipe's cross-section and material.
+        mud_density : float, optional
+            Mud density, kg/m^3 (default 0: in air).
+        g : float, optional
+            Gravity, m/s^2 (default 9.81).
+
+        Returns
+        -------
+        DrillString
+
+        Raises
+        ------
+        DownholeInputError
+            A value that does not convert, or a mud density at or above the steel's.
+        """
         return cls((StringSegment(_number(length, "length", "length"), section),),
                    mud_density=mud_density, g=g)
 
@@ -174,19 +227,60 @@ class DrillString:
         return np.concatenate([[0.0], np.cumsum([s.length for s in self.segments])])
 
     def segment_at(self, s) -> np.ndarray:
-        """Index of the segment containing distance ``s`` (m from the top)."""
+        """Index of the segment containing distance ``s`` (m from the top).
+
+        Parameters
+        ----------
+        s : float or array_like
+            Distance from the top of the string (measured depth along the string), m.
+
+        Returns
+        -------
+        ndarray of int
+            Segment index (0 = surface), shaped like ``s``; distances beyond the ends are clipped
+            to the first or last segment.
+        """
         b = self.boundaries
         return np.clip(np.searchsorted(b, np.asarray(s, float), side="right") - 1, 0,
                        len(self.segments) - 1)
 
     def property_at(self, s, name: str) -> np.ndarray:
-        """A :class:`PipeSection` attribute (``area``, ``polar_moment``, ``young_modulus`` ...) at ``s``."""
+        """A :class:`PipeSection` attribute (``area``, ``polar_moment``, ...) at ``s``.
+
+        Parameters
+        ----------
+        s : float or array_like
+            Distance from the top of the string (measured depth along the string), m.
+        name : str
+            Attribute name of :class:`PipeSection`.
+
+        Returns
+        -------
+        ndarray
+            The attribute's value (in its SI unit) of the segment at each ``s``.
+
+        Raises
+        ------
+        AttributeError
+            If ``name`` is not an attribute of :class:`PipeSection`.
+        """
         idx = self.segment_at(s)
         vals = np.array([float(getattr(seg.section, name)) for seg in self.segments])
         return vals[idx]
 
     def buoyed_weight_per_length(self, s) -> np.ndarray:
-        """w = g A (rho_steel - rho_mud) at ``s``, N/m."""
+        """w = g A (rho_steel - rho_mud) at ``s``, N/m.
+
+        Parameters
+        ----------
+        s : float or array_like
+            Distance from the top of the string (measured depth along the string), m.
+
+        Returns
+        -------
+        ndarray
+            Buoyed weight per unit length, N/m, shaped like ``s``.
+        """
         idx = self.segment_at(s)
         vals = np.array([self.g * seg.section.area * (seg.section.density - self.mud_density)
                          for seg in self.segments])

@@ -82,6 +82,17 @@ class NDDEMatrices:
     ``x' = A0 x + A1 x(t-h1) + A2 x(t-h2) + G1 x'(t-h1) + G2 x'(t-h2) + Bd d + B u(t - tau)``
     with ``u = [U_A - M_S g/alpha_A, U_T]``, ``d = [-W + Gamma1 W(t-h1), -T + Upsilon1 T(t-h2)]``,
     ``h = 2 tau`` and the input delays ``tau = (tau1, tau2)``.
+
+    Attributes
+    ----------
+    A0, A1, A2, G1, G2, B, Bd, C : ndarray, shape (2, 2)
+        The matrices of the equation above (``C`` the output map, the identity).
+    h1, h2 : float
+        State delays 2 tau1 and 2 tau2, s.
+    tau : (float, float)
+        Input delays (tau1, tau2), s.
+    u_offset : (float, float)
+        Input offsets (M_S g/alpha_A in m/s, 0).
     """
 
     A0: np.ndarray
@@ -98,7 +109,21 @@ class NDDEMatrices:
     u_offset: tuple[float, float]
 
     def channel(self, i: int) -> dict:
-        """Scalar coefficients of channel ``i`` (0 axial, 1 torsional)."""
+        """Scalar coefficients of channel ``i`` (0 axial, 1 torsional).
+
+        Parameters
+        ----------
+        i : int
+            0 for the axial channel, 1 for the torsional one.
+
+        Returns
+        -------
+        dict
+            ``a0`` (A0 entry, 1/s), ``a1`` (the delayed-state coefficient, A1 for axial, A2 for
+            torsional, 1/s), ``g1`` (the neutral coefficient, G1 or G2, dimensionless), ``b``
+            (input gain, 1/s), ``h`` (state delay 2 tau, s), ``tau`` (input delay, s) and
+            ``offset`` (input offset: M_S g/alpha_A in m/s for axial, 0 for torsional).
+        """
         a1 = self.A1[0, 0] if i == 0 else self.A2[1, 1]
         g1 = self.G1[0, 0] if i == 0 else self.G2[1, 1]
         return {"a0": float(self.A0[i, i]), "a1": float(a1), "g1": float(g1),
@@ -111,6 +136,17 @@ class NeutralModel:
     """Immutable neutral-type model: parameters plus derived wave segments and coefficients.
 
     Use :func:`neutral_model` to build it.
+
+    Parameters
+    ----------
+    params : NeutralStringParams
+        The string.
+    bit : BitParams
+        The bit.
+    axial, torsional : WaveSegment
+        The string's axial and torsional wave segments (surface to bit).
+    name : str
+        Label (default ``"neutral"``).
     """
 
     params: NeutralStringParams
@@ -148,15 +184,50 @@ class NeutralModel:
         return self.params.string_mass * self.params.g / self.params.alpha_axial
 
     def steady_inputs(self, rop: float, omega: float, wob: float, tob: float) -> tuple[float, float]:
-        """Open-loop commands (U_A, U_T) for a steady state: U_A = v + (W + M_S g)/alpha_A,
-        U_T = omega + T/alpha_T."""
+        """Open-loop commands (U_A, U_T) for a steady state.
+
+        U_A = v + (W + M_S g)/alpha_A, U_T = omega + T/alpha_T.
+
+        Parameters
+        ----------
+        rop : float
+            Bit axial velocity v, m/s.
+        omega : float
+            Bit angular velocity, rad/s.
+        wob : float
+            Weight on bit W, N.
+        tob : float
+            Torque on bit T, N m.
+
+        Returns
+        -------
+        (U_A, U_T) : tuple of float
+            Axial command, m/s, and angular command, rad/s.
+        """
         p = self.params
         return (rop + (wob + p.string_mass * p.g) / p.alpha_axial, omega + tob / p.alpha_torsional)
 
     def steady_state(self, u_axial: float, u_angular: float, iterations: int = 200):
-        """Steady drilling state (v, omega, W, T) under constant commands, with the approximated
-        depth of cut d = 2 pi v/omega (fixed point of v = U_A - (W + M_S g)/alpha_A,
-        omega = U_T - T/alpha_T)."""
+        """Steady drilling state (v, omega, W, T) under constant commands.
+
+        With the approximated depth of cut d = 2 pi v/omega: a damped fixed-point iteration of
+        v = U_A - (W + M_S g)/alpha_A, omega = U_T - T/alpha_T.
+
+        Parameters
+        ----------
+        u_axial : float
+            Axial command U_A, m/s.
+        u_angular : float
+            Angular command U_T, rad/s.
+        iterations : int, optional
+            Number of fixed-point iterations (default 200; no convergence check).
+
+        Returns
+        -------
+        (v, omega, wob, tob) : tuple of float
+            Bit axial velocity (m/s), angular velocity (rad/s), weight on bit (N) and torque on bit
+            (N m).
+        """
         p = self.params
         bp = self.bit.kernel_params()
         v, w = u_axial - self.hang_command, u_angular
@@ -181,7 +252,17 @@ class NeutralModel:
             u_offset=(self.hang_command, 0.0))
 
     def with_bit(self, bit: BitParams) -> NeutralModel:
-        """Same string, another bit (e.g. a perturbed epsilon)."""
+        """Same string, another bit (e.g. a perturbed epsilon).
+
+        Parameters
+        ----------
+        bit : BitParams
+            The new bit parameters.
+
+        Returns
+        -------
+        NeutralModel
+        """
         return NeutralModel(self.params, bit, self.axial, self.torsional, self.name)
 
 
@@ -195,6 +276,10 @@ def neutral_model(string: NeutralStringParams | str = "table_3_1",
         String parameters, or a preset name of kind ``neutral`` (``"table_3_1"``).
     bit : BitParams, optional
         Bit parameters; default the preset's bit (Table 3.1's for a NeutralStringParams).
+
+    Returns
+    -------
+    NeutralModel
 
     Raises
     ------
@@ -495,6 +580,8 @@ class NeutralPlant(Plant):
     dt : float
         Plant step, s (<= tau1).
     depth_of_cut : {"delayed", "approximate"}
+        Depth of cut from the rock-surface memory (delayed, Eqs. 2.9-2.10) or the
+        approximation d = 2 pi v / omega.
     rock_points_per_pitch : int
         Resolution of the rock-surface memory.
 
@@ -636,10 +723,14 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         deviation per controller sample, m/s and rad/s) and optionally ``"wob"``, ``"tob"``
         (N, N m) as bit-force noise (per plant step).
     depth_of_cut : {"delayed", "approximate"}
+        Depth of cut from the rock-surface memory (delayed, Eqs. 2.9-2.10) or the
+        approximation d = 2 pi v / omega.
     record_dt : float, optional
         Output interval, s; default: every step up to 20 000 samples, then thinned.
     seed : int
         Noise seed.
+    rock_points_per_pitch : int
+        Resolution of the rock-surface memory (grid points per blade pitch, default 512).
     control_dt : float, optional
         Python-loop controllers only: controller sample time (a multiple of dt; default dt).
         The command is held between samples.
@@ -647,6 +738,8 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         Ignore a controller's compiled ``neutral_runner`` and step it through the Python loop
         (the EID gives the same numbers either way; for checking controllers stepped from
         Python, e.g. in the SIL loop).
+    attrs : dict, optional
+        Extra metadata merged into the result's attributes.
     start : {"rest", "off_bottom", "steady"}
         Initial state (:data:`downhole.sim.plant.START_MODES`), open loop only: hanging at
         rest; moving at the commands of t = 0 with the bit ``clearance`` m off a flat bottom; or

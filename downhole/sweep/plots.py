@@ -21,9 +21,25 @@ __all__ = ["REGIMES", "classify_regimes", "display_units", "plot_sweep", "stabil
 REGIMES = {0: "stable", 1: "stick-slip", 2: "bit bounce", 3: "stick-slip + bit bounce"}
 
 def display_units(units: str, system=None) -> tuple[str, float]:
-    """(label, factor) that show SI values of unit ``units`` in the figure units of ``system``
-    (:func:`downhole.units.display_units`; default ``si``: rpm, mm/s, kN, kN·m, MPa). The factor
-    comes from pint."""
+    """(label, factor) that show SI values of unit ``units`` in the figure units of ``system``.
+
+    The figure units of :func:`downhole.units.display_units` (default ``si``: rpm, mm/s, kN,
+    kN·m, MPa). The factor comes from pint.
+
+    Parameters
+    ----------
+    units : str
+        The SI unit of the values (pint string, e.g. ``"rad/s"``).
+    system : str or UnitSystem, optional
+        Display unit system (default ``"si"``).
+
+    Returns
+    -------
+    label : str
+        Printable display unit (``"rpm"``, ``"kN·m"``; ``""`` or ``"-"`` for dimensionless).
+    factor : float
+        Multiply an SI value by it to get the value in the display unit.
+    """
     from downhole.units import display_units as _system
     from downhole.units import unit_label
 
@@ -58,9 +74,25 @@ def _mpl():
 
 
 def plot_sweep(ds, out_dir: str | Path, units=None) -> list[Path]:
-    """One PNG per metric: lines (1 parameter), heat maps (2), scatter against each parameter
-    (random sweeps); further grid dimensions are shown at their first value, in the display
-    ``units`` (a system name or :class:`~downhole.units.UnitSystem`). Returns the files."""
+    """One PNG per metric of a sweep, in the display ``units``.
+
+    Lines (1 parameter), heat maps (2), scatter against each parameter (random sweeps);
+    further grid dimensions are shown at their first value. Each file is written atomically.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep dataset (:func:`downhole.sweep.run_sweep`).
+    out_dir : str or pathlib.Path
+        Output folder (created if needed); files ``sweep_<metric>.png``.
+    units : str or UnitSystem, optional
+        A system name or :class:`~downhole.units.UnitSystem` (default ``si`` figure units).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+    """
     plt = _mpl()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -117,9 +149,31 @@ def plot_sweep(ds, out_dir: str | Path, units=None) -> list[Path]:
 
 
 def classify_regimes(ds, severity_threshold: float = 0.5, bounce_threshold: float = 0.01):
-    """Regime codes (:data:`REGIMES`) per case: stick-slip where ``stick_slip_severity`` >
-    ``severity_threshold`` (or the bit stuck some of the time), bit bounce where
-    ``bit_bounce_fraction`` > ``bounce_threshold``; failed cases give -1."""
+    """Regime codes (:data:`REGIMES`) per case.
+
+    Stick-slip where ``stick_slip_severity`` > ``severity_threshold`` (or the bit stuck some of
+    the time, when ``stuck_fraction`` is recorded), bit bounce where ``bit_bounce_fraction`` >
+    ``bounce_threshold``; failed cases give -1.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep dataset with the metrics ``stick_slip_severity`` and ``bit_bounce_fraction``.
+    severity_threshold : float, optional
+        Severity above which a case is stick-slip (dimensionless, default 0.5).
+    bounce_threshold : float, optional
+        Bit-bounce fraction above which a case bounces (dimensionless, default 0.01).
+
+    Returns
+    -------
+    xarray.DataArray of int
+        Codes 0-3 (stable, stick-slip, bit bounce, both) or -1, with the sweep's dimensions.
+
+    Raises
+    ------
+    DownholeInputError
+        If one of the two metrics is missing.
+    """
     for m in ("stick_slip_severity", "bit_bounce_fraction"):
         if m not in ds:
             raise DownholeInputError(f"the stability map needs the metric {m!r}; rerun the "
@@ -149,11 +203,15 @@ def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = No
     ds : xarray.Dataset
         A grid sweep with ``stick_slip_severity`` and ``bit_bounce_fraction`` (and optionally
         ``mean_wob`` for WOB iso-lines).
+    path : str or pathlib.Path
+        PNG file to write.
     x, y : str, optional
         Dimensions on the horizontal and vertical axes; default: a dimension whose name
         contains ``surface_speed`` or ``angular_velocity`` (rotary speed) on x, the other on y.
     severity_threshold, bounce_threshold : float
         Classification thresholds (see :func:`classify_regimes`).
+    title : str, optional
+        Figure title.
     units : str or UnitSystem, optional
         Display units of the axes (default ``si``: rpm, mm/s, kN).
 
@@ -161,6 +219,11 @@ def stability_map(ds, path: str | Path, x: str | None = None, y: str | None = No
     -------
     xarray.DataArray
         The regime codes (also drawn).
+
+    Raises
+    ------
+    DownholeInputError
+        Not a 2-D grid sweep, an axis that is not a swept parameter, or a missing metric.
     """
     plt = _mpl()
     from matplotlib.colors import BoundaryNorm, ListedColormap

@@ -40,7 +40,29 @@ def load_sweep_file(path: str | Path) -> tuple[dict, str, dict]:
     """Read a scenario TOML; returns ``(scenario_data, source, sweep_settings)``.
 
     An optional ``[sweep]`` table (``params``, ``metrics``, ``window``, ``random``, ``seed``,
-    ``batch_size``) is split off: it configures the sweep and is not part of the scenario.
+    ``batch_size``, ``stability_map``) is split off: it configures the sweep and is not part of
+    the scenario.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        Scenario TOML file.
+
+    Returns
+    -------
+    scenario_data : dict
+        The parsed scenario without ``[sweep]``.
+    source : str
+        The file's name, for messages.
+    sweep_settings : dict
+        The ``[sweep]`` table (empty if absent).
+
+    Raises
+    ------
+    ScenarioError
+        If the file cannot be read or parsed.
+    DownholeInputError
+        If ``sweep`` is not a table or has an unknown key.
     """
     from downhole.scenario import load_scenario
 
@@ -77,8 +99,28 @@ def run_cases(base: dict, source: str, paths: Sequence[str], cases: Sequence[Seq
               metrics: Sequence[str], window: tuple[float, float] | None):
     """Run ``cases`` (values for ``paths``) one after the other; the task a worker executes.
 
-    Returns a list of ``(metric_values, error_text, seconds)``; a case that raises gives NaN
-    metrics and ``"ExceptionType: message"``.
+    A case that raises gives NaN metrics and ``"ExceptionType: message"``.
+
+    Parameters
+    ----------
+    base : dict
+        The parsed base scenario (copied for each case).
+    source : str
+        Its name, for messages.
+    paths : sequence of str
+        Dotted scenario paths of the swept parameters.
+    cases : sequence of sequence of float
+        One row of values (SI, in the order of ``paths``) per case.
+    metrics : sequence of str
+        Metric names (:data:`downhole.sweep.spec.METRICS`).
+    window : (float, float) or None
+        Time window of the metrics, s; None for the second half of each run.
+
+    Returns
+    -------
+    list of tuple
+        ``(metric_values, error_text, seconds)`` per case: the metric values (SI), ``""`` or
+        the error, and the wall time of the case, s.
     """
     from downhole.scenario import run_scenario
 
@@ -140,7 +182,9 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
         Names from :data:`downhole.sweep.spec.METRICS`.
     random : int, optional
         Monte Carlo: draw this many cases uniformly within the parameter ranges (``START:STOP``)
-        instead of a grid. ``seed`` makes the draw reproducible.
+        instead of a grid.
+    seed : int, optional
+        Seed of the random draw (makes it reproducible).
     window : (float, float) or "START:END", optional
         Time window of the metrics, s; default the second half of each run.
     scheduler : None, "local-cluster", "tcp://HOST:PORT" or distributed.Client
@@ -153,6 +197,9 @@ def run_sweep(scenario: str | Path | dict, params=None, metrics=None, *, random:
         Cases per task; default about four tasks per worker, at most 64 cases per task.
     progress : callable(done, total), optional
         Called as cases complete.
+    source : str, optional
+        Name of a scenario given as a dict, used in messages (default ``"<dict>"``; a file's
+        own name otherwise).
     on_start : callable(), optional
         Called once, after every input was validated and before the first case runs (the CLI
         marks its output folder incomplete there).
@@ -449,13 +496,39 @@ def _assemble(specs: list[ParamSpec], cases, results, metrics, window, base, sou
 
 
 def save_sweep(ds, path: str | Path) -> Path:
-    """Write a sweep dataset as NetCDF (h5netcdf), atomically (temporary file in the same folder,
-    fsync, rename: :func:`downhole._atomic.atomic_path`)."""
+    """Write a sweep dataset as NetCDF (h5netcdf), atomically.
+
+    Serialized in memory, then a temporary file in the same folder, fsync, rename
+    (:func:`downhole._atomic.write_netcdf_atomic`): a full disk is one clean :class:`OSError`.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The dataset of :func:`run_sweep`.
+    path : str or pathlib.Path
+        Output file.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     return write_netcdf_atomic(path, ds)
 
 
 def load_sweep(path: str | Path):
-    """Load a sweep dataset written by :func:`save_sweep`."""
+    """Load a sweep dataset written by :func:`save_sweep`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        NetCDF file.
+
+    Returns
+    -------
+    xarray.Dataset
+        The dataset, fully loaded in memory (the file is closed).
+    """
     import xarray as xr
 
     with xr.open_dataset(path, engine="h5netcdf") as ds:
@@ -463,7 +536,18 @@ def load_sweep(path: str | Path):
 
 
 def failed_cases(ds) -> list[dict]:
-    """The failed cases of a sweep: ``[{"params": {path: value}, "error": text}, ...]``."""
+    """The failed cases of a sweep: ``[{"params": {path: value}, "error": text}, ...]``.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep dataset (with its ``error`` variable).
+
+    Returns
+    -------
+    list of dict
+        One entry per failed case: the swept parameter values (SI) and the error text.
+    """
     err = ds["error"]
     out = []
     flat = err.stack(_c=err.dims) if err.ndim > 1 else err

@@ -83,7 +83,23 @@ METRICS: dict[str, _Metric] = {
 
 
 def metric_names(metrics) -> list[str]:
-    """Validate metric names (order kept, duplicates dropped); raise on unknown ones."""
+    """Validate metric names (order kept, duplicates dropped); raise on unknown ones.
+
+    Parameters
+    ----------
+    metrics : str or iterable of str
+        One metric name or several (keys of :data:`METRICS`).
+
+    Returns
+    -------
+    list of str
+        The names, first occurrence order, without duplicates.
+
+    Raises
+    ------
+    DownholeInputError
+        If no metric is given or a name is unknown (the message lists the known metrics).
+    """
     if isinstance(metrics, str):
         metrics = [metrics]
     metrics = list(metrics or [])
@@ -100,7 +116,28 @@ def metric_names(metrics) -> list[str]:
 
 
 def compute_metrics(result, metrics: list[str], window: tuple[float, float] | None) -> list[float]:
-    """Values of ``metrics`` for one Result over ``window`` (default: second half of the run)."""
+    """Values of ``metrics`` for one Result over ``window`` (default: second half of the run).
+
+    Parameters
+    ----------
+    result : Result
+        The run.
+    metrics : list of str
+        Metric names (validated by :func:`metric_names`).
+    window : (float, float) or None
+        ``(start, end)`` time window, s (inclusive); None for the second half of the run.
+
+    Returns
+    -------
+    list of float
+        One value per metric, in its SI unit (``METRICS[name].units``); NaN where
+        :func:`~downhole.analysis.metrics.summarize` gives none.
+
+    Raises
+    ------
+    ValueError
+        If a channel metric's window holds no samples.
+    """
     from downhole.analysis.metrics import summarize
 
     summary = None
@@ -122,7 +159,23 @@ def compute_metrics(result, metrics: list[str], window: tuple[float, float] | No
 
 
 def parse_window(window) -> tuple[float, float] | None:
-    """``None``, ``(start, end)`` or ``"START:END"`` (seconds, units allowed) -> tuple or None."""
+    """``None``, ``(start, end)`` or ``"START:END"`` (seconds, units allowed) -> tuple or None.
+
+    Parameters
+    ----------
+    window : None, str or pair
+        ``"START:END"`` or a pair of numbers (s) or quantity strings (``"10 s"``, ``"1 min"``).
+
+    Returns
+    -------
+    (float, float) or None
+        ``(start, end)`` in s with ``0 <= start < end``, or None.
+
+    Raises
+    ------
+    DownholeInputError
+        A malformed window, a value that is not a time, or bounds out of order.
+    """
     from downhole.units import UnitError, to_si
 
     if window is None:
@@ -247,6 +300,26 @@ def parse_param(text: str, random: bool = False) -> ParamSpec:
 
     The path is checked for syntax here; whether the scenario knows it is checked by
     :func:`validate_path`.
+
+    Parameters
+    ----------
+    text : str
+        ``NAME=START:STOP:COUNT`` (grid), ``NAME=START:STOP`` (with ``random``) or
+        ``NAME=V1,V2,...`` (list); values are bare numbers (SI) or quantities (``"2 mm/s"``),
+        converted to SI.
+    random : bool, optional
+        The spec is a range for random sampling (``--random``), default False.
+
+    Returns
+    -------
+    ParamSpec
+        The parsed spec, values in SI.
+
+    Raises
+    ------
+    DownholeInputError
+        A malformed NAME or SPEC, an empty range, mixed or inconsistent units, a non-finite value,
+        or a grid/random form that does not fit ``random``.
     """
     if not isinstance(text, str) or "=" not in text:
         raise DownholeInputError(f"--param {text!r}: expected NAME=START:STOP:COUNT "
@@ -324,6 +397,27 @@ def parse_param(text: str, random: bool = False) -> ParamSpec:
 # --- scenario paths ----------------------------------------------------------------------------
 
 def get_path(data: dict, path: str, default=KeyError):
+    """The value at dotted ``path`` of a nested dict (``data[a][b][c]`` for ``"a.b.c"``).
+
+    Parameters
+    ----------
+    data : dict
+        Nested tables (a parsed scenario).
+    path : str
+        Dotted path.
+    default : object, optional
+        Returned when the path is absent; by default an absent path raises.
+
+    Returns
+    -------
+    object
+        The value, or ``default``.
+
+    Raises
+    ------
+    KeyError
+        If the path is absent and no ``default`` is given.
+    """
     node: Any = data
     for key in path.split("."):
         if not isinstance(node, dict) or key not in node:
@@ -335,7 +429,22 @@ def get_path(data: dict, path: str, default=KeyError):
 
 
 def set_path(data: dict, path: str, value) -> None:
-    """Set ``data[a][b][c] = value`` for ``path = "a.b.c"``, creating tables as needed."""
+    """Set ``data[a][b][c] = value`` for ``path = "a.b.c"``, creating tables as needed.
+
+    Parameters
+    ----------
+    data : dict
+        Nested tables, modified in place.
+    path : str
+        Dotted path.
+    value : object
+        The value to set.
+
+    Raises
+    ------
+    DownholeInputError
+        If a component on the way is a value, not a table.
+    """
     keys = path.split(".")
     node = data
     for i, key in enumerate(keys[:-1]):
@@ -350,11 +459,25 @@ def set_path(data: dict, path: str, value) -> None:
 
 
 def validate_path(base: dict, source: str, spec: ParamSpec) -> None:
-    """Check that the scenario accepts ``spec.path`` at the range ends; raise DownholeInputError.
+    """Check that the scenario accepts ``spec.path`` at the range ends.
 
     Lumped scenarios are validated against their full schema (so a path need not be written in
     the file, e.g. ``model.string.mass`` set by the preset). Other model types accept only paths
     already present in the file (their schemas live with their runners).
+
+    Parameters
+    ----------
+    base : dict
+        The parsed base scenario.
+    source : str
+        Its name (file path), used in messages.
+    spec : ParamSpec
+        The swept parameter; its ``low`` and ``high`` are probed.
+
+    Raises
+    ------
+    DownholeInputError
+        A renamed key of an older dialect, an unknown path, or a value the scenario rejects.
     """
     from downhole.scenario import is_lumped_type, model_type
     from downhole.scenario.schema import RENAMES

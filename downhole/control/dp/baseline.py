@@ -20,7 +20,35 @@ __all__ = ["best_constant_velocities", "constant_velocity_cost", "constant_veloc
 
 @njit(cache=True)
 def constant_velocity_run(v0, w0, n_steps, dt, nsub, lumped, p):
-    """Bit velocities at k dt (k = 0..n_steps) for top speeds v0 (m/s), w0 (rad/s) from rest."""
+    """Bit velocities at k dt (k = 0..n_steps) for constant top speeds v0, w0 from rest.
+
+    The 4th-order lumped model (Eq. 2.1, approximated depth of cut) driven by top positions
+    v0 t and w0 t, integrated with ``nsub`` substeps per step.
+
+    Parameters
+    ----------
+    v0 : float
+        Top axial speed, m/s.
+    w0 : float
+        Top angular speed, rad/s.
+    n_steps : int
+        Number of DP steps N.
+    dt : float
+        DP step, s.
+    nsub : int
+        Integration substeps per DP step.
+    lumped : LumpedKernelParams
+        Mass (kg), inertia (kg m^2), stiffnesses and dampings of the lumped model.
+    p : BitKernelParams
+        Compiled bit parameters.
+
+    Returns
+    -------
+    x2 : ndarray, shape (n_steps + 1,)
+        Bit axial velocity, m/s.
+    x4 : ndarray, shape (n_steps + 1,)
+        Bit angular velocity, rad/s.
+    """
     mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
                                      lumped.kt, lumped.ct)
     h = dt / nsub
@@ -42,7 +70,27 @@ def constant_velocity_run(v0, w0, n_steps, dt, nsub, lumped, p):
 
 def constant_velocity_cost(problem: DPProblem, v0: float, w0: float,
                            substep: float = 2.5e-3, epsilon_scale: float = 1.0) -> float:
-    """Eq. 2.13 cost of constant top speeds ``v0`` (m/s) and ``w0`` (rad/s)."""
+    """Eq. 2.13 cost of constant top speeds ``v0`` (m/s) and ``w0`` (rad/s).
+
+    Parameters
+    ----------
+    problem : DPProblem
+        The problem (model, horizon, step, weights and targets).
+    v0 : float
+        Top axial speed, m/s.
+    w0 : float
+        Top angular speed, rad/s.
+    substep : float, optional
+        Largest integration substep, s (default 2.5e-3).
+    epsilon_scale : float, optional
+        Factor on the rock's intrinsic specific energy (default 1).
+
+    Returns
+    -------
+    float
+        The cost (:func:`~downhole.control.dp.solution.trajectory_cost`); inf if the run
+        diverges.
+    """
     a = problem.arrays(epsilon_scale)
     nsub = int(np.ceil(problem.step / substep - 1e-9))
     x2, x4 = constant_velocity_run(float(v0), float(w0), problem.steps, problem.step, nsub,
@@ -54,7 +102,25 @@ def constant_velocity_cost(problem: DPProblem, v0: float, w0: float,
 
 def best_constant_velocities(problem: DPProblem, scan: int = 11,
                              substep: float = 2.5e-3) -> tuple[float, float, float]:
-    """Best constant top speeds for the problem's cost: ``(cost, v0, w0)``."""
+    """Best constant top speeds for the problem's cost: ``(cost, v0, w0)``.
+
+    A ``scan`` x ``scan`` grid from 0.25 to 2 times the largest target velocities, refined by
+    Nelder-Mead from the best grid point.
+
+    Parameters
+    ----------
+    problem : DPProblem
+        The problem.
+    scan : int, optional
+        Grid points per speed (default 11).
+    substep : float, optional
+        Largest integration substep, s (default 2.5e-3).
+
+    Returns
+    -------
+    (cost, v0, w0) : tuple of float
+        The lowest cost found, the top axial speed (m/s) and angular speed (rad/s).
+    """
     t = problem.targets
     vs = np.linspace(0.25, 2.0, scan) * max(t.v_m, t.v_d)
     ws = np.linspace(0.25, 2.0, scan) * max(t.w_m, t.w_d)

@@ -35,7 +35,21 @@ __all__ = ["check_reachable", "path_solution", "solve_customized", "stage_vector
 
 
 def stage_vector(problem: DPProblem) -> tuple[np.ndarray, np.ndarray]:
-    """Stage cost (Eq. 2.13 terms for k < N) and terminal cost at every (x2, x4) node."""
+    """Stage cost (Eq. 2.13 terms for k < N) and terminal cost at every (x2, x4) node.
+
+    Parameters
+    ----------
+    problem : DPProblem
+        The problem (grids, weights, targets, step).
+
+    Returns
+    -------
+    stage : ndarray, shape (n2 * n4,)
+        ``(lambda1 (x2 - v_m)^2 + lambda2 (x4 - w_m)^2) Delta t`` per node, node index
+        ``i2 * n4 + i4``.
+    term : ndarray, shape (n2 * n4,)
+        ``lambda3 (x2 - v_d)^2 + lambda4 (x4 - w_d)^2`` per node.
+    """
     g2, g4 = problem.grid2(), problem.grid4()
     w, t, dt = problem.weights, problem.targets, problem.step
     x2, x4 = np.meshgrid(g2, g4, indexing="ij")
@@ -53,7 +67,24 @@ def _bounds_array(problem: DPProblem) -> tuple[np.ndarray, bool]:
 
 
 def transitions(problem: DPProblem, epsilon_scale: float = 1.0):
-    """CSR lists ``(succ_ptr, succ, pred_ptr, pred)`` of the admissible node pairs."""
+    """CSR lists ``(succ_ptr, succ, pred_ptr, pred)`` of the admissible node pairs.
+
+    A pair of (x2, x4) nodes is admissible when the string force and torque needed to move
+    between them in one step (and the top speeds, if bounded) lie within ``problem.bounds``.
+
+    Parameters
+    ----------
+    problem : DPProblem
+        The problem.
+    epsilon_scale : float, optional
+        Factor on the rock's intrinsic specific energy (default 1).
+
+    Returns
+    -------
+    succ_ptr, succ, pred_ptr, pred : ndarray of int
+        Successors and predecessors of every node (node index ``i2 * n4 + i4``) in compressed
+        sparse row form.
+    """
     a = problem.arrays(epsilon_scale)
     bounds, rates = _bounds_array(problem)
     return transition_lists(problem.grid2(), problem.grid4(), a.lumped(), a.bit, problem.step,
@@ -63,10 +94,18 @@ def transitions(problem: DPProblem, epsilon_scale: float = 1.0):
 def check_reachable(problem: DPProblem, succ_ptr, succ) -> None:
     """Reject the problem before the search if no admissible path reaches (v_d, w_d) in N steps.
 
+    Parameters
+    ----------
+    problem : DPProblem
+        The problem.
+    succ_ptr, succ : ndarray of int
+        Successor lists from :func:`transitions`.
+
     Raises
     ------
     DownholeInputError
-        Naming the bounds and the number of steps needed, or that the target is unreachable.
+        Naming the bounds and the force and torque one grid step in one DP step needs, when
+        the final target cannot be reached from rest.
     """
     idx = problem.target_indices()
     n4 = problem.x4.points
@@ -100,7 +139,27 @@ def check_reachable(problem: DPProblem, succ_ptr, succ) -> None:
 
 def path_solution(problem: DPProblem, path: np.ndarray, method: str, cost: float,
                   info: dict) -> DPSolution:
-    """Build a :class:`DPSolution` from a node path (k = 0..N) by the inversion of Eq. 2.15."""
+    """Build a :class:`DPSolution` from a node path (k = 0..N) by the inversion of Eq. 2.15.
+
+    Parameters
+    ----------
+    problem : DPProblem
+        The problem.
+    path : ndarray of int, shape (N+1,)
+        Node indices ``i2 * n4 + i4`` of the path.
+    method : str
+        Name of the solver (``customized``, ``robust``, ...).
+    cost : float
+        The cost reported by the search.
+    info : dict
+        Timings and other settings stored with the solution.
+
+    Returns
+    -------
+    DPSolution
+        States x1..x4 (m, m/s, rad, rad/s), string force (N) and torque (N m), top inputs
+        u1 (m) and u2 (rad).
+    """
     g2, g4 = problem.grid2(), problem.grid4()
     n4 = g4.size
     i2, i4 = path // n4, path % n4

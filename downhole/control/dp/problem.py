@@ -62,7 +62,15 @@ class _ProblemError(DownholeInputError):
 
 
 class GridSpec(BaseModel):
-    """A uniform grid of ``points`` values from ``min`` to ``max`` (both included)."""
+    """A uniform grid of ``points`` values from ``min`` to ``max`` (both included).
+
+    Parameters
+    ----------
+    min, max : float
+        First and last value, in the grid's SI unit (m/s for x2, rad/s for x4).
+    points : int
+        Number of values (at most :data:`MAX_GRID_POINTS`).
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -227,7 +235,19 @@ class DPProblem(BaseModel):
         return preset.string, bit
 
     def arrays(self, epsilon_scale: float = 1.0) -> ModelArrays:
-        """Plain arrays for the compiled kernels, with epsilon scaled by ``epsilon_scale``."""
+        """Plain arrays for the compiled kernels, with epsilon scaled by ``epsilon_scale``.
+
+        Parameters
+        ----------
+        epsilon_scale : float, optional
+            Factor on the rock's intrinsic specific energy epsilon (dimensionless, default 1; the
+            robust DP uses it for its uncertain-rock scenarios).
+
+        Returns
+        -------
+        ModelArrays
+            The lumped constants of the preset and the compiled bit parameters.
+        """
         string, bit = self.params()
         p = bit.kernel_params()
         p = p._replace(epsilon=p.epsilon * epsilon_scale)
@@ -247,6 +267,18 @@ class DPProblem(BaseModel):
 
     # ------------------------------------------------------------------ validation
     def model_post_init(self, __context) -> None:
+        """Pydantic hook run after field validation: check the problem's consistency.
+
+        Parameters
+        ----------
+        __context : object
+            Pydantic's validation context (unused).
+
+        Raises
+        ------
+        DownholeInputError
+            An inconsistent problem (the message names the field).
+        """
         self._check()
 
     def _check(self) -> None:
@@ -362,7 +394,23 @@ class DPProblem(BaseModel):
                     "N m")
 
     def with_updates(self, **changes) -> DPProblem:
-        """A validated copy with top-level fields replaced (nested specs as dicts or objects)."""
+        """A validated copy with top-level fields replaced (nested specs as dicts or objects).
+
+        Parameters
+        ----------
+        **changes
+            Field name -> new value (a plain value, a dict or a pydantic spec object).
+
+        Returns
+        -------
+        DPProblem
+            The new problem.
+
+        Raises
+        ------
+        ScenarioError
+            If the updated problem fails validation (via :func:`problem_from_dict`).
+        """
         data = self.model_dump()
         for k, v in changes.items():
             data[k] = v.model_dump() if isinstance(v, BaseModel) else v
@@ -371,7 +419,25 @@ class DPProblem(BaseModel):
 
 class ModelArrays:
     """Plain floats and the bit law's :class:`~downhole.params.bit.BitKernelParams` handed to the
-    compiled kernels."""
+    compiled kernels.
+
+    Parameters
+    ----------
+    mass : float
+        Equivalent axial mass M of the 4th-order lumped model, kg.
+    inertia : float
+        Equivalent moment of inertia I, kg m^2.
+    ka : float
+        Axial stiffness, N/m.
+    ca : float
+        Axial damping, N s/m.
+    kt : float
+        Torsional stiffness, N m/rad.
+    ct : float
+        Torsional damping, N m s/rad.
+    bit : BitKernelParams
+        Compiled bit parameters.
+    """
 
     __slots__ = ("bit", "ca", "ct", "inertia", "ka", "kt", "mass")
 
@@ -406,8 +472,21 @@ def _flatten_error(exc: ValidationError) -> tuple[str, str]:
 
 
 def problem_from_dict(data: dict, source: str = "<dict>") -> DPProblem:
-    """Build a :class:`DPProblem` from a plain dict of its fields (``DPProblem.model_dump()``,
-    as stored in a solution's JSON; a problem *file* is read by :func:`load_problem`).
+    """Build a :class:`DPProblem` from a plain dict of its fields.
+
+    The dict is ``DPProblem.model_dump()``, as stored in a solution's JSON; a problem *file* is
+    read by :func:`load_problem`.
+
+    Parameters
+    ----------
+    data : dict
+        Field name -> value (nested specs as dicts).
+    source : str, optional
+        Name of the origin of ``data``, used in error messages (default ``"<dict>"``).
+
+    Returns
+    -------
+    DPProblem
 
     Raises
     ------
@@ -482,7 +561,19 @@ class DPModelSettings(_FileStrict):
 
 
 class DPScenario(_FileStrict):
-    """A whole problem file (``downhole optimize dp``)."""
+    """A whole problem file (``downhole optimize dp``).
+
+    Parameters
+    ----------
+    title, description : str
+        Free text.
+    model : DPModelSettings
+        ``[model]``: ``fidelity = "lumped4"`` and the ``preset``.
+    bit : dict
+        ``[bit]``: bit parameters over the preset's (e.g. ``epsilon``).
+    optimize : DPOptimizeSettings
+        ``[optimize]``: the problem and the solver.
+    """
 
     title: str = ""
     description: str = ""
@@ -504,6 +595,19 @@ def _file_field(field: str) -> str:
 
 def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, str | None]:
     """Validate a parsed problem file: ``(problem, method or None)``.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed TOML tables (``model``, ``bit``, ``optimize``, ...).
+    source : str, optional
+        Name of the file (or origin), used in error messages (default ``"<dict>"``).
+
+    Returns
+    -------
+    problem : DPProblem
+    method : str or None
+        ``optimize.method`` if given (one of :data:`METHOD_NAMES`).
 
     Raises
     ------
@@ -542,8 +646,20 @@ def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, str | 
 
 
 def load_dp_scenario(path: str | Path) -> tuple[DPProblem, str | None]:
-    """Read a problem file (schema in docs/dp.md; examples in ``examples/dp_*.toml``):
-    ``(problem, optimize.method or None)``.
+    """Read a problem file: ``(problem, optimize.method or None)``.
+
+    Schema in docs/dp.md; examples in ``examples/dp_*.toml``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        TOML problem file.
+
+    Returns
+    -------
+    problem : DPProblem
+    method : str or None
+        ``optimize.method`` if the file gives one.
 
     Raises
     ------
@@ -559,6 +675,15 @@ def load_dp_scenario(path: str | Path) -> tuple[DPProblem, str | None]:
 
 def load_problem(path: str | Path) -> DPProblem:
     """Read a problem file: its :class:`DPProblem` (see :func:`load_dp_scenario`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        TOML problem file.
+
+    Returns
+    -------
+    DPProblem
 
     Raises
     ------

@@ -25,7 +25,21 @@ __all__ = [
 
 
 def replay_discrete(sol: DPSolution, epsilon_scale: float = 1.0) -> np.ndarray:
-    """States x1..x4 (shape (N+1, 4)) of Eq. 2.12 driven by the solution's u1(k), u2(k)."""
+    """States x1..x4 of Eq. 2.12 driven by the solution's u1(k), u2(k).
+
+    Parameters
+    ----------
+    sol : DPSolution
+        The solution (its inputs u1 (m) and u2 (rad) per DP step).
+    epsilon_scale : float, optional
+        Factor on the rock's intrinsic specific energy of the replayed model (default 1).
+
+    Returns
+    -------
+    ndarray, shape (N+1, 4)
+        Bit displacement (m), axial velocity (m/s), angle (rad) and angular velocity (rad/s)
+        at k = 0..N.
+    """
     a = sol.problem.arrays(epsilon_scale)
     return discrete_replay(np.asarray(sol.u1, float), np.asarray(sol.u2, float),
                            sol.problem.step, a.lumped(), a.bit)
@@ -49,7 +63,13 @@ def replay_path(sol: DPSolution, epsilon_scale: float = 1.0, dt: float = 1e-3,
     Returns
     -------
     dict
-        ``time``, ``x2``, ``x4`` (bit velocities) and ``e1``, ``e3`` (path minus model position).
+        ``time`` (s), ``x2``, ``x4`` (bit velocities, m/s and rad/s) and ``e1``, ``e3`` (path
+        minus model position, m and rad).
+
+    Raises
+    ------
+    DownholeInputError
+        An off-grid (standard DP) solution, or a ``dt`` that does not divide the DP step.
     """
     if not sol.on_grid:
         raise DownholeInputError("replay_path needs an on-grid (customized or robust) solution")
@@ -66,8 +86,28 @@ def replay_path(sol: DPSolution, epsilon_scale: float = 1.0, dt: float = 1e-3,
 
 
 def ensemble_costs(sol: DPSolution, scales) -> list[float]:
-    """Eq. 2.13 cost of the solution's inputs on each model of an epsilon ensemble (same
-    integrator and substep as the robust DP; the nominal model follows the path exactly)."""
+    """Eq. 2.13 cost of the solution's inputs on each model of an epsilon ensemble.
+
+    Same integrator and substep as the robust DP (:func:`replay_path`); the nominal model
+    (factor 1) follows the path exactly.
+
+    Parameters
+    ----------
+    sol : DPSolution
+        An on-grid solution.
+    scales : iterable of float
+        Factors on epsilon, one per ensemble model.
+
+    Returns
+    -------
+    list of float
+        The cost of each model, in the order of ``scales``.
+
+    Raises
+    ------
+    DownholeInputError
+        If the solution is off grid (from :func:`replay_path`).
+    """
     out = []
     step = sol.problem.step
     nsub = int(np.ceil(step / sol.problem.robust.substep - 1e-9))
@@ -89,9 +129,33 @@ def replay_lumped(sol: DPSolution, order: int = 4, *, epsilon_scale: float = 1.0
     The top displacements come from :meth:`DPSolution.input_signals` (path inversion) and drive
     :func:`downhole.sim.simulate` through ``SurfaceInputs.displacement``.
 
+    Parameters
+    ----------
+    sol : DPSolution
+        The solution.
+    order : {4, 12}, optional
+        Order of the lumped model (default 4).
+    epsilon_scale : float, optional
+        Factor on the rock's intrinsic specific energy (default 1).
+    duration : float, optional
+        Simulated time, s (default: the DP horizon).
+    dt : float, optional
+        Integration step, s (default 5e-4).
+    depth_of_cut : {"approximate", "delayed"}, optional
+        Depth-of-cut model (default ``"approximate"``).
+    integrator : {"euler", "newmark"}, optional
+        Integrator (default ``"euler"``).
+    record_dt : float or None, optional
+        Recording interval, s (default 0.01).
+
     Returns
     -------
     downhole.sim.result.Result
+
+    Raises
+    ------
+    DownholeInputError
+        If ``order`` is not 4 or 12, or an argument :func:`downhole.sim.simulate` refuses.
     """
     from downhole.sim import SurfaceInputs, simulate
     from downhole.sim.lumped_model import lumped_model
@@ -116,10 +180,28 @@ def replay_epsilon(sol: DPSolution, scales, *, dt: float = 1e-3, every: int | No
     :func:`replay_lumped`); otherwise the compiled approximated-depth replay of
     :func:`replay_path`.
 
+    Parameters
+    ----------
+    sol : DPSolution
+        The solution (on grid unless ``use_sim``).
+    scales : iterable of float
+        Factors on epsilon.
+    dt : float, optional
+        Integration step of :func:`replay_path`, s (default 1e-3).
+    every : int, optional
+        Output decimation of :func:`replay_path`.
+    duration : float, optional
+        Simulated time with ``use_sim``, s (default: the DP horizon).
+    use_sim : bool, optional
+        Replay on the simulation model (default False).
+    **sim_kwargs
+        Passed to :func:`replay_lumped` with ``use_sim``.
+
     Returns
     -------
     dict
-        ``time`` and ``x2``/``x4`` arrays of shape (len(scales), samples).
+        ``time`` (s), ``scales`` and ``x2`` (m/s) / ``x4`` (rad/s) arrays of shape
+        (len(scales), samples).
     """
     rows2, rows4, t = [], [], None
     for s in scales:

@@ -27,7 +27,24 @@ _FORMAT = "downhole.dp.solution/1"
 
 
 def stage_costs(problem, x2, x4) -> np.ndarray:
-    """Per-sample costs of Eq. 2.13: stage terms for k < N, the terminal term at k = N."""
+    """Per-sample costs of Eq. 2.13: stage terms for k < N, the terminal term at k = N.
+
+    Parameters
+    ----------
+    problem : DPProblem
+        The problem (weights lambda1..4, targets v_m, w_m, v_d, w_d and step Delta t, s).
+    x2 : array_like, shape (N+1,)
+        Bit axial velocity at k = 0..N, m/s.
+    x4 : array_like, shape (N+1,)
+        Bit angular velocity at k = 0..N, rad/s.
+
+    Returns
+    -------
+    ndarray, shape (N+1,)
+        ``(lambda1 (x2 - v_m)^2 + lambda2 (x4 - w_m)^2) Delta t`` for k < N and
+        ``lambda3 (x2 - v_d)^2 + lambda4 (x4 - w_d)^2`` at k = N (units of the weights times
+        squared velocities; dimensionless with the seed's weights).
+    """
     w, t, dt = problem.weights, problem.targets, problem.step
     x2 = np.asarray(x2, float)
     x4 = np.asarray(x4, float)
@@ -37,7 +54,22 @@ def stage_costs(problem, x2, x4) -> np.ndarray:
 
 
 def trajectory_cost(problem, x2, x4) -> float:
-    """Cost g(x) of Eq. 2.13 of a trajectory sampled at k = 0..N."""
+    """Cost g(x) of Eq. 2.13 of a trajectory sampled at k = 0..N.
+
+    Parameters
+    ----------
+    problem : DPProblem
+        The problem (weights lambda1..4, targets v_m, w_m, v_d, w_d and step Delta t, s).
+    x2 : array_like, shape (N+1,)
+        Bit axial velocity at k = 0..N, m/s.
+    x4 : array_like, shape (N+1,)
+        Bit angular velocity at k = 0..N, rad/s.
+
+    Returns
+    -------
+    float
+        The sum of :func:`stage_costs`.
+    """
     return float(np.sum(stage_costs(problem, x2, x4)))
 
 
@@ -101,10 +133,24 @@ class DPSolution:
         continuous form at every sample (do not interpolate u(k), docs/seed-errata.md). Off-grid
         solutions (standard DP) hold u(k) over each step.
 
+        Parameters
+        ----------
+        dt : float
+            Sample step, s (> 0).
+        duration : float, optional
+            Length of the signals, s (default: the horizon). Beyond the horizon an on-grid
+            solution holds the final velocities (steady drilling); an off-grid one holds the last
+            input.
+
         Returns
         -------
         t, u1, u2 : ndarray
             Times (s), top axial displacement (m) and top angle (rad) from the hanging start.
+
+        Raises
+        ------
+        DownholeInputError
+            If ``dt`` is not positive.
         """
         from downhole.control.dp.kernels import path_inputs
 
@@ -141,6 +187,16 @@ class DPSolution:
         then ``solution.npz`` and last ``solution.json`` are renamed into place. Both carry the
         same ``run_id``, which :func:`load_solution` checks. A save killed at any point leaves
         either the previous pair, or no ``solution.json`` (and :func:`load_solution` says so).
+
+        Parameters
+        ----------
+        directory : str or os.PathLike
+            Output folder (created if needed).
+
+        Returns
+        -------
+        pathlib.Path
+            ``directory``.
         """
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
@@ -168,10 +224,22 @@ class DPSolution:
 def load_solution(directory: str | os.PathLike) -> DPSolution:
     """Load a solution written by :meth:`DPSolution.save` (no pickle).
 
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        Folder holding ``solution.json`` and ``solution.npz``.
+
+    Returns
+    -------
+    DPSolution
+
     Raises
     ------
     DownholeInputError
-        If a file is missing, of another format, or the arrays are inconsistent.
+        If a file is missing, of another format, from another save, or the arrays are
+        inconsistent.
+    ScenarioError
+        If the stored problem fails validation.
     """
     from downhole.control.dp.problem import problem_from_dict
 
