@@ -25,8 +25,8 @@ and send the layout. Every later datagram of the session in either direction car
 session id and the sender's counter under a tag of the session key of its direction, and the
 receiver accepts only a counter above the last one it accepted. Refused and counted as
 ``replayed``: a ``HELLO`` whose nonce the plant has seen before (the last 4096), the ``AUTH``
-of an open session, any datagram of an ended session (the last 1024 session ids; after that
-their keys, forgotten, fail the tag check), and a counter not above the last accepted. A HELLO
+of an open session, any datagram of an ended session (the last 1024 session ids; an older one
+is refused as ``foreign``), and a counter not above the last accepted. A HELLO
 changes nothing until its AUTH proves the key, so a replayed or forged one cannot disturb the
 owner's session. Counters are 32-bit: a session lasts at most 2^32 - 1 datagrams per direction
 (49 days at 1 kHz).
