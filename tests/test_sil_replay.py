@@ -328,6 +328,29 @@ def test_the_controller_refuses_replayed_observations_and_bye():
     link.close()
 
 
+def test_handing_a_keyed_link_to_another_controller_ends_the_old_session():
+    link = PlantLink(LAYOUT, key=KEY)
+    old = _session(link)
+    s0 = link.session
+    link.release_owner()  # operator action: BYE to the old owner, the session is over
+    assert old.receive(0.5) == "bye" and link.owner is None
+    new = _connect(link, _client(link, bind=("127.0.0.3", 0)))
+    assert new.session not in (0, s0) and link.owner == new.sock.getsockname()
+    # the old owner's session, from its own address: not the owner any more
+    ack = link.send_obs(0.0, np.zeros(2))
+    new.receive(0.5)
+    for d in _replayable(old.sock.sent):
+        old.sock.sock.send(d)
+    assert link.wait_command(ack, time.monotonic() + 0.1) is None
+    c = link.counters
+    assert c["foreign"] == len(_of(old.sock.sent, MsgType.CMD))  # not from the owner
+    assert c["replayed"] == len(_of(old.sock.sent, MsgType.HELLO)) + 1  # nonces seen; AUTH
+    assert _exchange(link, new, (7e5, 14.0)).tolist() == [7e5, 14.0]
+    old.sock.close()
+    new.close()
+    link.close()
+
+
 # ------------------------------------------------------------------ garbled datagrams
 def _recrc(d: bytes, authed: bool) -> bytes:
     """Recompute the CRC of a mutated datagram, so that it reaches the tag check."""
