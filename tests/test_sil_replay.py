@@ -396,6 +396,39 @@ def test_truncated_and_garbled_datagrams_are_refused():
     link.close()
 
 
+def test_the_controller_refuses_garbled_observations():
+    link = PlantLink(LAYOUT, key=KEY)
+    owner = _session(link)
+    cap = [d for d in owner.sock.received if parse(d)[0].type in (MsgType.OBS,
+                                                                  MsgType.LAYOUT)]
+    rng = random.Random(25)
+    variants = []
+    for d in cap:
+        variants += [d[:n] for n in range(0, len(d), 11)]
+        for _ in range(30):
+            b = bytearray(d)
+            i = rng.randrange(len(b))
+            b[i] ^= rng.randrange(1, 256)
+            variants.append(_recrc(bytes(b), authed=True) if i < len(b) - 20 else bytes(b))
+    variants = [v for v in variants if v not in cap]
+    assert 150 <= len(variants) <= 600
+    before = dict(owner.counters)
+    spoof = _sock(*link.address)  # from the plant's address and port
+    dst = owner.sock.getsockname()
+    for i in range(0, len(variants), 40):  # in batches: the socket buffer holds them all
+        for v in variants[i:i + 40]:
+            spoof.sendto(v, dst)
+        assert owner.receive(0.05) is None  # nothing taken
+    spoof.close()
+    c = owner.counters
+    assert sum(c[k] - before[k] for k in ("malformed", "auth_failed", "replayed",
+                                          "foreign")) == len(variants)
+    assert c["rx"] == before["rx"] and owner._rx is not None
+    assert _exchange(link, owner).tolist() == [1e5, 10.0]
+    owner.close()
+    link.close()
+
+
 # ------------------------------------------------------------------ versions
 def test_an_old_version_peer_gets_a_one_line_refusal():
     link = PlantLink(LAYOUT, key=KEY)
