@@ -86,6 +86,7 @@ __all__ = [
     "MsgType",
     "Signer",
     "VersionMismatch",
+    "check_tag",
     "load_key",
     "pack",
     "pack_hello",
