@@ -241,6 +241,29 @@ def test_replays_from_another_address_or_port_are_refused_and_counted():
     link.close()
 
 
+def test_a_bye_replayed_from_another_address_or_port_changes_nothing():
+    link = PlantLink(LAYOUT, key=KEY)
+    first = _session(link)
+    src = first.sock.getsockname()
+    first.close()  # its BYE is captured
+    assert _pump(link, lambda: link.counters["bye"] == 1)
+    again = _connect(link, _client(link, bind=src))  # the owner's next session
+    bye = _of(first.sock.sent, MsgType.BYE)
+    assert len(bye) == 1
+    c0 = dict(link.counters)
+    for host in ("127.0.0.3", "127.0.0.1"):
+        s = _sock(host)
+        s.sendto(bye[0], link.address)
+        _settle(link)
+        assert _silent(s)
+        s.close()
+    c = link.counters
+    assert c["foreign"] - c0["foreign"] == 2 and c["bye"] == 1 and link.connected
+    assert _exchange(link, again, (8e5, 15.0)).tolist() == [8e5, 15.0]
+    again.close()
+    link.close()
+
+
 def test_replays_within_the_session_reuse_a_counter_and_are_refused():
     link = PlantLink(LAYOUT, key=KEY)
     owner = _session(link)
