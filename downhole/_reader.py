@@ -20,6 +20,7 @@ __all__ = [
     "MAX_STRING_LENGTH",
     "check_values",
     "parse_toml_text",
+    "read_regular_file",
     "read_scenario_text",
     "read_toml",
 ]
@@ -99,6 +100,63 @@ def read_scenario_text(path: str | Path) -> tuple[str, str]:
         line = text[:text.index("\x00")].count("\n") + 1
         raise ScenarioError(source, "", f"NUL character at line {line}; a scenario is text")
     return text, source
+
+
+def read_regular_file(path: str | Path, max_bytes: int, expected: str) -> bytes:
+    """Read a data file's bytes safely: only a regular file (a directory, a FIFO, a device such
+    as ``/dev/zero`` or a socket is refused before it is opened, so nothing blocks or reads
+    without end), at most ``max_bytes`` of it.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    max_bytes : int
+        Largest size accepted.
+    expected : str
+        What the file should be, for messages (e.g. ``"a saved DHP controller (.json)"``).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and what is wrong with it.
+    """
+    import os
+    import stat
+
+    source = str(path)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise ScenarioError(source, "", "file not found") from None
+    except (OSError, ValueError) as exc:
+        raise ScenarioError(source, "", f"cannot read the file ({exc})") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a directory" if stat.S_ISDIR(st.st_mode) else
+                "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else
+                "a socket" if stat.S_ISSOCK(st.st_mode) else "a device or special file")
+        raise ScenarioError(source, "", f"is {kind}; expected {expected}")
+    if st.st_size > max_bytes:
+        raise ScenarioError(source, "", f"file of {st.st_size} bytes; {expected} is at most "
+                            f"{max_bytes} bytes")
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        raise ScenarioError(source, "", f"cannot read the file ({exc.strerror})") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # replaced between stat and open
+            raise ScenarioError(source, "", f"is not a regular file; expected {expected}")
+        with os.fdopen(fd, "rb", closefd=False) as fh:
+            raw = fh.read(max_bytes + 1)
+    except OSError as exc:
+        raise ScenarioError(source, "", f"cannot read the file ({exc.strerror})") from None
+    finally:
+        os.close(fd)
+    if len(raw) > max_bytes:
+        raise ScenarioError(source, "", f"file larger than {max_bytes} bytes; {expected} is "
+                            "smaller")
+    return raw
 
 
 def parse_toml_text(text: str, source: str) -> dict:

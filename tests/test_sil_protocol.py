@@ -82,3 +82,41 @@ def test_authenticated_datagram_carries_a_truncated_hmac_sha256_tag():
         unpack(data, Signer(b"x" * 32))
     with pytest.raises(ValueError, match="at least 16"):
         Signer(b"short")
+
+
+def test_session_keys_are_fresh_per_nonce_session_and_direction():
+    import hashlib
+    import hmac
+    import os
+
+    from downhole.sil.protocol import (
+        NONCE_SIZE,
+        AuthenticationFailed,
+        pack_hello,
+        refusal,
+        session_signers,
+        split_hello,
+    )
+
+    key, nc, ns = b"k" * 32, os.urandom(NONCE_SIZE), os.urandom(NONCE_SIZE)
+    c2p, p2c = session_signers(key, nc, ns, 7)
+    data = pack(MsgType.CMD, 7, 3, [1.0, 2.0], signer=c2p)
+    body = data[:-16]
+    expect = hmac.new(hmac.new(key, b"DHSL3 c2p" + nc + ns + struct.pack("<I", 7),
+                               hashlib.sha256).digest(), body, hashlib.sha256).digest()[:16]
+    assert data[-16:] == expect
+    assert unpack(data, c2p).values.tolist() == [1.0, 2.0]
+    others = (p2c, session_signers(key, nc, ns, 8)[0], session_signers(key, ns, nc, 7)[0],
+              session_signers(key, nc, os.urandom(NONCE_SIZE), 7)[0],
+              session_signers(b"x" * 32, nc, ns, 7)[0])
+    for other in others:  # the other direction, session, nonces or key: refused
+        with pytest.raises(AuthenticationFailed):
+            unpack(data, other)
+    hello = unpack(pack_hello(1, nc, "plc-7"))
+    assert hello.type == MsgType.HELLO and hello.session == 0
+    assert split_hello(hello) == (nc, "plc-7")
+    assert split_hello(unpack(pack(MsgType.HELLO, 0, 1, raw=b"short"))) is None
+    r = unpack(refusal(2))
+    assert r.type == MsgType.REFUSE and VERSION == 3
+    assert r.values.tobytes().rstrip(b"\0").decode().startswith(
+        "downhole SIL protocol version 2 refused: this end speaks version 3")

@@ -96,7 +96,7 @@ def _command(link, client, values, *, seq=None):
     assert got is not None and got[0] == ack
     s = client._next() if seq is None else seq
     client.sock.send(pack(MsgType.CMD, client.session, s, values, ack=ack,
-                          signer=client._signer))
+                          signer=client._tx))
     return link.wait_command(ack, time.monotonic() + 0.3)
 
 
@@ -574,7 +574,7 @@ def test_hmac_right_key_works_wrong_key_and_missing_tag_are_refused():
     ack = link.send_obs(0.0, np.zeros(2))
     good.receive(1.0)
     pkt = pack(MsgType.CMD, good.session, good._next(), [1e5, 10.0], ack=ack,
-               signer=good._signer)
+               signer=good._tx)
     forged = bytearray(pkt)
     forged[44:52] = np.float64(0.0).tobytes()
     forged[-20:-16] = zlib.crc32(bytes(forged[:-20])).to_bytes(4, "little")

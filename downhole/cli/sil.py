@@ -176,6 +176,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
     if rtc.chunk_dir is not None:
         check_output_path(rtc.chunk_dir, option=f"{scenario}: realtime.chunk_dir", kind="folder")
     cfile = str(controller) if controller else None
+    _check_controller_choice(sc, scenario, cfile)
     token = None
     if dashboard:  # refuse bad dashboard settings now, not after the design and the wait
         from downhole.sil.dashboard import check_dashboard_settings
@@ -276,6 +277,23 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                            "link": runner.link.counters if runner.link else None,
                            "events": runner.event_count}, indent=1))
     _write_sil_result(res, out, out_file, stopper)
+
+
+def _check_controller_choice(sc, scenario, cfile: str | None) -> None:
+    """A controller file that would be loaded and never run is refused (one line): the
+    scenario's controller is ``none`` (open loop) or remote (it connects over the link)."""
+    file = cfile or sc.controller.file
+    if not file:
+        return
+    given = f"--controller {cfile}" if cfile else f"[controller] file = {file!r}"
+    if sc.controller.type == "none":
+        fail(f"{given}, but {scenario} sets [controller] type = \"none\" (open loop): the "
+             "controller would never run; set type = \"file\" in the scenario to run it "
+             "closed loop, or drop the file to run open loop")
+    if cfile and sc.controller.remote:
+        fail(f"{given} runs in this process, but the controller of this run is remote "
+             "(--remote or [controller] remote = true): give the file to the other end, "
+             f"`downhole sil-controller --controller {cfile}`")
 
 
 def _write_sil_result(res, out, out_file, stopper) -> None:

@@ -1,19 +1,41 @@
-"""UDP link between a plant (server) and a controller, rig or PLC (client), protocol version 2.
+"""UDP link between a plant (server) and a controller, rig or PLC (client), protocol version 3.
 
-:class:`PlantLink` is the plant's end: it binds a UDP port, answers ``HELLO`` with the layout,
-sends one ``OBS`` per step and collects the ``CMD`` that answers it. :class:`ControllerClient`
-is the controller's end (the client library): it connects, receives observations as named
-dicts, calls any controller's ``command(t, observation, reference)`` and sends the answer.
+:class:`PlantLink` is the plant's end: it binds a UDP port, answers ``HELLO`` (keyed: after a
+challenge) with the layout, sends one ``OBS`` per step and collects the ``CMD`` that answers
+it. :class:`ControllerClient` is the controller's end (the client library): it connects,
+receives observations as named dicts, calls any controller's ``command(t, observation,
+reference)`` and sends the answer.
 
-Session ownership: the first client whose ``HELLO`` the plant accepts (its address *and* port)
-owns the session. A ``HELLO`` from any other address or port is refused - no layout, no session
-id - and counted (``refused``, event ``controller_refused``); so are its other datagrams
-(``foreign``). The owner saying ``HELLO`` again (a restarted PLC reusing its source port)
-re-synchronises the sequence tracking (event ``controller_reconnected``); a ``BYE`` from the
-owner keeps the ownership (only the owner can come back). Handing the session to another
-client is an operator action, :meth:`PlantLink.release_owner` (the runtime's
-:meth:`~downhole.sil.runtime.RealTimeRunner.replace_controller` applies the safe action first);
-it also draws a new session id, so the old owner's datagrams no longer match.
+Session ownership: the first client whose session the plant opens owns it - its address *and*
+port. A ``HELLO`` from any other address or port is refused - no challenge, no layout, no
+session id - and counted (``refused``, event ``controller_refused``); so are its other
+datagrams (``foreign``). The owner may open a new session (a restarted PLC reusing its source
+port; event ``controller_reconnected``); a ``BYE`` from the owner keeps the ownership (only the
+owner can come back). Handing the session to another client is an operator action,
+:meth:`PlantLink.release_owner` (the runtime's
+:meth:`~downhole.sil.runtime.RealTimeRunner.replace_controller` applies the safe action first).
+
+Keyed link (a shared key, :func:`~downhole.sil.protocol.load_key`; required beyond loopback):
+replay-proof. The controller's ``HELLO`` carries a fresh random nonce and is tagged under the
+key; the plant answers with a ``CHALLENGE`` (the client's nonce, its own fresh nonce, a new
+session id), and the controller proves the key with ``AUTH``, tagged under the session key
+derived from the key, both nonces and the session id
+(:func:`~downhole.sil.protocol.session_signers`); only then does the plant open the session
+and send the layout. Every later datagram of the session in either direction carries the
+session id and the sender's counter under a tag of the session key of its direction, and the
+receiver accepts only a counter above the last one it accepted. Refused and counted as
+``replayed``: a ``HELLO`` whose nonce the plant has seen before (the last 4096), the ``AUTH``
+of an open session, any datagram of an ended session (the last 1024 session ids; an older one
+is refused as ``foreign``), and a counter not above the last accepted. A HELLO
+changes nothing until its AUTH proves the key, so a replayed or forged one cannot disturb the
+owner's session. Counters are 32-bit: a session lasts at most 2^32 - 1 datagrams per direction
+(49 days at 1 kHz).
+
+Keyless link (loopback development, as in version 2): ``HELLO`` is answered with the layout at
+once, nothing is tagged and a datagram is not bound to a fresh session; the owner saying
+``HELLO`` again re-synchronises the sequence tracking. It keeps apart well-behaved programs (a
+stale controller of an earlier run, another plant's traffic) and refuses malformed or
+out-of-range input, but anybody who can send to the port can forge or replay datagrams.
 
 Once a client owns the session the plant reads it on a second socket *connected* to the
 owner's address (bound to the same port): the kernel delivers the owner's datagrams there and
@@ -25,32 +47,35 @@ bound is counted (``rx_capped``, event ``receive_bound``) and the rest waits for
 (or is dropped by the kernel).
 
 A datagram changes no state before it is fully validated, in this order: framing and CRC,
-authentication tag (with a key, :func:`~downhole.sil.protocol.load_key`), sender and session,
-message type, value count, finiteness, admissible range of every command
-(:data:`~downhole.sil.plants.COMMAND_RANGES`); only then does its sequence number reach the
-sequence tracker and its values the plant. Beyond loopback a key is required: both ends refuse
-to start without one.
+(keyed) sender, session and authentication tag (the key or the session key), counter, message
+type, value count, finiteness, admissible range of every command
+(:data:`~downhole.sil.plants.COMMAND_RANGES`); only then does its counter reach the sequence
+tracking and its values the plant.
 
 Robustness (all counted in ``counters``, none raises): malformed datagrams (bad magic,
 length, CRC, unknown type), another protocol version (``version_mismatch``, also counted as
-malformed), failed authentication (``auth_failed``), datagrams from another session or peer
-(``foreign``), refused HELLOs (``refused``), wrong value count (``wrong_size``), non-finite or
-out-of-range commands (``non_finite``, ``out_of_range``), duplicates (a sequence number already
+malformed; the plant answers with a one-line ``REFUSE`` in its own version, at most one a
+second after the first from each address), failed authentication (``auth_failed``), replays
+(``replayed``, keyed), datagrams from another session or peer (``foreign``), refused HELLOs
+(``refused``), wrong value count (``wrong_size``), non-finite or out-of-range commands
+(``non_finite``, ``out_of_range``), and on a keyless link duplicates (a sequence number already
 seen), reordered datagrams (older than the newest seen), a sender whose sequence restarted far
 behind (``seq_resync``: after 8 such datagrams in a row the tracker follows it, so a forged jump
-cannot lock the owner out), stale commands (answering an earlier observation than the one being
-waited for), lost commands (gaps in the sequence), late commands (none within the step's wait
-budget) and capped reads (``rx_capped``).
+cannot lock the owner out); on both, stale commands (answering an earlier observation than the
+one being waited for), lost commands (gaps in the sequence), late commands (none within the
+step's wait budget) and capped reads (``rx_capped``).
 """
 
 from __future__ import annotations
 
 import ipaddress
 import math
+import os
 import random
 import select
 import socket
 import time
+from collections import deque
 
 import numpy as np
 
@@ -58,16 +83,21 @@ from downhole.errors import DownholeInputError
 from downhole.sil.protocol import (
     KEY_ENV,
     MAX_DATAGRAM,
-    AuthenticationFailed,
+    NONCE_SIZE,
     Layout,
     MalformedPacket,
+    Message,
     MsgType,
     Signer,
     VersionMismatch,
     load_key,
     pack,
+    pack_hello,
     pack_layout,
-    unpack,
+    parse,
+    refusal,
+    session_signers,
+    split_hello,
     unpack_layout,
 )
 
@@ -76,7 +106,22 @@ __all__ = ["LINK_COUNTERS", "ControllerClient", "PlantLink", "is_loopback"]
 #: Counter names kept by both ends.
 LINK_COUNTERS = ("rx", "tx", "malformed", "foreign", "duplicates", "reordered", "stale",
                  "lost", "late", "hello", "bye", "wrong_size", "refused", "auth_failed",
-                 "version_mismatch", "non_finite", "out_of_range", "rx_capped", "seq_resync")
+                 "version_mismatch", "non_finite", "out_of_range", "rx_capped", "seq_resync",
+                 "replayed")
+
+#: Keyed links: HELLO nonces remembered (a HELLO reusing one is a replay), session ids of ended
+#: sessions remembered (their datagrams are counted as replays), challenges outstanding at once.
+_MAX_NONCES = 4096
+_MAX_ENDED = 1024
+_MAX_CHALLENGES = 16
+
+
+def _remember(seen: set, order: deque, item) -> None:
+    """Add ``item`` to the bounded memory ``seen`` (oldest forgotten first)."""
+    if len(order) == order.maxlen:
+        seen.discard(order.popleft())
+    order.append(item)
+    seen.add(item)
 
 
 def is_loopback(host: str) -> bool:
@@ -173,7 +218,7 @@ def _addr(a) -> str:
 
 
 class PlantLink:
-    """The plant's end of the link.
+    """The plant's end of the link (see the module's description of keyed and keyless links).
 
     Parameters
     ----------
@@ -229,8 +274,20 @@ class PlantLink:
         self.layout = layout
         self._layout_raw = pack_layout(layout)
         k = load_key(key, key_file)
-        self._signer = Signer(k) if k is not None else None
+        self._key = k
+        self._signer = Signer(k) if k is not None else None  # the shared key: HELLO, CHALLENGE
         _require_key_beyond_loopback(host, self._signer, "binding the plant's UDP link to")
+        # keyed sessions: the session keys (controller -> plant, plant -> controller), the last
+        # counter accepted from the controller, the challenges outstanding, and bounded
+        # memories of HELLO nonces and ended sessions (keyless: _rx and _tx stay None)
+        self._rx: Signer | None = None
+        self._tx: Signer | None = None
+        self._rx_last = 0
+        self._challenges: dict = {}
+        self._nonces: set = set()
+        self._nonce_order: deque = deque(maxlen=_MAX_NONCES)
+        self._ended: set = set()
+        self._ended_order: deque = deque(maxlen=_MAX_ENDED)
         self.command_ranges = resolve_ranges(layout.commands, command_ranges, "link commands")
         self._lo = [self.command_ranges[c][0] for c in layout.commands]
         self._hi = [self.command_ranges[c][1] for c in layout.commands]
@@ -287,7 +344,8 @@ class PlantLink:
 
     def close(self) -> None:
         if self.connected:
-            self._send(pack(MsgType.BYE, self.session, self._next(), signer=self._signer))
+            self._send(pack(MsgType.BYE, self.session, self._next(), signer=self._tx))
+            self._end_session()
         self._close_own()
         self.sock.close()
 
@@ -311,8 +369,17 @@ class PlantLink:
         except OSError:
             pass
 
-    def _note(self, kind: str, addr, detail: str) -> None:
-        """An event, at most one per second per kind, except the first from a new address."""
+    def _reply(self, addr, data: bytes) -> None:
+        """Send to ``addr`` (not necessarily the owner) from the listening socket."""
+        try:
+            self.sock.sendto(data, addr)
+            self.counters["tx"] += 1
+        except OSError:
+            pass
+
+    def _note(self, kind: str, addr, detail: str) -> bool:
+        """An event, at most one per second per kind, except the first from a new address.
+        Returns True when the event was recorded."""
         now = time.monotonic()
         new = addr is not None and addr not in self._noted_addrs and len(self._noted_addrs) < 64
         if new:
@@ -320,6 +387,8 @@ class PlantLink:
         if new or now - self._noted.get(kind, -1e9) >= 1.0:
             self._noted[kind] = now
             self.events.append((kind, detail))
+            return True
+        return False
 
     def _take_owner(self, addr) -> None:
         self.owner = addr
@@ -350,36 +419,75 @@ class PlantLink:
         if old is None:
             return
         if not self._gone:
-            self._send(pack(MsgType.BYE, self.session, self._next(), signer=self._signer))
+            self._send(pack(MsgType.BYE, self.session, self._next(), signer=self._tx))
+        self._end_session()
+        self._challenges.clear()
         self._close_own()
         self.owner = None
         self._gone = False
         self._cmd_seq.reset()
         self._pending.clear()
-        new = self.session
-        while new == self.session:
-            new = random.randrange(1, 2**32)
-        self.session = new
+        self.session = self._new_session_id()
         self.events.append(("controller_released", _addr(old)))
+
+    def _new_session_id(self) -> int:
+        """A random session id other than the current, an ended or a challenged one."""
+        taken = {self.session, *(ch[0] for ch in self._challenges.values())}
+        while True:
+            sid = random.randrange(1, 2**32)
+            if sid not in taken and sid not in self._ended:
+                return sid
+
+    def _end_session(self) -> None:
+        """Keyed: forget the session keys; the session id is remembered as ended."""
+        if self._rx is not None:
+            _remember(self._ended, self._ended_order, self.session)
+        self._rx = self._tx = None
 
     # ------------------------------------------------------------------ receive
     def _handle(self, data: bytes, addr) -> None:
         c = self.counters
         try:
-            msg = unpack(data, self._signer)
+            msg, tagged, end = parse(data)
         except VersionMismatch as exc:
             c["malformed"] += 1
             c["version_mismatch"] += 1
-            self._note("version_mismatch", addr, f"{_addr(addr)}: {exc}")
-            return
-        except AuthenticationFailed as exc:
-            c["auth_failed"] += 1
-            self._note("auth_failed", addr, f"{_addr(addr)}: {exc}")
+            if self._note("version_mismatch", addr, f"{_addr(addr)}: {exc}; refused"):
+                self._reply(addr, refusal(exc.version))  # its own one-line reason
             return
         except MalformedPacket:
             c["malformed"] += 1
             return
-        c["rx"] += 1
+        if self._signer is None:
+            if tagged:
+                self._auth_failed(addr, "authenticated datagram, but this end has no key")
+                return
+            c["rx"] += 1
+            self._handle_open(msg, addr)
+        elif not tagged:
+            self._auth_failed(addr, "datagram without the authentication tag this end requires")
+        else:
+            self._handle_keyed(msg, data, end, addr)
+
+    def _auth_failed(self, addr, why: str) -> None:
+        self.counters["auth_failed"] += 1
+        self._note("auth_failed", addr, f"{_addr(addr)}: {why}")
+
+    def _replayed(self, addr, msg: Message, why: str) -> None:
+        c = self.counters
+        c["replayed"] += 1
+        self._note("replay_refused", addr, f"{msg.type.name} from {_addr(addr)} refused as a "
+                   f"replay: {why} ({c['replayed']} refused)")
+
+    def _refuse(self, addr) -> None:
+        c = self.counters
+        c["refused"] += 1
+        self._note("controller_refused", addr, f"HELLO from {_addr(addr)} refused: "
+                   f"{_addr(self.owner)} owns the session ({c['refused']} refused)")
+
+    def _handle_open(self, msg: Message, addr) -> None:
+        """Keyless link (loopback development): ownership by address, no freshness."""
+        c = self.counters
         if addr != self.owner:
             if msg.type != MsgType.HELLO:
                 c["foreign"] += 1
@@ -387,11 +495,9 @@ class PlantLink:
                 c["hello"] += 1
                 self._take_owner(addr)
                 self._send(pack(MsgType.LAYOUT, self.session, self._next(),
-                                raw=self._layout_raw, signer=self._signer))
+                                raw=self._layout_raw))
             else:
-                c["refused"] += 1
-                self._note("controller_refused", addr, f"HELLO from {_addr(addr)} refused: "
-                           f"{_addr(self.owner)} owns the session ({c['refused']} refused)")
+                self._refuse(addr)
             return
         if msg.type == MsgType.HELLO:  # the owner again (restarted, or its HELLO repeated)
             c["hello"] += 1
@@ -401,8 +507,7 @@ class PlantLink:
             self._cmd_seq.reset()
             self._pending.clear()
             self._cmds_since_hello = 0
-            self._send(pack(MsgType.LAYOUT, self.session, self._next(), raw=self._layout_raw,
-                            signer=self._signer))
+            self._send(pack(MsgType.LAYOUT, self.session, self._next(), raw=self._layout_raw))
             return
         if msg.session != self.session:
             c["foreign"] += 1
@@ -416,33 +521,151 @@ class PlantLink:
         if msg.type != MsgType.CMD:
             c["foreign"] += 1
             return
-        vals = msg.values
+        if not self._valid_command(msg.values):
+            return
+        if not self._cmd_seq.classify(msg.seq, c):  # only a valid command reaches the tracker
+            return
+        self._accept_command(msg)
+
+    def _handle_keyed(self, msg: Message, data: bytes, end: int, addr) -> None:
+        """Keyed link: the challenge handshake, then session keys and a strict counter."""
+        c = self.counters
+        signed, tag = data[:end], data[end:]
+        if msg.type == MsgType.HELLO:
+            if not self._signer.verify(signed, tag):
+                self._auth_failed(addr, "authentication tag mismatch (wrong key?)")
+                return
+            c["rx"] += 1
+            hello = split_hello(msg)
+            if hello is None:
+                c["malformed"] += 1
+                return
+            nonce = hello[0]
+            if nonce in self._nonces:
+                self._replayed(addr, msg, "its nonce was used before")
+                return
+            _remember(self._nonces, self._nonce_order, nonce)
+            if self.owner is not None and addr != self.owner:
+                self._refuse(addr)
+                return
+            c["hello"] += 1
+            sid = self._new_session_id()
+            server_nonce = os.urandom(NONCE_SIZE)
+            c2p, p2c = session_signers(self._key, nonce, server_nonce, sid)
+            self._challenges.pop(addr, None)  # one outstanding challenge per address
+            self._challenges[addr] = (sid, nonce + server_nonce, c2p, p2c)
+            while len(self._challenges) > _MAX_CHALLENGES:
+                del self._challenges[next(iter(self._challenges))]
+            self._reply(addr, pack(MsgType.CHALLENGE, sid, self._next(),
+                                   raw=nonce + server_nonce, signer=self._signer))
+            return
+        if msg.type == MsgType.AUTH:
+            ch = self._challenges.get(addr)
+            if ch is None or msg.session != ch[0]:
+                self._stale_session(msg, addr, signed, tag)
+                return
+            sid, nonces, c2p, p2c = ch
+            if not c2p.verify(signed, tag) or msg.values.tobytes() != nonces:
+                self._auth_failed(addr, "AUTH does not prove the key over the nonces (wrong "
+                                  "key?)")
+                return
+            c["rx"] += 1
+            del self._challenges[addr]
+            if self.owner is not None and addr != self.owner:
+                self._refuse(addr)
+                return
+            self._begin_session(addr, sid, c2p, p2c, msg.seq)
+            self._send(pack(MsgType.LAYOUT, sid, self._next(), raw=self._layout_raw,
+                            signer=p2c))
+            return
+        if addr != self.owner:
+            c["foreign"] += 1
+            return
+        if self._rx is None or msg.session != self.session:
+            self._stale_session(msg, addr, signed, tag)
+            return
+        if not self._rx.verify(signed, tag):
+            self._auth_failed(addr, "authentication tag mismatch (wrong key?)")
+            return
+        c["rx"] += 1
+        if msg.seq <= self._rx_last:
+            self._replayed(addr, msg, f"counter {msg.seq} is not above {self._rx_last}, the "
+                           "last accepted")
+            return
+        if msg.type == MsgType.BYE:
+            self._rx_last = msg.seq
+            c["bye"] += 1
+            self.events.append(("controller_bye", _addr(addr)))
+            self._end_session()
+            self._gone = True
+            return
+        if msg.type != MsgType.CMD:
+            c["foreign"] += 1
+            return
+        if not self._valid_command(msg.values):
+            return
+        if msg.seq > self._rx_last + 1:
+            c["lost"] += msg.seq - self._rx_last - 1
+        self._rx_last = msg.seq
+        self._accept_command(msg)
+
+    def _stale_session(self, msg: Message, addr, signed: bytes, tag: bytes) -> None:
+        """A datagram for no session this end expects: a replay when it names an ended
+        session (whose keys are forgotten) or is the AUTH of the current one (its tag checked),
+        else foreign."""
+        sid = msg.session
+        if msg.type == MsgType.AUTH and self._rx is not None and sid == self.session:
+            if not self._rx.verify(signed, tag):
+                self._auth_failed(addr, "authentication tag mismatch (wrong key?)")
+            else:
+                self._replayed(addr, msg, "the session it opened is established")
+        elif sid in self._ended:
+            self._replayed(addr, msg, f"session {sid:#010x} is over")
+        else:
+            self.counters["foreign"] += 1
+
+    def _begin_session(self, addr, sid: int, c2p: Signer, p2c: Signer, seq: int) -> None:
+        if self.owner is None:
+            self._take_owner(addr)
+        else:  # the owner again, with a fresh handshake: its new session replaces the old
+            if self._gone or self._cmds_since_hello:
+                self.events.append(("controller_reconnected", _addr(addr)))
+            self._pending.clear()
+            self._cmds_since_hello = 0
+        self._end_session()
+        self.session = sid
+        self._rx, self._tx = c2p, p2c
+        self._rx_last = seq
+        self._gone = False
+
+    def _valid_command(self, vals) -> bool:
+        """Value count, finiteness and admissible range of a command (counted when not)."""
+        c = self.counters
         if vals.size != self._n_cmd:
             c["wrong_size"] += 1
-            return
+            return False
         vl = vals.tolist()
         for v, lo, hi in zip(vl, self._lo, self._hi):
             if not lo <= v <= hi:  # False for NaN too
                 break
         else:
-            v = None
-        if v is not None:
-            if not all(map(math.isfinite, vl)):
-                c["non_finite"] += 1
-                self._note("command_rejected", None, f"non-finite command {vl}")
-            else:
-                c["out_of_range"] += 1
-                bad = [f"{n} = {v:g} not in [{lo:g}, {hi:g}]" for n, v, lo, hi in
-                       zip(self.layout.commands, vl, self._lo, self._hi) if not lo <= v <= hi]
-                self._note("command_rejected", None, "; ".join(bad))
-            return
-        if not self._cmd_seq.classify(msg.seq, c):  # only a valid command reaches the tracker
-            return
+            return True
+        if not all(map(math.isfinite, vl)):
+            c["non_finite"] += 1
+            self._note("command_rejected", None, f"non-finite command {vl}")
+        else:
+            c["out_of_range"] += 1
+            bad = [f"{n} = {v:g} not in [{lo:g}, {hi:g}]" for n, v, lo, hi in
+                   zip(self.layout.commands, vl, self._lo, self._hi) if not lo <= v <= hi]
+            self._note("command_rejected", None, "; ".join(bad))
+        return False
+
+    def _accept_command(self, msg: Message) -> None:
         self._cmds_since_hello += 1
         self.last_rx = time.monotonic()
         if msg.echo > 0:
             self.rtt = self.last_rx - msg.echo
-        self._pending[msg.ack] = vals.copy()
+        self._pending[msg.ack] = msg.values.copy()
         if len(self._pending) > 8:
             for k in sorted(self._pending)[:-8]:
                 del self._pending[k]
@@ -538,7 +761,7 @@ class PlantLink:
             return 0
         seq = self._next()
         self._send(pack(MsgType.OBS, self.session, seq, values, sim_time=sim_time,
-                        sent=time.monotonic(), signer=self._signer))
+                        sent=time.monotonic(), signer=self._tx))
         return seq
 
     def probe(self, values, timeout: float, interval: float = 0.05) -> bool:
@@ -554,7 +777,7 @@ class PlantLink:
                 continue
             seq = self._next()
             self._send(pack(MsgType.OBS, self.session, seq, values, sim_time=-1.0,
-                            sent=time.monotonic(), signer=self._signer))
+                            sent=time.monotonic(), signer=self._tx))
             got = self.wait_command(seq, min(end, time.monotonic() + interval), count=False)
             if got is not None:
                 self._pending.clear()
@@ -632,8 +855,16 @@ class ControllerClient:
     def __init__(self, host: str, port: int, name: str = "controller", *, key=None,
                  key_file=None, bind: tuple | None = None):
         k = load_key(key, key_file)
-        self._signer = Signer(k) if k is not None else None
+        self._key = k
+        self._signer = Signer(k) if k is not None else None  # the shared key: HELLO, CHALLENGE
         _require_key_beyond_loopback(host, self._signer, "the plant at")
+        # keyed: the session keys (controller -> plant, plant -> controller) and the last
+        # counter accepted from the plant; ended sessions of this client (keyless: None)
+        self._tx: Signer | None = None
+        self._rx: Signer | None = None
+        self._rx_last = 0
+        self._ended: set = set()
+        self._ended_order: deque = deque(maxlen=64)
         self.addr = (host, int(port))
         self.name = name
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -656,8 +887,14 @@ class ControllerClient:
         self.seq = (self.seq + 1) & 0xFFFFFFFF
         return self.seq
 
+    @property
+    def authenticated(self) -> bool:
+        """True when the link is keyed (HMAC tags, challenge handshake)."""
+        return self._signer is not None
+
     def connect(self, timeout: float = 10.0) -> Layout:
-        """Send HELLO until the plant answers with its layout; returns it.
+        """Say HELLO (a fresh nonce each time, repeated until answered) and, on a keyed link,
+        answer the plant's challenge; returns the plant's layout.
 
         Raises
         ------
@@ -667,44 +904,119 @@ class ControllerClient:
         """
         end = time.monotonic() + timeout
         heard = ""
+        wait = 0.1
         while time.monotonic() < end:
+            nonce = os.urandom(NONCE_SIZE)
             try:
-                self.sock.send(pack(MsgType.HELLO, 0, self._next(), raw=self.name.encode(),
-                                    signer=self._signer))
+                self.sock.send(pack_hello(self._next(), nonce, self.name, signer=self._signer))
             except OSError:
                 pass
-            r, _, _ = select.select([self.sock], [], [], 0.1)
-            if not r:
-                continue
-            try:
-                msg = unpack(self.sock.recv(MAX_DATAGRAM), self._signer)
-            except VersionMismatch as exc:
-                self.counters["malformed"] += 1
-                self.counters["version_mismatch"] += 1
-                heard = f"; the plant answered in {exc}"
-                continue
-            except AuthenticationFailed as exc:
-                self.counters["auth_failed"] += 1
-                heard = f"; its answers fail authentication: {exc}"
-                continue
-            except MalformedPacket:
-                self.counters["malformed"] += 1
-                continue
-            except OSError:
-                time.sleep(0.05)
-                continue
-            if msg.type == MsgType.LAYOUT:
-                self.layout = unpack_layout(msg.values.tobytes())
-                self.session = msg.session
-                self._obs_seq.reset()
-                return self.layout
+            layout, what = self._handshake(nonce, min(end, time.monotonic() + wait))
+            heard = what or heard
+            if layout is not None:
+                return layout
+            if self._signer is not None:  # a slow plant: give the challenge more time
+                wait = min(1.0, 1.5 * wait)
         raise TimeoutError(f"no layout from the plant at {self.addr[0]}:{self.addr[1]} within "
                            f"{timeout} s{heard} (is it running, on this port, free - another "
                            f"controller may own the session - and with the same key?)")
 
+    def _handshake(self, nonce: bytes, deadline: float):
+        """Wait until ``deadline`` for the answer to the HELLO with ``nonce``: ``(layout or
+        None, what was heard instead or "")``."""
+        c = self.counters
+        heard = ""
+        pending = None  # (session, c2p, p2c) once the plant's challenge is answered
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return None, heard
+            if not select.select([self.sock], [], [], remaining)[0]:
+                return None, heard
+            try:
+                data = self.sock.recv(MAX_DATAGRAM)
+            except OSError:  # ICMP port unreachable: no plant yet
+                time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
+                return None, heard
+            try:
+                msg, tagged, end = parse(data)
+            except VersionMismatch as exc:
+                c["malformed"] += 1
+                c["version_mismatch"] += 1
+                heard = f"; the plant answered in {exc}"
+                continue
+            except MalformedPacket:
+                c["malformed"] += 1
+                continue
+            signed, tag = data[:end], data[end:]
+            if msg.type == MsgType.REFUSE and not tagged:
+                text = msg.values.tobytes().rstrip(b"\0").decode("utf-8", "replace")[:200]
+                heard = f"; the plant refused: {text}"
+                continue
+            if tagged != (self._signer is not None):
+                c["auth_failed"] += 1
+                heard = ("; its answers fail authentication: "
+                         + ("datagram without the authentication tag this end requires"
+                            if self._signer is not None else
+                            "authenticated datagram, but this end has no key"))
+                continue
+            if self._signer is None:
+                if msg.type == MsgType.LAYOUT and self._open(msg, None, None) is not None:
+                    return self.layout, ""
+                continue
+            if msg.type == MsgType.CHALLENGE:
+                if not self._signer.verify(signed, tag):
+                    c["auth_failed"] += 1
+                    heard = "; its answers fail authentication: tag mismatch (wrong key?)"
+                    continue
+                raw = msg.values.tobytes()
+                if len(raw) != 2 * NONCE_SIZE or raw[:NONCE_SIZE] != nonce:
+                    c["foreign"] += 1  # the answer to an earlier HELLO, or a replay
+                    continue
+                c2p, p2c = session_signers(self._key, nonce, raw[NONCE_SIZE:], msg.session)
+                pending = (msg.session, c2p, p2c)
+                try:
+                    self.sock.send(pack(MsgType.AUTH, msg.session, self._next(), raw=raw,
+                                        signer=c2p))
+                except OSError:
+                    pass
+                continue
+            if (msg.type == MsgType.LAYOUT and pending is not None
+                    and msg.session == pending[0]):
+                if not pending[2].verify(signed, tag):
+                    c["auth_failed"] += 1
+                    continue
+                if self._open(msg, pending[1], pending[2]) is not None:
+                    return self.layout, ""
+                continue
+            c["foreign"] += 1
+
+    def _open(self, msg: Message, c2p, p2c) -> Layout | None:
+        """Start the session the plant's LAYOUT ``msg`` announces (None, counted as malformed,
+        when its payload is not a layout)."""
+        try:
+            layout = unpack_layout(msg.values.tobytes())
+        except MalformedPacket:
+            self.counters["malformed"] += 1
+            return None
+        self._close_session()
+        self.layout = layout
+        self.session = msg.session
+        self._tx, self._rx = c2p, p2c
+        self._rx_last = msg.seq
+        self._obs_seq.reset()
+        return layout
+
+    def _close_session(self) -> None:
+        if self._rx is not None:
+            _remember(self._ended, self._ended_order, self.session)
+        self._tx = self._rx = None
+
     def receive(self, timeout: float):
         """Next in-order observation as ``(seq, sim_time, sent, values)``; None on timeout;
         ``"bye"`` when the plant closed."""
+        c = self.counters
+        keyed = self._signer is not None
         end = time.monotonic() + timeout
         while True:
             remaining = end - time.monotonic()
@@ -718,29 +1030,50 @@ class ControllerClient:
             except OSError:
                 return None
             try:
-                msg = unpack(data, self._signer)
-            except AuthenticationFailed:
-                self.counters["auth_failed"] += 1
+                msg, tagged, dend = parse(data)
+            except VersionMismatch:
+                c["malformed"] += 1
+                c["version_mismatch"] += 1
                 continue
             except MalformedPacket:
-                self.counters["malformed"] += 1
+                c["malformed"] += 1
                 continue
-            self.counters["rx"] += 1
+            if tagged != keyed:
+                c["auth_failed"] += 1
+                continue
+            if keyed:
+                if self._rx is None or msg.session != self.session:
+                    c["replayed" if msg.session in self._ended else "foreign"] += 1
+                    continue
+                if not self._rx.verify(data[:dend], data[dend:]):
+                    c["auth_failed"] += 1
+                    continue
+                if msg.seq <= self._rx_last:
+                    c["replayed"] += 1
+                    continue
+            c["rx"] += 1
             if msg.session != self.session:
-                self.counters["foreign"] += 1
+                c["foreign"] += 1
                 continue
             if msg.type == MsgType.BYE:
-                self.counters["bye"] += 1
+                c["bye"] += 1
+                if keyed:
+                    self._rx_last = msg.seq
+                    self._close_session()
                 return "bye"
             if msg.type != MsgType.OBS:
                 continue
             if msg.values.size != len(self.layout.observations):
-                self.counters["wrong_size"] += 1
+                c["wrong_size"] += 1
                 continue
-            if not self._obs_seq.classify(msg.seq, self.counters):
+            if keyed:
+                if msg.seq > self._rx_last + 1:
+                    c["lost"] += msg.seq - self._rx_last - 1
+                self._rx_last = msg.seq
+            elif not self._obs_seq.classify(msg.seq, c):
                 continue
             if msg.sim_time >= 0 and select.select([self.sock], [], [], 0)[0]:
-                self.counters["stale"] += 1  # a newer observation is waiting: answer that one
+                c["stale"] += 1  # a newer observation is waiting: answer that one
                 end = time.monotonic() + timeout
                 continue
             return msg.seq, msg.sim_time, msg.sent, msg.values
@@ -749,7 +1082,7 @@ class ControllerClient:
         """Send the command answering observation ``ack`` (values in layout order)."""
         self.sock.send(pack(MsgType.CMD, self.session, self._next(), values, ack=ack,
                             sim_time=sim_time, sent=time.monotonic(), echo=echo,
-                            signer=self._signer))
+                            signer=self._tx))
         self.counters["tx"] += 1
 
     def serve(self, controller, *, idle_timeout: float = 5.0, max_steps: int | None = None,
@@ -811,7 +1144,9 @@ class ControllerClient:
     def close(self) -> None:
         """Say BYE to the plant and close the socket."""
         try:
-            self.sock.send(pack(MsgType.BYE, self.session, self._next(), signer=self._signer))
+            if self._signer is None or self._tx is not None:  # keyed: only in a session
+                self.sock.send(pack(MsgType.BYE, self.session, self._next(), signer=self._tx))
         except OSError:
             pass
+        self._close_session()
         self.sock.close()

@@ -6,38 +6,50 @@ Every datagram is ``header | payload | crc32 [| tag]``, little-endian:
 offset size type    field
 ====== ==== ======= =====================================================================
 0      4    4s      magic ``b"DHSL"``
-4      1    B       protocol version (:data:`VERSION` = 2)
+4      1    B       protocol version (:data:`VERSION` = 3)
 5      1    B       message type (:class:`MsgType`, low 7 bits) | :data:`FLAG_AUTH` (bit 7)
-6      2    H       payload count (number of float64 values, or of layout bytes / 8 rounded up)
-8      4    I       session id (chosen by the plant at connect; 0 in HELLO)
-12     4    I       sequence number of this message (per sender, +1 per message)
+6      2    H       payload count (number of float64 values, or of raw bytes / 8 rounded up)
+8      4    I       session id (chosen by the plant; 0 in HELLO)
+12     4    I       sequence number (counter) of this message (per sender, +1 per message)
 16     4    I       acknowledged sequence (CMD: the OBS it answers; others: 0)
 20     8    d       simulated time, s (OBS/CMD: the plant time the values belong to)
 28     8    d       sender's send timestamp, s (its ``time.monotonic()``)
 36     8    d       echoed timestamp, s (CMD: the OBS's send timestamp, for round-trip time)
 44     n*8  d...    payload (OBS/CMD: ``count`` float64 values in layout order)
 44+8n  4    I       CRC-32 (zlib) of all preceding bytes
-48+8n  16   16s     only with :data:`FLAG_AUTH`: HMAC-SHA256 tag of all preceding bytes, under
-                    the shared key, truncated to :data:`TAG_SIZE` bytes
+48+8n  16   16s     only with :data:`FLAG_AUTH`: HMAC-SHA256 tag of all preceding bytes,
+                    truncated to :data:`TAG_SIZE` bytes (under which key: see below)
 ====== ==== ======= =====================================================================
 
-Message types: ``HELLO`` (controller -> plant, asks for the layout; its payload may carry a
-UTF-8 client name), ``LAYOUT`` (plant -> controller, the named-signal layout, see
-:func:`pack_layout`), ``OBS`` (plant -> controller, one per step), ``CMD`` (controller ->
-plant, the answer to an OBS), ``BYE`` (either side, closing). A datagram with a wrong magic,
-version, length or CRC is *malformed*: counted and dropped, never raised.
+Message types: ``HELLO`` (controller -> plant; payload: a fresh :data:`NONCE_SIZE`-byte nonce,
+then the UTF-8 client name), ``CHALLENGE`` (plant -> controller, keyed links only; payload: the
+client's nonce, then the plant's fresh nonce; header: the new session id), ``AUTH`` (controller
+-> plant, keyed links only; payload: both nonces), ``LAYOUT`` (plant -> controller, the
+named-signal layout, see :func:`pack_layout`), ``OBS`` (plant -> controller, one per step),
+``CMD`` (controller -> plant, the answer to an OBS), ``BYE`` (either side, closing), ``REFUSE``
+(plant -> a peer of another protocol version; payload: the reason, UTF-8). A datagram with a
+wrong magic, version, length or CRC is *malformed*: counted and dropped, never raised.
 
-Authentication (version 2): with a shared key (:func:`load_key`) every datagram carries the
-flag :data:`FLAG_AUTH` in its type byte and a 16-byte tag, the first half of
-``HMAC-SHA256(key, header | payload | crc32)``. An end that holds a key rejects datagrams
-without a tag or with a wrong one (:class:`AuthenticationFailed`); an end without a key
-rejects tagged datagrams (it cannot check them). The tag gives integrity and authenticity, not
-confidentiality: the values travel in clear. Replays are bounded by the random session id and
-the receiver's sequence tracking (see :mod:`downhole.sil.link`).
+Keyed links (a shared key, :func:`load_key`): every datagram carries the flag
+:data:`FLAG_AUTH` and a tag. HELLO and CHALLENGE are tagged under the shared key; the
+controller's AUTH proves the key over both nonces and the session id, and from AUTH on every
+datagram of the session is tagged under a *session key* derived from the shared key, both
+nonces and the session id (:func:`session_signers`; one key per direction, so that a datagram
+cannot be reflected back to its sender). A datagram of an earlier session therefore fails, and
+within a session the receiver accepts only counters above the last one it accepted (see
+:mod:`downhole.sil.link`). The tags give integrity, authenticity and freshness, not
+confidentiality: the values travel in clear.
 
-Versions: 1 had the same header and no tag. A version-2 end refuses a version-1 datagram with
-:class:`VersionMismatch` (a :class:`MalformedPacket` naming both versions), so a client that
-speaks the other version is told why instead of waiting silently.
+Keyless links (loopback development): no tag, no challenge; HELLO is answered by LAYOUT at
+once. An end without a key refuses tagged datagrams; an end with one refuses untagged ones
+(:class:`AuthenticationFailed`).
+
+Versions: 1 had no tag; 2 tagged every datagram under the shared key itself (no nonces, so a
+captured datagram could be replayed); 3 adds the handshake, the nonce in HELLO and the types
+CHALLENGE, AUTH and REFUSE. An end refuses another version with :class:`VersionMismatch` (a
+:class:`MalformedPacket` naming both versions); the plant answers such a datagram with a
+REFUSE in its own version, which an older client reports as "the plant answered in protocol
+version 3" instead of waiting silently.
 """
 
 from __future__ import annotations
@@ -46,6 +58,7 @@ import enum
 import hashlib
 import hmac
 import os
+import stat
 import struct
 import zlib
 from dataclasses import dataclass
@@ -63,6 +76,7 @@ __all__ = [
     "MAGIC",
     "MAX_DATAGRAM",
     "MIN_KEY_BYTES",
+    "NONCE_SIZE",
     "TAG_SIZE",
     "VERSION",
     "AuthenticationFailed",
@@ -72,15 +86,21 @@ __all__ = [
     "MsgType",
     "Signer",
     "VersionMismatch",
+    "check_tag",
     "load_key",
     "pack",
+    "pack_hello",
     "pack_layout",
+    "parse",
+    "refusal",
+    "session_signers",
+    "split_hello",
     "unpack",
     "unpack_layout",
 ]
 
 MAGIC = b"DHSL"
-VERSION = 2
+VERSION = 3
 #: Bit of the type byte marking an authenticated datagram (tag appended).
 FLAG_AUTH = 0x80
 #: Bytes of the truncated HMAC-SHA256 tag.
@@ -89,6 +109,9 @@ TAG_SIZE = 16
 KEY_ENV = "DOWNHOLE_LINK_KEY"
 #: Shortest accepted shared key, bytes.
 MIN_KEY_BYTES = 16
+_MAX_KEY_FILE = 4096
+#: Bytes of the handshake nonces (HELLO, CHALLENGE).
+NONCE_SIZE = 16
 HEADER = struct.Struct("<4sBBHIIIddd")
 HEADER_SIZE = HEADER.size  # 44
 _CRC = struct.Struct("<I")
@@ -97,13 +120,16 @@ MAX_DATAGRAM = 8192
 
 
 class MsgType(enum.IntEnum):
-    """Message types (unchanged since protocol version 1)."""
+    """Message types (1-5 since protocol version 1; 6-8 since version 3)."""
 
     HELLO = 1
     LAYOUT = 2
     OBS = 3
     CMD = 4
     BYE = 5
+    CHALLENGE = 6
+    AUTH = 7
+    REFUSE = 8
 
 
 _TYPES = {int(m): m for m in MsgType}
@@ -171,10 +197,16 @@ def load_key(key=None, key_file=None, *, env: bool = True) -> bytes | None:
         src = f"key file {key_file}"
         try:
             st = os.stat(key_file)
+            if not stat.S_ISREG(st.st_mode):  # a FIFO or a device would block or never end
+                raise DownholeInputError(f"the link {src} is not a regular file")
             with open(key_file, "rb") as fh:
-                raw = fh.read().strip()
+                raw = fh.read(_MAX_KEY_FILE + 1)
         except OSError as exc:
             raise DownholeInputError(f"cannot read the link {src}: {exc.strerror}") from None
+        if len(raw) > _MAX_KEY_FILE:
+            raise DownholeInputError(f"the link {src} is larger than {_MAX_KEY_FILE} bytes; a "
+                                     "key is one line")
+        raw = raw.strip()
         if os.name == "posix" and st.st_mode & 0o077:
             raise DownholeInputError(f"the link {src} is readable by other users (mode "
                                      f"{st.st_mode & 0o777:o}); run chmod 600 on it")
@@ -226,11 +258,14 @@ def pack(type_: int, session: int, seq: int, values=(), *, ack: int = 0, sim_tim
     return msg + signer.tag(msg) if signer is not None else msg
 
 
-def unpack(data: bytes, signer: Signer | None = None) -> Message:
-    """Decode one datagram; raises :class:`MalformedPacket` with the reason
-    (:class:`VersionMismatch` for another protocol version, :class:`AuthenticationFailed` when
-    the tag does not match ``signer``, is missing although a ``signer`` is given, or is present
-    without one). Nothing about the values is trusted before these checks pass."""
+def parse(data: bytes) -> tuple[Message, bool, int]:
+    """Check a datagram's framing (length, magic, version, CRC, type) without its tag.
+
+    Returns ``(message, tagged, end)``: the decoded message, whether it carries the flag
+    :data:`FLAG_AUTH`, and the offset where its tag starts (the tagged bytes are
+    ``data[:end]``, the tag ``data[end:]``). Nothing in the message is trusted until the tag
+    is checked (:func:`check_tag`). Raises :class:`MalformedPacket` with the reason
+    (:class:`VersionMismatch` for another protocol version)."""
     n = len(data)
     if n < HEADER_SIZE + 4:
         raise MalformedPacket(f"datagram of {n} bytes is shorter than header + crc")
@@ -248,14 +283,6 @@ def unpack(data: bytes, signer: Signer | None = None) -> Message:
     (crc,) = _CRC.unpack_from(data, end - 4)
     if crc != zlib.crc32(data[:end - 4]):
         raise MalformedPacket("crc mismatch")
-    if signer is not None:
-        if not authed:
-            raise AuthenticationFailed("datagram without the authentication tag this end "
-                                       "requires")
-        if not signer.verify(data[:end], data[end:]):
-            raise AuthenticationFailed("authentication tag mismatch (wrong key?)")
-    elif authed:
-        raise AuthenticationFailed("authenticated datagram, but this end has no key")
     mtype = _TYPES.get(typ)
     if mtype is None:
         raise MalformedPacket(f"unknown message type {typ}")
@@ -264,7 +291,74 @@ def unpack(data: bytes, signer: Signer | None = None) -> Message:
         values = np.frombuffer(body, dtype="<f8")
     else:
         values = np.frombuffer(body, dtype=np.uint8)
-    return Message(mtype, session, seq, ack, t, sent, echo, values)
+    return Message(mtype, session, seq, ack, t, sent, echo, values), authed, end
+
+
+def check_tag(data: bytes, authed: bool, end: int, signer: Signer | None) -> None:
+    """Raise :class:`AuthenticationFailed` unless the tag of a parsed datagram (:func:`parse`)
+    is what ``signer`` expects: present and right with a signer, absent without one."""
+    if signer is not None:
+        if not authed:
+            raise AuthenticationFailed("datagram without the authentication tag this end "
+                                       "requires")
+        if not signer.verify(data[:end], data[end:]):
+            raise AuthenticationFailed("authentication tag mismatch (wrong key?)")
+    elif authed:
+        raise AuthenticationFailed("authenticated datagram, but this end has no key")
+
+
+def unpack(data: bytes, signer: Signer | None = None) -> Message:
+    """Decode one datagram and check its tag against ``signer``; raises
+    :class:`MalformedPacket` with the reason (:class:`VersionMismatch` for another protocol
+    version, :class:`AuthenticationFailed` when the tag does not match ``signer``, is missing
+    although a ``signer`` is given, or is present without one). Nothing about the values is
+    trusted before these checks pass."""
+    msg, authed, end = parse(data)
+    check_tag(data, authed, end, signer)
+    return msg
+
+
+def session_signers(key: bytes, client_nonce: bytes, server_nonce: bytes,
+                    session: int) -> tuple[Signer, Signer]:
+    """The two session keys of a keyed session, as signers: ``(controller_to_plant,
+    plant_to_controller)``, each ``HMAC-SHA256(key, label | client_nonce | server_nonce |
+    session)`` with the label ``b"DHSL3 c2p"`` or ``b"DHSL3 p2c"`` and the session id as 4
+    little-endian bytes. Fresh nonces from both ends make every session's keys new, so no
+    datagram of another session verifies; the direction in the label keeps a datagram from
+    being reflected to its sender."""
+    if len(client_nonce) != NONCE_SIZE or len(server_nonce) != NONCE_SIZE:
+        raise ValueError(f"nonces must have {NONCE_SIZE} bytes")
+    tail = bytes(client_nonce) + bytes(server_nonce) + struct.pack("<I", session & 0xFFFFFFFF)
+    out = []
+    for label in (b"DHSL3 c2p", b"DHSL3 p2c"):
+        out.append(Signer(hmac.new(bytes(key), label + tail, hashlib.sha256).digest()))
+    return out[0], out[1]
+
+
+def pack_hello(seq: int, nonce: bytes, name: str = "", *, signer: Signer | None = None) -> bytes:
+    """A HELLO: ``nonce`` (:data:`NONCE_SIZE` fresh random bytes), then the UTF-8 ``name``
+    (at most 255 bytes)."""
+    if len(nonce) != NONCE_SIZE:
+        raise ValueError(f"the HELLO nonce must have {NONCE_SIZE} bytes")
+    return pack(MsgType.HELLO, 0, seq, raw=bytes(nonce) + name.encode("utf-8")[:255],
+                signer=signer)
+
+
+def split_hello(msg: Message) -> tuple[bytes, str] | None:
+    """``(nonce, name)`` of a HELLO, or None when its payload is shorter than a nonce."""
+    raw = msg.values.tobytes()
+    if len(raw) < NONCE_SIZE:
+        return None
+    return raw[:NONCE_SIZE], raw[NONCE_SIZE:].rstrip(b"\0").decode("utf-8", "replace")
+
+
+def refusal(version: int) -> bytes:
+    """The REFUSE this end sends to a peer speaking protocol ``version``: an untagged datagram
+    of this end's version whose payload says why (an older peer stops at the version byte and
+    reports it)."""
+    text = (f"downhole SIL protocol version {version} refused: this end speaks version "
+            f"{VERSION}; run the same downhole release on both ends")
+    return pack(MsgType.REFUSE, 0, 0, raw=text.encode("utf-8"))
 
 
 @dataclass(frozen=True)
