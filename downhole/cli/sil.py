@@ -67,7 +67,7 @@ class _NeverStarted(Exception):
 
 
 class _StopOnSignal:
-    """SIGINT/SIGTERM handler of ``downhole sil``: stop the loop, never lose the recording.
+    """SIGINT/SIGTERM/SIGHUP handler of ``downhole sil``: stop the loop, never lose the recording.
 
     ``phase`` is ``"waiting"`` (before the loop: raise :class:`_Interrupted`), ``"running"``
     (ask the runner to stop after the current step), ``"browsing"`` (the run has ended and
@@ -84,7 +84,9 @@ class _StopOnSignal:
 
     def install(self) -> _StopOnSignal:
         if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            # SIGHUP (a closed terminal, a dropped SSH session) is a stop like SIGTERM: the
+            # recording so far is written to --out
+            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
                 self._previous[sig] = signal.signal(sig, self)
         return self
 

@@ -452,6 +452,16 @@ def load_dhp_file(path):
     positive, ``input_limits`` (inputs, 2) ordered) and without pickled objects (read with
     ``allow_pickle=False``); extra arrays real numbers.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The controller's path, with or without ``.json``/``.npz``.
+
+    Returns
+    -------
+    DHPController
+        The loaded controller.
+
     Raises
     ------
     DownholeInputError

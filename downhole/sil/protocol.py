@@ -264,8 +264,23 @@ def parse(data: bytes) -> tuple[Message, bool, int]:
     Returns ``(message, tagged, end)``: the decoded message, whether it carries the flag
     :data:`FLAG_AUTH`, and the offset where its tag starts (the tagged bytes are
     ``data[:end]``, the tag ``data[end:]``). Nothing in the message is trusted until the tag
-    is checked (:func:`check_tag`). Raises :class:`MalformedPacket` with the reason
-    (:class:`VersionMismatch` for another protocol version)."""
+    is checked (:func:`check_tag`).
+
+    Parameters
+    ----------
+    data : bytes
+        A received datagram.
+
+    Returns
+    -------
+    tuple of (Message, bool, int)
+        The message, whether it is tagged and where the tag starts.
+
+    Raises
+    ------
+    MalformedPacket
+        With the reason (:class:`VersionMismatch` for another protocol version).
+    """
     n = len(data)
     if n < HEADER_SIZE + 4:
         raise MalformedPacket(f"datagram of {n} bytes is shorter than header + crc")
@@ -296,7 +311,24 @@ def parse(data: bytes) -> tuple[Message, bool, int]:
 
 def check_tag(data: bytes, authed: bool, end: int, signer: Signer | None) -> None:
     """Raise :class:`AuthenticationFailed` unless the tag of a parsed datagram (:func:`parse`)
-    is what ``signer`` expects: present and right with a signer, absent without one."""
+    is what ``signer`` expects: present and right with a signer, absent without one.
+
+    Parameters
+    ----------
+    data : bytes
+        The whole datagram.
+    authed : bool
+        Whether it carries the authentication flag (from :func:`parse`).
+    end : int
+        Offset where its tag starts (from :func:`parse`).
+    signer : Signer or None
+        The key this end expects the datagram under; None for a keyless link.
+
+    Raises
+    ------
+    AuthenticationFailed
+        A tag is missing, wrong, or present on a keyless link.
+    """
     if signer is not None:
         if not authed:
             raise AuthenticationFailed("datagram without the authentication tag this end "
@@ -325,7 +357,27 @@ def session_signers(key: bytes, client_nonce: bytes, server_nonce: bytes,
     session)`` with the label ``b"DHSL3 c2p"`` or ``b"DHSL3 p2c"`` and the session id as 4
     little-endian bytes. Fresh nonces from both ends make every session's keys new, so no
     datagram of another session verifies; the direction in the label keeps a datagram from
-    being reflected to its sender."""
+    being reflected to its sender.
+
+    Parameters
+    ----------
+    key : bytes
+        The link key shared by both ends.
+    client_nonce, server_nonce : bytes
+        The HELLO's and the CHALLENGE's fresh nonces (:data:`NONCE_SIZE` bytes each).
+    session : int
+        The session id the plant drew.
+
+    Returns
+    -------
+    tuple of (Signer, Signer)
+        Controller-to-plant and plant-to-controller signers.
+
+    Raises
+    ------
+    ValueError
+        A nonce has the wrong length.
+    """
     if len(client_nonce) != NONCE_SIZE or len(server_nonce) != NONCE_SIZE:
         raise ValueError(f"nonces must have {NONCE_SIZE} bytes")
     tail = bytes(client_nonce) + bytes(server_nonce) + struct.pack("<I", session & 0xFFFFFFFF)
@@ -337,7 +389,29 @@ def session_signers(key: bytes, client_nonce: bytes, server_nonce: bytes,
 
 def pack_hello(seq: int, nonce: bytes, name: str = "", *, signer: Signer | None = None) -> bytes:
     """A HELLO: ``nonce`` (:data:`NONCE_SIZE` fresh random bytes), then the UTF-8 ``name``
-    (at most 255 bytes)."""
+    (at most 255 bytes).
+
+    Parameters
+    ----------
+    seq : int
+        The sender's counter.
+    nonce : bytes
+        :data:`NONCE_SIZE` fresh random bytes (new on every try).
+    name : str
+        The controller's name, shown by the plant (cut to 255 bytes).
+    signer : Signer, optional
+        The link key (keyed links), else untagged.
+
+    Returns
+    -------
+    bytes
+        The datagram.
+
+    Raises
+    ------
+    ValueError
+        ``nonce`` has the wrong length.
+    """
     if len(nonce) != NONCE_SIZE:
         raise ValueError(f"the HELLO nonce must have {NONCE_SIZE} bytes")
     return pack(MsgType.HELLO, 0, seq, raw=bytes(nonce) + name.encode("utf-8")[:255],
@@ -345,7 +419,18 @@ def pack_hello(seq: int, nonce: bytes, name: str = "", *, signer: Signer | None 
 
 
 def split_hello(msg: Message) -> tuple[bytes, str] | None:
-    """``(nonce, name)`` of a HELLO, or None when its payload is shorter than a nonce."""
+    """``(nonce, name)`` of a HELLO, or None when its payload is shorter than a nonce.
+
+    Parameters
+    ----------
+    msg : Message
+        A parsed HELLO.
+
+    Returns
+    -------
+    tuple of (bytes, str) or None
+        The client nonce and the controller's name.
+    """
     raw = msg.values.tobytes()
     if len(raw) < NONCE_SIZE:
         return None
@@ -355,7 +440,18 @@ def split_hello(msg: Message) -> tuple[bytes, str] | None:
 def refusal(version: int) -> bytes:
     """The REFUSE this end sends to a peer speaking protocol ``version``: an untagged datagram
     of this end's version whose payload says why (an older peer stops at the version byte and
-    reports it)."""
+    reports it).
+
+    Parameters
+    ----------
+    version : int
+        The protocol version the peer spoke.
+
+    Returns
+    -------
+    bytes
+        The datagram.
+    """
     text = (f"downhole SIL protocol version {version} refused: this end speaks version "
             f"{VERSION}; run the same downhole release on both ends")
     return pack(MsgType.REFUSE, 0, 0, raw=text.encode("utf-8"))
