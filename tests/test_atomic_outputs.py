@@ -670,7 +670,10 @@ def test_reproduce_refuses_to_clear_a_folder_that_is_not_an_experiments(tmp_path
 
 
 # ------------------------------------------------------------------------------- sil
-def test_sil_sigterm_writes_the_rows_recorded_so_far(tmp_path, procs):
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_sil_sigterm_writes_the_rows_recorded_so_far(tmp_path, procs, sig):
+    """SIGTERM, and SIGHUP (a closed terminal, a dropped SSH session), stop the run and write
+    what it recorded."""
     from downhole.sil import load_chunks
 
     out = tmp_path / "run.nc"
@@ -686,10 +689,10 @@ def test_sil_sigterm_writes_the_rows_recorded_so_far(tmp_path, procs):
                and not out.exists())
     # the loop runs: its first chunk of 10 000 rows is on disk
     p.wait_for("the first chunk", lambda: (chunks / "chunk_000001.npz").exists())
-    rc = p.signal(signal.SIGTERM)
-    assert rc == 128 + signal.SIGTERM, "".join(p.lines)
+    rc = p.signal(sig)
+    assert rc == 128 + sig, "".join(p.lines)
     res = load_result(out)
-    assert res.attrs["stopped_by"] == "SIGTERM"
+    assert res.attrs["stopped_by"] == sig.name
     n = res.time.size
     assert 10_000 < n and 20.0 < res.time[-1] < 600
     np.testing.assert_allclose(np.diff(res.time), 0.002, rtol=1e-6)
