@@ -154,9 +154,7 @@ def fig4_5(out_dir, quick):
     T = 0.3 if quick else 5.0
     pb = build_problem(design, BitReference.step(), T, PenaltyWeights(**DESIGN_WEIGHTS))
     thr = 1e-6
-    # quick: the plain-NumPy Algorithm 1 (same iteration and samples, no compilation)
-    method = "algorithm1_numpy" if quick else "algorithm1"
-    tr = train_dhp(pb, DHPSettings(method=method, warm_start=False, threshold=thr,
+    tr = train_dhp(pb, DHPSettings(method="algorithm1", warm_start=False, threshold=thr,
                                    n_iterations=20, n_samples=_samples(quick),
                                    record_steps=(-1,)))
     n = pb.n_steps

@@ -63,7 +63,7 @@ value also takes a unit string (``"10 mm/s"``, ``"1 ms"``, ``"60 kN*m"``)::
 
     [controller.dhp.training]     # DHPSettings + horizon
     horizon = "40 s"
-    method = "riccati"            # "riccati" | "closed_form" | "algorithm1" | "algorithm1_numpy"
+    method = "riccati"            # "riccati" | "algorithm1" (the seed's iteration, NumPy)
     n_samples = 200               # N_S (>= 2 (n + 1) advised)
     n_iterations = 20             # N_I (Algorithm 1)
     threshold = 1e-6
