@@ -491,22 +491,6 @@ def _mu_reason(mu, method):
             "small against R")
 
 
-def _nonlinear_samples(model: ControlAffineModel, Z):
-    """Nonlinear columns at the samples (K, N, q) and the map (n, q) to the state rows."""
-    K, N, n = Z.shape
-    if model.is_linear:
-        return np.zeros((K, N, 0)), np.zeros((n, 0))
-    flat = Z.reshape(K * N, n)
-    if model.force_map is not None:
-        F = np.asarray(model.forces(flat), dtype=float)
-        return F.reshape(K, N, -1), np.ascontiguousarray(model.force_map)
-    rows = model.nonlinear_rows
-    h = model.nonlinear(flat)[:, rows]
-    cmap = np.zeros((n, rows.size))
-    cmap[rows, np.arange(rows.size)] = 1.0
-    return np.ascontiguousarray(h.reshape(K, N, rows.size)), cmap
-
-
 def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, err, iters, stride,
                  w_steps, w_store, w_count, rec_steps, history, mu_ok, bar):
     """Algorithm 1 in plain NumPy (the reference): any basis, seed or exact Jacobian."""
