@@ -12,8 +12,7 @@ cached kernel is loaded.
 
 Conventions: arrays are C-ordered, so a C array (r, c) is a Fortran array (c, r). A symmetric
 matrix is held in the *upper* triangle of a C array (Fortran's lower), and its Cholesky factor
-as the upper C factor U with G = U^T U, as :func:`downhole.control.dhp.riccati._solve_upper`
-expects. The lower C triangle is left as scratch.
+as the upper C factor U with G = U^T U (:func:`chol_solve_right`). The lower C triangle is left as scratch.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """The DHP methods and the contraction check (issue 17, item 2).
 
 Algorithm 1 iterates to the fixed point of the co-state target and contracts only when
-mu = rho(g^T M g R^-1) < 1; the ``closed_form`` and ``riccati`` methods solve the same fixed point
-directly and must train every well-posed problem (R > 0, Q, S >= 0), whatever mu is. The problem
-below (a double integrator with a cheap input and a heavy final weight) has mu = 10 at the last
-step: the non-iterative methods must return the finite-horizon LQR gains, computed here by an
+mu = rho(g^T M g R^-1) < 1; the ``riccati`` method solves the same fixed point directly and must
+train every well-posed problem (R > 0, Q, S >= 0), whatever mu is. The problem below (a double
+integrator with a cheap input and a heavy final weight) has mu = 10 at the last step: the
+non-iterative method must return the finite-horizon LQR gains, computed here by an
 independent backward Riccati recursion, and Algorithm 1 must refuse, naming itself.
 """
 
@@ -51,9 +51,8 @@ def test_problem_violates_contraction():
     assert np.nanmax(tr.mu) >= 10.0
 
 
-@pytest.mark.parametrize("method", ["riccati", "closed_form"])
-def test_non_iterative_methods_train_and_match_lqr(method):
-    tr = train_dhp(_problem(), DHPSettings(method=method))
+def test_non_iterative_method_trains_and_matches_lqr():
+    tr = train_dhp(_problem(), DHPSettings(method="riccati"))
     K, P0 = _lqr_reference(N_STEPS)
     assert tr.kd.shape == (N_STEPS, 1, 2)
     scale = np.max(np.abs(K))
@@ -71,21 +70,18 @@ def test_non_iterative_methods_train_and_match_lqr(method):
     assert cost == pytest.approx(0.5 * x0 @ P0 @ x0, rel=1e-9)
 
 
-@pytest.mark.parametrize("method", ["riccati", "closed_form"])
-def test_non_iterative_methods_track_a_reference(method):
+def test_non_iterative_method_tracks_a_reference():
     """With a constant non-zero reference r the error e = z - r obeys e+ = A e + B u + (A - I) r;
     for this A, (A - I) r = 0 when r = (x_r, 0), so the gains and offsets are the regulator's."""
     ref = np.tile([0.5, 0.0], (N_STEPS + 1, 1))
-    tr = train_dhp(_problem(ref), DHPSettings(method=method))
+    tr = train_dhp(_problem(ref), DHPSettings(method="riccati"))
     K, _ = _lqr_reference(N_STEPS)
     scale = np.max(np.abs(K))
     np.testing.assert_allclose(tr.kd, K, rtol=1e-10, atol=1e-10 * scale)
     np.testing.assert_allclose(tr.kc, 0.0, atol=1e-9 * scale)
 
 
-@pytest.mark.parametrize("method", [m if m == "algorithm1_numpy" else
-                                    pytest.param(m, marks=pytest.mark.slow)
-                                    for m in ITERATIVE_METHODS])
+@pytest.mark.parametrize("method", ITERATIVE_METHODS)
 def test_algorithm1_refuses_naming_itself(method):
     with pytest.raises(TrainingDiverged, match=rf"step k = {N_STEPS - 1} .*Algorithm 1 iteration "
                                                rf"\(method '{method}'\) cannot converge: "
@@ -98,15 +94,15 @@ def test_algorithm1_refuses_naming_itself(method):
 def test_require_contraction_false_lets_algorithm1_try():
     """Without the check Algorithm 1 runs into the non-contracting iteration and diverges
     (non-finite co-state), rather than being refused up front: the check is Algorithm 1's."""
-    with pytest.raises(TrainingDiverged, match=r"method 'algorithm1_numpy'") as info:
-        train_dhp(_problem(), DHPSettings(method="algorithm1_numpy", require_contraction=True))
+    with pytest.raises(TrainingDiverged, match=r"method 'algorithm1'") as info:
+        train_dhp(_problem(), DHPSettings(method="algorithm1", require_contraction=True))
     assert "cannot converge" in str(info.value)
     with pytest.raises(TrainingDiverged) as info:
-        train_dhp(_problem(), DHPSettings(method="algorithm1_numpy", require_contraction=False,
+        train_dhp(_problem(), DHPSettings(method="algorithm1", require_contraction=False,
                                           n_iterations=2000, max_weight=1e8))
     assert "cannot converge" not in str(info.value)
 
 
 def test_every_method_is_classified():
     assert set(ITERATIVE_METHODS) < set(METHODS)
-    assert set(METHODS) - set(ITERATIVE_METHODS) == {"riccati", "closed_form"}
+    assert set(METHODS) - set(ITERATIVE_METHODS) == {"riccati"}

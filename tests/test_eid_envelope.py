@@ -1,7 +1,8 @@
-"""EID over the drilling envelope with the delayed depth of cut (downhole.control.eid.envelope,
-the rotate-then-drill references, fig3.6 and eid-envelope).
+"""EID over the drilling envelope with the delayed depth of cut (downhole.control.eid.schedule,
+the predictive bit damper, the rotate-then-drill references, fig3.6 and eid-envelope, whose
+candidate tunings and grid procedure live in downhole.experiments.ch3_envelope).
 
-Settle criterion (downhole.control.eid.envelope.settle_metrics): over the last 10 s of a 60 s run
+Settle criterion (downhole.experiments.ch3_envelope.settle_metrics): over the last 10 s of a 60 s run
 from rest, the RMS errors of the bit axial and angular velocities are below 2 % of their
 references and the bit never leaves the rock (axial velocity > -2 % of the ROP reference)."""
 
@@ -13,14 +14,6 @@ import math
 import numpy as np
 import pytest
 
-from downhole.control.eid.envelope import (
-    ENVELOPE_CANDIDATES,
-    EIDSchedule,
-    envelope_point,
-    open_loop_abscissa,
-    operating_point,
-    settle_metrics,
-)
 from downhole.control.eid.predictor import PredictiveEID, predictive_closed_loop
 from downhole.control.eid.references import (
     constant_reference,
@@ -30,12 +23,19 @@ from downhole.control.eid.references import (
     startup_reference,
     startup_time,
 )
+from downhole.control.eid.schedule import EIDSchedule, open_loop_abscissa, operating_point
 from downhole.control.eid.stability import (
     _bit_rock_gains,
     channel_loop_matrices,
     regenerative_closed_loop,
 )
 from downhole.errors import DownholeInputError
+from downhole.experiments.ch3_envelope import (
+    ENVELOPE_CANDIDATES,
+    envelope_point,
+    envelope_schedule,
+    settle_metrics,
+)
 from downhole.string.neutral import neutral_model, simulate_neutral
 
 
@@ -46,18 +46,17 @@ def model():
 
 @pytest.fixture(scope="module")
 def schedule(model):
-    return EIDSchedule(model)
+    return envelope_schedule(model)
 
 
 def _winding_count(controller, model, rop, omega, re_min=0.02, re_max=20.0, im_max=250.0,
-                   n=24000, kd=0.0, kt=0.0, bf_t=0.0, kc=0.0, bf_a=0.0):
+                   n=24000, kd=0.0, kc=0.0, bf_a=0.0):
     """Number of roots of the characteristic determinant of the EID loop with the linearized
     delayed depth of cut in the rectangle re_min < Re s < re_max, |Im s| < im_max, by the argument
     principle (winding number of det along the boundary): independent of the Newton root finder
     of regenerative_closed_loop. The characteristic matrix is written out here from the channel
-    loops and the bit/rock slopes; ``kd``, ``kt``: exact predictive dampers on the axial and
-    torsional plant rows (b k_d, b_T k_t bf_t/(s + bf_t), no filter with bf_t = 0); ``bf_a``: a
-    low-pass filter bf_a/(s + bf_a) on the axial damper; ``kc``: depth-of-cut coupling of the axial
+    loops and the bit/rock slopes; ``kd``: an exact predictive damper on the axial plant row
+    (b k_d); ``bf_a``: a low-pass filter bf_a/(s + bf_a) on the axial damper; ``kc``: depth-of-cut coupling of the axial
     reference, k_c (rop/omega) times the bit angular velocity, into the internal model
     (x_R' = B_R (r - x_p)) and into the damper, whose command reaches the bit tau1 later."""
     mats = [channel_loop_matrices(controller.model_coeffs[i], controller.gains[i],
@@ -85,8 +84,6 @@ def _winding_count(controller, model, rop, omega, re_min=0.02, re_max=20.0, im_m
         M[:, 0, 5] -= b_a * kd * fil_a * kc * rop / omega * np.exp(-s * model.tau1)
         M[:, 5, 0] += ft * k_t
         M[:, 5, 5] -= ft * k_t * c
-        filt = bf_t / (s + bf_t) if bf_t > 0 else 1.0
-        M[:, 5, 5] += controller.model_coeffs[1]["b"] * kt * filt
         return np.linalg.det(M)
 
     k = n // 4
@@ -188,6 +185,8 @@ def test_schedule_refuses_unknown_candidate_keys(model):
         EIDSchedule(model, candidates=({"bandwidth": 3.0},))
     with pytest.raises(DownholeInputError, match="at least one"):
         EIDSchedule(model, candidates=())
+    with pytest.raises(TypeError):
+        EIDSchedule(model)  # the candidates are the caller's (the claim's are experiment data)
 
 
 def test_settle_metrics_on_a_synthetic_result():
@@ -290,55 +289,6 @@ def test_low_speed_point_settles_when_approached_from_above(model, schedule):
     # the torque step of the direct ramp-in no longer stalls it
     coupled = envelope_point(model, schedule, 0.015, 5.0, approach_omega=None)
     assert coupled["candidate"] == 9 and coupled["settled"], coupled
-
-
-def test_torsional_damper_linear_margin_and_loops(model):
-    """The torsional half of the predictive damper: with an exact prediction (linear check) it
-    stabilizes the low-frequency torsional mode at 5 rad/s, 20 mm/s that no candidate of the
-    schedule holds (Newton roots and the argument-principle count agree); k_t = 0 is the
-    axial-only loop; the compiled and the Python loops agree with it on."""
-    eid = EIDSchedule(model, candidates=(ENVELOPE_CANDIDATES[7],)).controllers[0].eid
-    off = predictive_closed_loop(eid, model, 0.020, 5.0, 3.0)
-    assert off["spectral_abscissa"] > 0.5 and abs(off["dominant_root"][1]) < 5.0
-    assert _winding_count(eid, model, 0.020, 5.0, kd=3.0) >= 1
-    assert predictive_closed_loop(eid, model, 0.020, 5.0, 3.0, torsional_gain=0.0,
-                                  torsional_filter=20.0)["spectral_abscissa"] == pytest.approx(
-        off["spectral_abscissa"], abs=1e-9)
-    on = predictive_closed_loop(eid, model, 0.020, 5.0, 3.0, torsional_gain=0.5,
-                                torsional_filter=20.0)
-    assert on["stable"] and on["spectral_abscissa"] < -0.1
-    assert _winding_count(eid, model, 0.020, 5.0, kd=3.0, kt=0.5, bf_t=20.0) == 0
-    c = PredictiveEID(eid, model, 3.0, torsional_gain=0.5)
-    ref = startup_reference(0.015, 12.0, spin_up=1.0, ramp_time=1.0)
-    short = simulate_neutral(model, duration=3.0, dt=2e-4, controller=c, reference=ref)
-    py = simulate_neutral(model, duration=3.0, dt=2e-4, controller=c, python_loop=True,
-                          reference=ref)
-    np.testing.assert_allclose(py["bit_angular_velocity"], short["bit_angular_velocity"],
-                               rtol=0, atol=1e-12)
-    np.testing.assert_allclose(py["command_angular"], short["command_angular"], rtol=0,
-                               atol=1e-12)
-    plain = simulate_neutral(model, duration=3.0, dt=2e-4, controller=PredictiveEID(eid, model,
-                                                                                   3.0),
-                             reference=ref)
-    assert np.abs(plain["command_angular"] - short["command_angular"]).max() > 1e-6
-    for bad in ({"torsional_gain": -1.0}, {"torsional_filter": float("inf")}):
-        with pytest.raises(DownholeInputError, match="torsional"):
-            PredictiveEID(eid, model, 3.0, **bad)
-
-
-@pytest.mark.slow
-def test_torsional_damper_keeps_a_settling_low_speed_point(model):
-    """5 rad/s, 14 mm/s approached from 20 rad/s settles with candidate 5 alone (full grid); with
-    the torsional half on (k_t = 0.5) it still settles: its prediction of the bit angular
-    velocity includes the axial motion (holding the axial velocity constant, it broke this
-    point into stick-slip)."""
-    c5 = EIDSchedule(model, candidates=(ENVELOPE_CANDIDATES[5],)).controllers[0]
-    c = PredictiveEID(c5.eid, model, c5.damping_gain, torsional_gain=0.5)
-    res = simulate_neutral(model, duration=60.0, dt=2e-4, controller=c,
-                           reference=startup_reference(0.014, 5.0, 10.0, 2.0,
-                                                       approach_omega=20.0))
-    s = settle_metrics(res, 0.014, 5.0)
-    assert s["settled"] and s["rms_axial"] < 0.01 and s["min_axial_velocity"] > 0, s
 
 
 def test_fig3_6_tracking_bound_quick():

@@ -1,5 +1,6 @@
 """Layering: the mechanics core runs without control code, the compiled-controller extension
-point of the neutral model, and the registry of named DHP weight sets."""
+point of the neutral model, and the named DHP weight presets (library data, not experiment
+data)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from downhole.control.dhp.weight_sets import REGISTRY, weight_set, weight_set_names
+from downhole.control.dhp.weight_sets import weight_set, weight_set_names
 from downhole.errors import DownholeInputError
 from downhole.string.neutral import (
     NEUTRAL_KERNEL_ARGS,
@@ -106,47 +107,31 @@ def test_controller_without_contract_is_rejected():
         simulate_neutral("table_3_1", duration=0.01, dt=1e-4, controller=object())
 
 
-def test_weight_registry_holds_the_experiment_sets():
-    assert set(weight_set_names()) >= {"design", "robust", "hybrid", "planned"}
+def test_weight_presets_and_the_experiments_names_for_them():
+    assert set(weight_set_names()) == {"design", "robust", "planned"}
     assert weight_set("robust") == dict(bit_velocity=(10.0, 10.0), bit_position=(1.0, 10.0),
                                         r=(1.0, 1.0))
     planned = weight_set("planned")
     assert planned["integral"] == (87.1, 287.0) and planned["r"] == (1.0, 2.07)
-    # the experiments' names are views of the registry, not second copies
     from downhole.control.dhp import PenaltyWeights
     from downhole.experiments import ch4_dhp
 
-    assert ch4_dhp.PLANNED_WEIGHTS == planned
-    assert ch4_dhp.HYBRID_WEIGHTS == weight_set("hybrid")
-    PenaltyWeights(**planned)  # every set is a valid PenaltyWeights
-    assert REGISTRY.is_file()
+    # the Ch. 4 claims' weights are the library defaults
+    assert PenaltyWeights(**weight_set("design")) == PenaltyWeights()
+    # the experiments' names are views of the presets, not second copies
+    assert ch4_dhp.PLANNED_WEIGHTS == planned and ch4_dhp.ROBUST_WEIGHTS == weight_set("robust")
+    for name in weight_set_names():
+        PenaltyWeights(**weight_set(name))  # every preset is a valid PenaltyWeights
+    PenaltyWeights(**ch4_dhp.HYBRID_WEIGHTS)
+    weight_set("planned")["r"] = (0.0, 0.0)  # a fresh dict: the preset is not changed
+    assert weight_set("planned") == planned
 
 
-@pytest.mark.parametrize("text, match", [
-    ("[a]\nbit_velocity = [1.0]\n", r"a\.bit_velocity: expected two finite"),
-    ("[a]\nbit_velocity = [1.0, -2.0]\n", r"a\.bit_velocity: expected two finite"),
-    ("[a]\nbit_velocity = [1.0, inf]\n", r"a\.bit_velocity: expected two finite"),
-    ("[a]\nbit_velocity = [true, 1.0]\n", r"a\.bit_velocity: expected two finite"),
-    ("[a]\nbit_velocty = [1.0, 1.0]\n", r"a\.bit_velocty: unknown field"),
-    ("[a\n", "not a valid TOML"),
-])
-def test_weight_registry_rejects_bad_files(tmp_path, text, match):
-    f = tmp_path / "w.toml"
-    f.write_text(text)
-    with pytest.raises(DownholeInputError, match=match) as exc:
-        weight_set("a", f)
-    assert str(f) in str(exc.value)
-
-
-def test_weight_registry_unknown_name_missing_file_and_bad_bytes(tmp_path):
+def test_weight_preset_unknown_name():
     with pytest.raises(DownholeInputError, match=r"no weight set 'nope'; known: \["):
         weight_set("nope")
-    with pytest.raises(DownholeInputError, match="cannot read"):
-        weight_set("a", tmp_path / "missing.toml")
-    f = tmp_path / "bin.toml"
-    f.write_bytes(b"[a]\nr = [1.0, 1.0]\n\xff\xfe")
-    with pytest.raises(DownholeInputError, match="not a valid TOML"):
-        weight_set("a", str(f))
+    with pytest.raises(DownholeInputError, match="no weight set 'hybrid'"):
+        weight_set("hybrid")  # a research record of the experiments (ch4_dhp.HYBRID_WEIGHTS)
 
 
 def test_every_top_drive_inertia_default_is_the_one_named_default():

@@ -1,14 +1,169 @@
 """Chapter 3 extension: the EID over the drilling envelope (rotary speed x rate of penetration) on
 the true plant with the delayed depth of cut, and the linearized regenerative bit/rock mode that
-decides where it settles (:mod:`downhole.control.eid.envelope`)."""
+decides where it settles.
+
+The library holds the capability (:class:`~downhole.control.eid.schedule.EIDSchedule`, the
+predictive bit damper :class:`~downhole.control.eid.predictor.PredictiveEID`,
+:func:`~downhole.control.eid.schedule.operating_point`); this module holds the claim's
+procedure: the candidate tunings (data, ``eid_envelope.toml`` next to this module), the settle
+criterion (:func:`settle_metrics`), the approach from above and the grid
+(:func:`envelope_point`, :func:`envelope_map`).
+"""
 
 from __future__ import annotations
 
 import json
+import math
+import tomllib
+from importlib.resources import files
 
 import numpy as np
 
+from downhole.errors import DownholeInputError
 from downhole.experiments import experiment
+
+
+def _candidates() -> tuple:
+    data = tomllib.loads((files("downhole.experiments") / "eid_envelope.toml")
+                         .read_text(encoding="utf-8"))
+    return tuple(data["candidate"])
+
+
+#: The candidate tunings of the claim's schedule (``eid_envelope.toml``): index 0 is the default of
+#: :func:`~downhole.control.eid.controller.design_eid`; 4-9 have the predictive bit damper; 8
+#: holds the low rates of penetration below d* (k_d = 4, which chatters unfiltered), 9 the low
+#: speeds at high rates of penetration (k_c = 1; docs/neutral-eid.md, "Envelope").
+ENVELOPE_CANDIDATES = _candidates()
+
+#: Settle criterion: over the last ``window`` seconds, RMS error of each bit velocity below this
+#: fraction of its reference, and the bit never leaves the rock (axial velocity > -tolerance x rop).
+SETTLE_TOLERANCE = 0.02
+
+
+def envelope_schedule(model, candidates=ENVELOPE_CANDIDATES):
+    """The claim's :class:`~downhole.control.eid.schedule.EIDSchedule` of ``model``."""
+    from downhole.control.eid.schedule import EIDSchedule
+
+    return EIDSchedule(model, candidates)
+
+
+def settle_metrics(res, rop: float, omega: float, window: float = 10.0,
+                   tolerance: float = SETTLE_TOLERANCE) -> dict:
+    """Settle criterion on a closed-loop Result: over the last ``window`` s, the RMS error of the
+    bit axial velocity relative to ``rop`` and of the bit angular velocity relative to ``omega``
+    are below ``tolerance``, and the bit axial velocity stays above ``-tolerance * rop`` (no
+    bounce off the rock)."""
+    t = res.time
+    sel = t >= t[-1] - window
+    v = res["bit_axial_velocity"][sel]
+    w = res["bit_angular_velocity"][sel]
+    ra = float(np.sqrt(np.mean((v - rop) ** 2)) / rop)
+    rw = float(np.sqrt(np.mean((w - omega) ** 2)) / omega)
+    vmin = float(v.min())
+    return {"rms_axial": ra, "rms_angular": rw, "min_axial_velocity": vmin,
+            "settled": bool(ra < tolerance and rw < tolerance and vmin > -tolerance * rop)}
+
+
+#: Rotary speed (rad/s) from which a set point below it is approached (drill there, then slow
+#: down; :func:`~downhole.control.eid.references.startup_reference`), and the descent rate
+#: (rad/s per s).
+APPROACH_OMEGA = 20.0
+DESCENT_RATE = 1.0
+#: Largest spacing (rad/s) of the rotary speeds at which the descent path is checked.
+PATH_STEP = 2.5
+
+
+def _path_speeds(omega, approach):
+    n = max(1, int(math.ceil((approach - omega) / PATH_STEP)))
+    return [omega + (approach - omega) * k / n for k in range(1, n + 1)]
+
+
+def _path_abscissa(schedule, k, rop, speeds):
+    """Largest spectral abscissa of candidate ``k`` at (rop, w) over ``speeds``."""
+    return max(schedule.margin(k, rop, w)["spectral_abscissa"] for w in speeds)
+
+
+def envelope_point(model, schedule, rop: float, omega: float, *, dt: float = 2e-4,
+                   duration: float = 60.0, spin_up: float = 10.0, ramp_time: float = 2.0,
+                   max_depth_of_cut: float | None = None,
+                   approach_omega: float | None = APPROACH_OMEGA,
+                   descent_rate: float = DESCENT_RATE) -> dict:
+    """One grid point: reachability, open-loop and scheduled closed-loop margins, a run from rest
+    with the scheduled design, the settle criterion and why.
+
+    Start-up: rotate, then drill (:func:`~downhole.control.eid.references.startup_reference`).
+    A set point below ``approach_omega`` is approached from above: the rate of penetration is
+    ramped in at ``approach_omega``, then the rotary speed is lowered to ``omega`` at
+    ``descent_rate`` rad/s per s. The candidate is then the one with the most negative abscissa
+    at the set point among those whose loop is also stable (linearized) at ``rop`` at every
+    speed of the descent (checked every :data:`PATH_STEP` rad/s); if none is, the set point is
+    approached directly with the best candidate there. ``approach_omega=None``: always directly.
+    """
+    from downhole.control.eid.references import startup_reference
+    from downhole.control.eid.schedule import open_loop_abscissa, operating_point
+    from downhole.string.neutral import simulate_neutral
+
+    op = operating_point(model, rop, omega, max_depth_of_cut=max_depth_of_cut)
+    out = {"rop": float(rop), "omega": float(omega), "depth_of_cut": op.depth_of_cut,
+           "wob": op.wob, "reachable": op.reachable}
+    if not op.reachable:
+        out.update(settled=False, reason=f"unreachable: {op.reason}")
+        return out
+    ol = open_loop_abscissa(model, rop, omega)
+    margins = schedule.margins(rop, omega)
+    order = [int(i) for i in np.argsort([x["spectral_abscissa"] for x in margins], kind="stable")]
+    k, approach, path = order[0], None, None
+    if approach_omega is not None and approach_omega > omega:
+        speeds = _path_speeds(omega, float(approach_omega))
+        for j in order:
+            if margins[j]["spectral_abscissa"] >= 0:
+                break
+            pa = _path_abscissa(schedule, j, rop, speeds)
+            if pa < 0:
+                k, approach, path = j, float(approach_omega), pa
+                break
+    ctrl, cl = schedule.controllers[k], margins[k]
+    ref = startup_reference(rop, omega, spin_up, ramp_time, approach_omega=approach,
+                            descent_rate=descent_rate)
+    res = simulate_neutral(model, duration=duration, dt=dt, controller=ctrl, reference=ref)
+    s = settle_metrics(res, rop, omega)
+    sa = cl["spectral_abscissa"]
+    osc = cl["rightmost_oscillatory_root"]
+    dom = cl["dominant_root"]
+    if s["settled"] and sa < 0:
+        reason = "settled"
+    elif s["settled"]:
+        reason = (f"settled although the linearized closed loop is not stable "
+                  f"(abscissa {sa:+.2f} 1/s)")
+    elif sa >= 0 and ol[0] > 0:
+        reason = (f"open-loop bit/rock mode unstable ({ol[0]:+.2f} 1/s at {ol[1]:.0f} rad/s); "
+                  f"no candidate design stabilizes it (best {sa:+.2f} 1/s, rightmost root at "
+                  f"{abs(dom[1]):.1f} rad/s)")
+    elif sa >= 0:
+        reason = (f"closed loop unstable ({sa:+.2f} 1/s) although the open-loop bit/rock mode "
+                  f"is stable ({ol[0]:+.2f} 1/s)")
+    else:
+        reason = (f"linearized closed loop stable ({sa:+.2f} 1/s) but the run did not settle "
+                  f"(RMS {100 * s['rms_axial']:.1f} % / {100 * s['rms_angular']:.1f} %)")
+    out.update(open_loop_abscissa=ol[0], open_loop_frequency=ol[1],
+               default_abscissa=margins[0]["spectral_abscissa"], candidate=k,
+               closed_loop_abscissa=sa, closed_loop_dominant_root=dom,
+               closed_loop_regenerative_root=osc, approach_omega=approach,
+               path_abscissa=path, **s, reason=reason)
+    return out
+
+
+def envelope_map(model, omegas, rops, *, schedule=None, **kwargs) -> list:
+    """:func:`envelope_point` over the grid ``omegas`` x ``rops`` (rad/s, m/s) with ``schedule``
+    (default: the :func:`envelope_schedule` of ``model``); keywords as there. Returns one dict per
+    point, rotary speed outer."""
+    omegas = [float(w) for w in omegas]
+    rops = [float(r) for r in rops]
+    if not omegas or not rops:
+        raise DownholeInputError("envelope_map: empty grid")
+    sched = schedule if schedule is not None else envelope_schedule(model)
+    return [envelope_point(model, sched, r, w, **kwargs) for w in omegas for r in rops]
+
 
 #: The grid of the claim (rad/s, m/s); quick mode runs a coarse one.
 FULL_OMEGAS = (5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0)
@@ -78,11 +233,10 @@ def _plot(points, omegas, rops, path):
                   "16 rad/s at 15 mm/s) and the points where the open-loop bit/rock mode grows",
             caption="Where the EID settles: the regenerative bit/rock mode over the envelope")
 def eid_envelope(out_dir, quick):
-    from downhole.control.eid.envelope import EIDSchedule, envelope_map
     from downhole.string.neutral import neutral_model
 
     m = neutral_model("table_3_1")
-    sched = EIDSchedule(m)
+    sched = envelope_schedule(m)
     omegas, rops = (QUICK_OMEGAS, QUICK_ROPS) if quick else (FULL_OMEGAS, FULL_ROPS)
     dt = 2e-4 if quick else 1e-4
     points = envelope_map(m, omegas, rops, schedule=sched, dt=dt)

@@ -27,16 +27,21 @@ SEED_TABLE_4_2 = {"DP 4 states 10^4 grid (0.05 s)": 259.91, "DP 4 states 4x10^4 
                   3516.27, "DHP 24 states 100 samples": 148.69,
                   "DHP 24 states 200 samples": 157.30, "DHP 80 states 200 samples": 233.68}
 
-# The weight sets live in the one registry downhole/experiments/weight_sets.toml (what each is and
-# where it came from is written there); these names are the experiments' handles on them.
+# The weight sets: the library's named presets (downhole.control.dhp.weight_sets, what each is and
+# where it came from is written there) and this chapter's research-only set.
 #: Penalty weights used for the Ch. 4 claims (non-dimensional units, Eq. 4.45 layout).
 DESIGN_WEIGHTS = weight_set("design")
 #: Softer weights (lower gains) that keep the 24-state design stable on the 68-state hybrid.
 ROBUST_WEIGHTS = weight_set("robust")
-#: dhp.hybrid68's design before the planned start-up (see the registry; docs/dhp.md).
-HYBRID_WEIGHTS = weight_set("hybrid")
+#: dhp.hybrid68's design before the planned start-up (kept for the record and the research
+#: scripts, examples/research/dhp_hybrid68_variants.py): one 24-state design for both plants
+#: without a plan, a slow axial and a fast angular bit-velocity weight, damping injection on the
+#: string's node velocities, integral action and a dearer torque; it settles the step in
+#: 5.7-6.3 s (docs/dhp.md, "The 68-state hybrid").
+HYBRID_WEIGHTS = {"bit_velocity": (0.2, 70.0), "bit_position": (0.4, 0.015),
+                  "string_velocity": (1.2, 0.1), "r": (1.0, 1.4), "integral": (60.0, 60.0)}
 #: dhp.hybrid68's controller since the planned start-up (found by
-#: examples/research/dhp_planned_weight_search.py; see the registry).
+#: examples/research/dhp_planned_weight_search.py).
 PLANNED_WEIGHTS = weight_set("planned")
 
 _CACHE: dict = {}
@@ -154,9 +159,7 @@ def fig4_5(out_dir, quick):
     T = 0.3 if quick else 5.0
     pb = build_problem(design, BitReference.step(), T, PenaltyWeights(**DESIGN_WEIGHTS))
     thr = 1e-6
-    # quick: the plain-NumPy Algorithm 1 (same iteration and samples, no compilation)
-    method = "algorithm1_numpy" if quick else "algorithm1"
-    tr = train_dhp(pb, DHPSettings(method=method, warm_start=False, threshold=thr,
+    tr = train_dhp(pb, DHPSettings(method="algorithm1", warm_start=False, threshold=thr,
                                    n_iterations=20, n_samples=_samples(quick),
                                    record_steps=(-1,)))
     n = pb.n_steps

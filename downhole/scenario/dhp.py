@@ -47,8 +47,8 @@ value also takes a unit string (``"10 mm/s"``, ``"1 ms"``, ``"60 kN*m"``)::
                                   #   torque (FEM designs)
     friction = 0.5                # FEM designs: wellbore friction coefficient of the design
                                   #   model (default: the well's, 0.5 for Table 5.1; 0: none)
-    weights = "robust"            # a named set (downhole/experiments/weight_sets.toml:
-                                  #   design, robust, hybrid, planned) or the table below
+    weights = "robust"            # a named preset (downhole.control.dhp.weight_sets:
+                                  #   design, robust, planned) or the table below
 
     [controller.dhp.weights]      # Eq. 4.45 layout, non-dimensional (PenaltyWeights)
     bit_velocity = [100.0, 100.0]
@@ -63,7 +63,7 @@ value also takes a unit string (``"10 mm/s"``, ``"1 ms"``, ``"60 kN*m"``)::
 
     [controller.dhp.training]     # DHPSettings + horizon
     horizon = "40 s"
-    method = "riccati"            # "riccati" | "closed_form" | "algorithm1" | "algorithm1_numpy"
+    method = "riccati"            # "riccati" | "algorithm1" (the seed's iteration, NumPy)
     n_samples = 200               # N_S (>= 2 (n + 1) advised)
     n_iterations = 20             # N_I (Algorithm 1)
     threshold = 1e-6

@@ -1,8 +1,9 @@
 """Dual heuristic programming (single-network adaptive critic) controller of seed Ch. 4.
 
 - :mod:`~downhole.control.dhp.trainer`: the trainer for any
-  :class:`~downhole.control.affine.ControlAffineModel` - Algorithm 1 (compiled, and in plain
-  NumPy as the reference), the closed-form per-sample target and the Riccati form.
+  :class:`~downhole.control.affine.ControlAffineModel` - the seed's Algorithm 1 (plain NumPy,
+  the reference) and its exact fast form, the Riccati form (compiled,
+  :mod:`~downhole.control.dhp.riccati`).
 - :mod:`~downhole.control.dhp.drilling`: the lumped drilling design model, the reference
   transform (Eqs. 4.21-4.23), the steady-state feed-forward and the penalty layout (Eq. 4.45).
 - :mod:`~downhole.control.dhp.references`: step, ramp (Eqs. 4.48-4.49), sine (Eq. 4.47), user.
@@ -61,7 +62,6 @@ from downhole.control.dhp.trainer import (
                                               LinearBasis,
                                               QuadraticBasis,
                                               TrainingDiverged,
-                                              finite_horizon_lqr,
                                               train_dhp,
 )
 
@@ -85,7 +85,6 @@ __all__ = [
                                               "design_dhp_planned",
                                               "directional_affine_model",
                                               "feed_forward",
-                                              "finite_horizon_lqr",
                                               "load_controller",
                                               "lumped_affine_model",
                                               "lumped_true_plant",

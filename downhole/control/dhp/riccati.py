@@ -44,7 +44,7 @@ from numba import int64, njit, uint64
 
 from downhole._blas import chol_solve_right, potrf_upper, syrk_gram
 
-__all__ = ["ModalForm", "compiled_offsets", "draw_offsets", "train_riccati"]
+__all__ = ["ModalForm", "draw_offsets", "train_riccati"]
 
 
 # ----------------------------------------------------------------------------------- samples
@@ -161,19 +161,6 @@ def draw_offsets(seed: int, set_ids, ns: int, n: int) -> np.ndarray:
     return out
 
 
-def compiled_offsets(seed: int, set_ids, ns: int, radius) -> np.ndarray:
-    """radius * w (len(set_ids), ns, n) drawn by the compiled kernel (same numbers as
-    :func:`draw_offsets`)."""
-    set_ids = np.ascontiguousarray(set_ids, dtype=np.int64)
-    radius = np.ascontiguousarray(radius, dtype=float)
-    n = radius.shape[0]
-    K = set_ids.size
-    Phi = np.empty((K, n + 1, ns))
-    Z = np.empty((K, ns, n))
-    _draw(int(seed), set_ids, np.zeros((K, n)), radius, Phi, Z)
-    return Z
-
-
 # ----------------------------------------------------------------------------------- modal form
 class ModalForm:
     """Real block-diagonal (modal) coordinates of a DHP problem's linear part.
@@ -234,37 +221,6 @@ class ModalForm:
 
 
 # ----------------------------------------------------------------------------------- kernels
-@njit(cache=True, nogil=True)
-def _chol_upper_lapack(U):
-    """In place: the upper triangle of U (symmetric positive definite) -> its upper Cholesky
-    factor (G = U^T U) by LAPACK's potrf, called directly (no copy); the lower triangle is
-    left as it was. False if not positive definite."""
-    return potrf_upper(U) == 0
-
-
-@njit(cache=True, nogil=True)
-def _solve_upper(U, B):
-    """B <- (U^T U)^-1 B for the upper Cholesky factor U (column-oriented, contiguous rows)."""
-    p = U.shape[0]
-    q = B.shape[1]
-    for k in range(p):                       # U^T y = b
-        inv = 1.0 / U[k, k]
-        for c in range(q):
-            B[k, c] *= inv
-        for i in range(k + 1, p):
-            f = U[k, i]
-            for c in range(q):
-                B[i, c] -= f * B[k, c]
-    for i in range(p - 1, -1, -1):           # U x = y
-        for k in range(i + 1, p):
-            f = U[i, k]
-            for c in range(q):
-                B[i, c] -= f * B[k, c]
-        inv = 1.0 / U[i, i]
-        for c in range(q):
-            B[i, c] *= inv
-
-
 @njit(cache=True, nogil=True)
 def _fit_one(PhiT, F, Vr, c0, Y, U, B, refactor):
     """Least-squares fit of one step: F (N, q) ~ c0 + w C_w on the samples PhiT = [1, w]^T;

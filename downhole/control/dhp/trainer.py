@@ -1,43 +1,42 @@
-"""The DHP (single-network adaptive critic) trainer of seed Sec. 4.3.3: Algorithm 1 and fast paths.
+"""The DHP (single-network adaptive critic) trainer of seed Sec. 4.3.3: Algorithm 1 and its fast
+exact form.
 
 The co-state is approximated by one network, lambda_{k+1} = W_k^T phi(z_k) (Eq. 4.35), trained
 backward from the final condition lambda_n = S (z_n - r_n) (Eqs. 4.36-4.42) on N_S random samples
 per step, and applied as u_k = u_ff,k - R^-1 g^T lambda_{k+1} (Eq. 4.34; u_ff = 0 in the seed,
-see :mod:`downhole.control.dhp` for the feed-forward). Three methods compute the same weights:
+see :mod:`downhole.control.dhp` for the feed-forward). Two methods compute the same weights:
 
 ``"algorithm1"``
-    The seed's Algorithm 1: at each step, iterate W^{i+1} = LS-fit of the target co-state
-    computed with W^i until the change of the co-state on the samples (Eq. 4.43) falls below
-    ``threshold`` (relative to the target's size), at most ``n_iterations`` times. Compiled
-    (numba) for the linear basis with the seed's Jacobian; ``"algorithm1_numpy"`` is the
-    plain-NumPy reference for any basis and for the exact Jacobian.
-``"closed_form"``
-    g is constant, so the per-sample target is affine in the network output: the iteration's
-    fixed point has the closed form y* = (I + M G)^-1 [M (f(z) + g u_ff - r_{k+1}) + a],
-    G = g R^-1 g^T, and the least-squares fit of y* is Algorithm 1's converged weight exactly
-    (the sample projection acts on the left, M G on the right, so they commute).
+    The seed's Algorithm 1, in plain NumPy (the reference): at each step, iterate W^{i+1} =
+    LS-fit of the target co-state computed with W^i until the change of the co-state on the
+    samples (Eq. 4.43) falls below ``threshold`` (relative to the target's size), at most
+    ``n_iterations`` times. Any basis, the seed's or the exact Jacobian.
 ``"riccati"``
-    The same fixed point written as matrices: fit only the nonlinear forces to the samples
-    (h(z) ~ c0 + H (z - r_k)), then D_k^T = N M (A + H), c_k = N [M(f_r + g u_ff - r_{k+1}) + a]
-    with N = (I + M G)^-1 = I - M g (R + g^T M g)^-1 g^T. For a linear plant this is the
+    g is constant, so the per-sample target is affine in the network output and the iteration's
+    fixed point has a closed form, y* = (I + M G)^-1 [M (f(z) + g u_ff - r_{k+1}) + a],
+    G = g R^-1 g^T, whose least-squares fit is Algorithm 1's converged weight exactly (the
+    sample projection acts on the left, M G on the right, so they commute). Written as matrices:
+    fit only the nonlinear forces to the samples (h(z) ~ c0 + H (z - r_k)), then
+    D_k^T = N M (A + H), c_k = N [M(f_r + g u_ff - r_{k+1}) + a] with
+    N = (I + M G)^-1 = I - M g (R + g^T M g)^-1 g^T. For a linear plant this is the
     finite-horizon LQR Riccati recursion. Computed in the modal basis of A with compiled
-    kernels (:mod:`downhole.control.dhp.riccati`); ``downhole.control.dhp.baseline.riccati_numpy`` is the same trainer in
-    plain NumPy (benchmark baseline, same samples).
+    kernels (:mod:`downhole.control.dhp.riccati`); ``downhole.control.dhp.baseline.riccati_numpy``
+    is the same trainer in plain NumPy (benchmark baseline, same samples). Linear basis and the
+    seed's Jacobian.
 
-All methods draw the samples from one SFC64 stream (``settings.seed``), so for the same
+Both methods draw the samples from one SFC64 stream (``settings.seed``), so for the same
 settings they see the very same samples.
 
 Algorithm 1's fixed-point iteration contracts only if mu = rho(g^T M g R^-1) < 1, where M is
 the target's derivative with respect to z_{k+1} (S at the last step, Q + A^T W_{z,k+1}^T
-before). Every method computes mu at every step (``DHPTraining.mu``); with
-``require_contraction`` (default) the iterative methods (``"algorithm1"``,
-``"algorithm1_numpy"``) stop with :class:`TrainingDiverged` naming the method and the step when
-mu >= 1. The non-iterative methods (``"closed_form"``, ``"riccati"``) solve the fixed point
-directly - (I + M G) is invertible for any M, G >= 0 - so they train every well-posed problem
-(R > 0, Q, S >= 0) whatever mu is.
+before). Both methods compute mu at every step (``DHPTraining.mu``); with
+``require_contraction`` (default) Algorithm 1 stops with :class:`TrainingDiverged` naming the
+method and the step when mu >= 1. The Riccati form solves the fixed point directly - (I + M G)
+is invertible for any M, G >= 0 - so it trains every well-posed problem (R > 0, Q, S >= 0)
+whatever mu is.
 
-Internally the network is fitted in centred form lambda_{k+1} = c_k + D_k^T (z_k - r_k)
-(identical to W_k = [c_k - D_k^T r_k; D_k] for phi = [1, z], better conditioned).
+The network is fitted in centred form lambda_{k+1} = c_k + D_k^T (z_k - r_k) (identical to
+W_k = [c_k - D_k^T r_k; D_k] for phi = [1, z], better conditioned).
 """
 
 from __future__ import annotations
@@ -47,18 +46,9 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from downhole.control.affine import ControlAffineModel
-from downhole.control.dhp.riccati import (
-    _chol_upper_lapack,
-    _mu2,
-    _small_inv,
-    _solve_upper,
-    compiled_offsets,
-    draw_offsets,
-    train_riccati,
-)
+from downhole.control.dhp.riccati import draw_offsets, train_riccati
 from downhole.errors import DownholeError, DownholeInputError
 
 __all__ = [
@@ -70,13 +60,12 @@ __all__ = [
     "LinearBasis",
     "QuadraticBasis",
     "TrainingDiverged",
-    "finite_horizon_lqr",
     "train_dhp",
 ]
 
-METHODS = ("riccati", "closed_form", "algorithm1", "algorithm1_numpy")
+METHODS = ("riccati", "algorithm1")
 #: The methods that iterate Algorithm 1 to its fixed point (they need mu < 1).
-ITERATIVE_METHODS = ("algorithm1", "algorithm1_numpy")
+ITERATIVE_METHODS = ("algorithm1",)
 
 
 class TrainingDiverged(DownholeError, FloatingPointError):
@@ -91,7 +80,7 @@ class TrainingDiverged(DownholeError, FloatingPointError):
 
 # ---------------------------------------------------------------------------------------- bases
 class LinearBasis:
-    """phi(z) = [1, z_1, ..., z_n] (Eq. 4.46), p = n + 1. Enables the compiled fast paths."""
+    """phi(z) = [1, z_1, ..., z_n] (Eq. 4.46), p = n + 1. Enables the Riccati form."""
 
     is_linear = True
     name = "linear"
@@ -104,7 +93,7 @@ class LinearBasis:
 
 
 class QuadraticBasis:
-    """phi(z) = [1, z, z_i^2] (linear plus squares), p = 2n + 1 (Algorithm 1 NumPy path only)."""
+    """phi(z) = [1, z, z_i^2] (linear plus squares), p = 2n + 1 (Algorithm 1 only)."""
 
     is_linear = False
     name = "quadratic"
@@ -149,9 +138,9 @@ class DHPSettings:
         One of :data:`METHODS`.
     jacobian : {"seed", "exact"}
         A_k in the co-state recursion: the seed's constant P^-1 A_d P, or with the derivative
-        of the nonlinear forces (``algorithm1_numpy`` only).
+        of the nonlinear forces (``algorithm1`` only).
     basis : {"linear", "quadratic"} or object
-        phi; non-linear bases need ``algorithm1_numpy``. Any object with ``size(n) -> p``,
+        phi; non-linear bases need ``algorithm1``. Any object with ``size(n) -> p``,
         ``__call__(Z (N, n)) -> (N, p)`` (the first column constant) and ``is_linear = False``
         plugs in (see :class:`QuadraticBasis`); its ``name`` (default: the class name) is what
         a saved controller records.
@@ -159,10 +148,9 @@ class DHPSettings:
         Start Algorithm 1 at step k from W_{k+1} (True) or from zero (False, the seed's "initial
         guess").
     require_contraction : bool
-        For Algorithm 1 (``"algorithm1"``, ``"algorithm1_numpy"``): stop with
-        :class:`TrainingDiverged` when mu = rho(g^T M g R^-1) >= 1 at some step (the iteration
-        cannot contract there). Ignored by the non-iterative ``"closed_form"`` and
-        ``"riccati"``, which need no contraction.
+        For Algorithm 1 (``"algorithm1"``): stop with :class:`TrainingDiverged` when
+        mu = rho(g^T M g R^-1) >= 1 at some step (the iteration cannot contract there). Ignored
+        by the non-iterative ``"riccati"``, which needs no contraction.
     seed : int
         Random generator seed of the samples.
     record_steps : tuple of int
@@ -171,7 +159,7 @@ class DHPSettings:
     weight_stride : int or None
         Keep the full weights W_k every ``weight_stride`` steps (None: about 400 snapshots).
     chunk : int
-        Steps per vectorized model evaluation (memory vs. Python overhead).
+        Steps per chunk of the Riccati form's sample/force/fit work (memory vs. overhead).
     resample_every : int
         Draw a fresh set of N_S sample offsets every ``resample_every`` steps (1: every step,
         the seed's Algorithm 1). The samples are always centred on the step's own reference;
@@ -217,10 +205,10 @@ class DHPSettings:
                                      "__call__(Z) and is_linear")
         linear = self.basis == "linear" or (not isinstance(self.basis, str)
                                              and isinstance(self.basis, LinearBasis))
-        if self.method != "algorithm1_numpy" and (self.jacobian != "seed" or not linear):
+        if self.method != "algorithm1" and (self.jacobian != "seed" or not linear):
             raise DownholeInputError(
                 f"method {self.method!r} needs basis='linear' and jacobian='seed'; use "
-                "method='algorithm1_numpy' for other bases or the exact Jacobian")
+                "method='algorithm1' for other bases or the exact Jacobian")
         if not (isinstance(self.n_iterations, int) and self.n_iterations >= 1):
             raise DownholeInputError(f"n_iterations must be an integer >= 1, got "
                                      f"{self.n_iterations!r}")
@@ -342,10 +330,10 @@ class DHPTraining:
         Steps k whose full weights W_k (p, n) are kept in ``weights``.
     weights : ndarray (len(weight_steps), p, n)
     iterations : ndarray of int (n_steps,)
-        Algorithm 1 iterations used at each step (0 for the closed-form methods).
+        Algorithm 1 iterations used at each step (0 for the Riccati form).
     errors : ndarray (n_steps,)
-        Final relative training error of each step (Eq. 4.44 on the samples; for the
-        closed-form methods the residual of the fixed point).
+        Final relative training error of each step (Eq. 4.44 on the samples; 0 for the Riccati
+        form).
     mu : ndarray (n_steps,)
         Contraction factor rho(g^T M g R^-1) of each step.
     iteration_history : dict of int to ndarray (iters + 1, p, n)
@@ -368,179 +356,6 @@ class DHPTraining:
     def controls(self, z_nd: np.ndarray, k: int, reference: np.ndarray, u_ff: np.ndarray):
         """u_k (non-dimensional) for state ``z_nd`` at step ``k``."""
         return u_ff[k] - self.kc[k] - self.kd[k] @ (z_nd - reference[k])
-
-
-# ---------------------------------------------------------------------------------------- kernels
-@njit(cache=True)
-def _mu(g, M, Rinv):
-    return _mu2(g.T @ (M @ g) @ Rinv)
-
-
-@njit(cache=True)
-def _centered_fit(delta, Y):
-    """LS fit Y ~ c + delta @ Dt over the samples: returns c (q,), Dt (n, q)."""
-    N, n = delta.shape
-    Phi = np.empty((N, n + 1))
-    Phi[:, 0] = 1.0
-    Phi[:, 1:] = delta
-    U = Phi.T @ Phi
-    sol = Phi.T @ Y
-    _chol_upper_lapack(U)
-    _solve_upper(U, sol)
-    return sol[0].copy(), sol[1:].copy()
-
-
-@njit(cache=True)
-def _closed_form_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, R, ref, n_total, M, c_next, kc, kd,
-                       mu_out, err_out, keep_every, w_steps, w_store, w_count, mu_max_ok,
-                       max_weight):
-    """Backward pass with the closed-form per-sample target, then the LS fit.
-
-    base (K, N, n): f(z_s) + g u_ff,k - r_{k+1} at the samples."""
-    K = deltas.shape[0]
-    n = A.shape[0]
-    for j in range(K):
-        k = k_hi - j
-        if k == n_total - 1:
-            Mk = S.copy()
-            a = np.zeros(n)
-        else:
-            Mk = M.copy()
-            a = A.T @ c_next
-        mu = _mu(g, Mk, Rinv)
-        mu_out[k] = mu
-        if mu >= mu_max_ok:
-            return 1, k
-        Mg = Mk @ g
-        Sginv = np.empty((g.shape[1], g.shape[1]))
-        _small_inv(R + g.T @ Mg, Sginv)
-        V = base[j] @ Mk.T + a                      # (N, n): M e + a per sample
-        Y = V - (V @ g) @ Sginv.T @ Mg.T            # N v per sample (rows)
-        c, Dt_T = _centered_fit(deltas[j], Y)       # Y ~ c + delta @ Dt_T ; D^T = Dt_T.T
-        Dt = Dt_T.T.copy()
-        # residual of the fit relative to the target size (how far phi = [1, z] is from exact)
-        res = 0.0
-        big_y = 1e-300
-        for s in range(Y.shape[0]):
-            pred = c + Dt @ deltas[j, s]
-            for i in range(n):
-                d = abs(pred[i] - Y[s, i])
-                res = max(res, d)
-                big_y = max(big_y, abs(Y[s, i]))
-        err_out[k] = res / big_y
-        kc[k] = Rinv @ (g.T @ c)
-        kd[k] = Rinv @ (g.T @ Dt)
-        big = np.max(np.abs(Dt))
-        if not (big < max_weight and np.all(np.isfinite(c))):
-            return 2, k
-        if keep_every > 0 and k % keep_every == 0:
-            w_steps[w_count[0]] = k
-            w_store[w_count[0], 0] = c - Dt @ ref[k]
-            w_store[w_count[0], 1:] = Dt.T
-            w_count[0] += 1
-        M[:, :] = Q + A.T @ Dt
-        c_next[:] = c
-    return 0, -1
-
-
-@njit(cache=True)
-def _alg1_chunk(k_hi, deltas, base, A, g, Q, S, Rinv, ref, n_total, Dn, c_next, kc, kd, mu_out,
-                err_out, it_out, keep_every, w_steps, w_store, w_count, n_iter, threshold,
-                warm, mu_max_ok, max_weight, rec_step, rec_out, rec_n):
-    """Algorithm 1 (compiled, linear basis, seed Jacobian) over one chunk of steps.
-
-    Dn (n, n) = D_{k+1}^T and c_next = c_{k+1} carry the network of step k+1.
-    The iteration: y^i = c^i + delta D^i, z1 = base - y^i G, target = M-form of Eq. 4.42,
-    (c, D)^{i+1} = LS fit; stop when max|y^{i+1} - y^i| <= threshold * max|y^{i+1}|."""
-    K = deltas.shape[0]
-    n = A.shape[0]
-    N = deltas.shape[1]
-    G = g @ Rinv @ g.T
-    c = c_next.copy()
-    Dt = Dn.copy()
-    for j in range(K):
-        k = k_hi - j
-        delta = deltas[j]
-        if k == n_total - 1:
-            Mk = S.copy()
-            a = np.zeros(n)
-        else:
-            Mk = Q + A.T @ Dn
-            a = A.T @ c_next
-        mu = _mu(g, Mk, Rinv)
-        mu_out[k] = mu
-        if mu >= mu_max_ok:
-            return 1, k, 0
-        Phi = np.empty((N, n + 1))
-        Phi[:, 0] = 1.0
-        Phi[:, 1:] = delta
-        Gram = Phi.T @ Phi
-        U = Gram.copy()
-        if not _chol_upper_lapack(U):
-            return 2, k, 0
-        if warm and k < n_total - 1:
-            c = c_next.copy()
-            Dt = Dn.copy()
-        else:
-            c = np.zeros(n)
-            Dt = np.zeros((n, n))
-        Y = np.empty((N, n))
-        for s in range(N):
-            Y[s] = c + Dt @ delta[s]
-        err = np.inf
-        it = 0
-        if k == rec_step:
-            rec_out[0, 0] = c - Dt @ ref[k]
-            rec_out[0, 1:] = Dt.T
-        for it in range(1, n_iter + 1):
-            # target co-state at the samples (Eq. 4.41/4.42 in the centred M-form)
-            E = base[j] - Y @ G                      # z_{k+1} - r_{k+1}
-            T = E @ Mk.T + a
-            rhs = Phi.T @ T
-            sol = rhs
-            _solve_upper(U, sol)
-            c = sol[0].copy()
-            Dt = sol[1:].T.copy()
-            Ynew = np.empty((N, n))
-            for s in range(N):
-                Ynew[s] = c + Dt @ delta[s]
-            diff = 0.0
-            big = 1e-300
-            for s in range(N):
-                for i in range(n):
-                    d = abs(Ynew[s, i] - Y[s, i])
-                    diff = max(diff, d)
-                    big = max(big, abs(Ynew[s, i]))
-            Y = Ynew
-            err = diff / big
-            if k == rec_step and it < rec_out.shape[0]:
-                rec_out[it, 0] = c - Dt @ ref[k]
-                rec_out[it, 1:] = Dt.T
-                rec_n[0] = it + 1
-            if not (big < max_weight) or not np.isfinite(err):
-                return 2, k, it
-            if err <= threshold:
-                break
-        it_out[k] = it
-        err_out[k] = err
-        kc[k] = Rinv @ (g.T @ c)
-        kd[k] = Rinv @ (g.T @ Dt)
-        if keep_every > 0 and k % keep_every == 0:
-            w_steps[w_count[0]] = k
-            w_store[w_count[0], 0] = c - Dt @ ref[k]
-            w_store[w_count[0], 1:] = Dt.T
-            w_count[0] += 1
-        Dn[:, :] = Dt
-        c_next[:] = c
-    return 0, -1, 0
-
-
-def _uniform_sets(seed, set_ids, ns, radius, compiled=True):
-    """(len(set_ids), ns, n) offsets radius * w, w uniform in [-1, 1), from the SFC64 stream
-    of each sample set (the same numbers for every method; see ``riccati.draw_offsets``)."""
-    if compiled:
-        return compiled_offsets(seed, set_ids, ns, radius)
-    return draw_offsets(seed, set_ids, ns, radius.shape[0]) * radius
 
 
 # ---------------------------------------------------------------------------------------- driver
@@ -616,11 +431,7 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
     radius = np.broadcast_to(np.asarray(settings.sample_radius, dtype=float), (n,)).copy()
     n_steps = problem.n_steps
     rng = settings.seed
-    A = np.ascontiguousarray(model.linear)
-    g = np.ascontiguousarray(model.g)
     Rinv = np.linalg.inv(problem.R)
-    ref = problem.reference
-    uff = problem.u_ff
     stride = settings.weight_stride or max(1, n_steps // 400)
     n_keep = n_steps // stride + 2
     w_steps = np.full(n_keep, -1, dtype=np.int64)
@@ -645,10 +456,10 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
     # on a shared 2-core machine)
     limiter = threadpool_limits(limits=1, user_api="blas")
     try:
-        if method == "algorithm1_numpy":
+        if method == "algorithm1":
             _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, err, iters,
                          stride, w_steps, w_store, w_count, rec_steps, history, mu_ok, bar)
-        elif method == "riccati":
+        else:
             out = dict(kc=kc, kd=kd, mu=mu, stride=stride, w_steps=w_steps, w_store=w_store,
                        w_count=w_count)
             status, kf = train_riccati(problem, settings, ns, radius, out, mu_ok, bar)
@@ -661,44 +472,6 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
             if status == 3:
                 raise TrainingDiverged(int(kf), model.dt, "the least-squares fit of the forces "
                                        "is singular (sample design matrix not positive definite)")
-        else:
-            M = np.zeros((n, n))
-            c_next = np.zeros(n)
-            k_hi = n_steps - 1
-            while k_hi >= 0:
-                K = min(settings.chunk, k_hi + 1)
-                ks = np.arange(k_hi, k_hi - K, -1)
-                set_id = ((n_steps - 1 - ks) // settings.resample_every).astype(np.int64)
-                deltas = _uniform_sets(rng, set_id, ns, radius)
-                Z = deltas + ref[ks][:, None, :]
-                base = (model.f(Z.reshape(K * ns, n)).reshape(K, ns, n)
-                        + (uff[ks] @ g.T)[:, None, :] - ref[ks + 1][:, None, :])
-                if method == "closed_form":
-                    status, kf = _closed_form_chunk(
-                        k_hi, deltas, base, A, g, problem.Q, problem.S, Rinv, problem.R, ref,
-                        n_steps, M, c_next, kc, kd, mu, err, stride, w_steps, w_store,
-                        w_count, mu_ok, settings.max_weight)
-                    it_f = None
-                else:
-                    rec = rec_steps[0] if rec_steps and ks[-1] <= rec_steps[0] <= k_hi else -1
-                    rec_out = np.zeros((settings.n_iterations + 1, p, n))
-                    rec_n = np.ones(1, dtype=np.int64)
-                    status, kf, it_f = _alg1_chunk(
-                        k_hi, deltas, base, A, g, problem.Q, problem.S, Rinv, ref, n_steps,
-                        M, c_next, kc, kd, mu, err, iters, stride, w_steps, w_store, w_count,
-                        settings.n_iterations, settings.threshold, settings.warm_start,
-                        mu_ok, settings.max_weight, rec, rec_out, rec_n)
-                    if rec >= 0:
-                        history[rec] = rec_out[:rec_n[0]].copy()
-                if status == 1:
-                    raise TrainingDiverged(int(kf), model.dt, _mu_reason(mu[kf], method))
-                if status == 2:
-                    raise TrainingDiverged(int(kf), model.dt,
-                                           f"weights became non-finite or exceeded max_weight = "
-                                           f"{settings.max_weight:g}", iteration=it_f)
-                if bar:
-                    bar[0].update(bar[1], advance=K)
-                k_hi -= K
     finally:
         limiter.restore_original_limits()
         if bar:
@@ -713,30 +486,14 @@ def train_dhp(problem: DHPProblem, settings: DHPSettings | None = None, *,
 def _mu_reason(mu, method):
     return (f"the Algorithm 1 iteration (method {method!r}) cannot converge: mu = "
             f"rho(g^T M g R^-1) = {mu:.4g} >= 1 (M = S at the last step, Q + A^T W_z^T before). "
-            "Use method='riccati' or 'closed_form' (no iteration, no contraction needed), or "
+            "Use method='riccati' (no iteration, no contraction needed), or "
             "increase R, decrease Q/S, or scale the inputs (input_scale) so that g^T M g is "
             "small against R")
 
 
-def _nonlinear_samples(model: ControlAffineModel, Z):
-    """Nonlinear columns at the samples (K, N, q) and the map (n, q) to the state rows."""
-    K, N, n = Z.shape
-    if model.is_linear:
-        return np.zeros((K, N, 0)), np.zeros((n, 0))
-    flat = Z.reshape(K * N, n)
-    if model.force_map is not None:
-        F = np.asarray(model.forces(flat), dtype=float)
-        return F.reshape(K, N, -1), np.ascontiguousarray(model.force_map)
-    rows = model.nonlinear_rows
-    h = model.nonlinear(flat)[:, rows]
-    cmap = np.zeros((n, rows.size))
-    cmap[rows, np.arange(rows.size)] = 1.0
-    return np.ascontiguousarray(h.reshape(K, N, rows.size)), cmap
-
-
 def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, err, iters, stride,
                  w_steps, w_store, w_count, rec_steps, history, mu_ok, bar):
-    """Plain-NumPy Algorithm 1 (reference): any basis, seed or exact Jacobian."""
+    """Algorithm 1 in plain NumPy (the reference): any basis, seed or exact Jacobian."""
     model = problem.model
     n = model.n_states
     A, g = model.linear, model.g
@@ -745,8 +502,8 @@ def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, er
     n_steps = problem.n_steps
     W_next = None
     for k in range(n_steps - 1, -1, -1):
-        delta = _uniform_sets(rng, [(n_steps - 1 - k) // settings.resample_every], ns, radius,
-                              compiled=False)[0]
+        delta = draw_offsets(rng, [(n_steps - 1 - k) // settings.resample_every], ns,
+                             n)[0] * radius
         Z = ref[k] + delta
         Phi = basis(Z)
         base = model.f(Z) + g @ uff[k]
@@ -824,19 +581,3 @@ def _train_numpy(problem, settings, basis, ns, radius, rng, Rinv, kc, kd, mu, er
         W_next = W
         if bar:
             bar[0].update(bar[1], advance=1)
-
-
-# ---------------------------------------------------------------------------------------- LQR
-def finite_horizon_lqr(A, B, Q, R, S, n_steps):
-    """Time-varying LQR gains of the textbook backward Riccati recursion (independent check).
-
-    Minimizes 1/2 sum_{k<n} (x^T Q x + u^T R u) + 1/2 x_n^T S x_n for x+ = A x + B u; returns
-    gains K (n_steps, m, n) with u_k = -K_k x_k.
-    """
-    P = np.asarray(S, float)
-    K = np.zeros((n_steps, B.shape[1], A.shape[0]))
-    for k in range(n_steps - 1, -1, -1):
-        K[k] = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
-        P = Q + A.T @ P @ (A - B @ K[k])
-        P = 0.5 * (P + P.T)
-    return K

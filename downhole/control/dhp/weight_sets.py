@@ -1,79 +1,53 @@
-"""Named DHP penalty-weight sets, read from a TOML registry.
+"""Named DHP penalty weights: the documented presets a scenario can name.
 
-The sets the experiments found or use (``design``, ``robust``, ``hybrid``, ``planned``) are data
-in ``downhole/experiments/weight_sets.toml``, shipped with the package and read here through
-:mod:`importlib.resources` without importing :mod:`downhole.experiments` (the library does not
-depend on the experiments). A user registry (same format: one table per set, the fields of
-:class:`~downhole.control.dhp.drilling.PenaltyWeights` as lists of two numbers) can be passed as
-``path``.
+``[controller.dhp] weights = "<name>"`` in a DHP or SIL scenario (and
+:func:`downhole.sil.testing.ch6_dhp`) picks one of :data:`WEIGHT_SETS`, keyword arguments of
+:class:`~downhole.control.dhp.drilling.PenaltyWeights` (non-dimensional, Eq. 4.45 layout, two
+numbers per field: axial, torsional). Other weights are written out as a table. The experiments
+use these presets by name and keep their research-only sets and searches themselves
+(:mod:`downhole.experiments.ch4_dhp`, ``examples/research/``).
 """
 
 from __future__ import annotations
 
-import math
-import tomllib
-from importlib.resources import files
-from pathlib import Path
-
 from downhole.errors import DownholeInputError
 
-__all__ = ["REGISTRY", "weight_set", "weight_set_names"]
+__all__ = ["WEIGHT_SETS", "weight_set", "weight_set_names"]
 
-#: The registry shipped with the package.
-REGISTRY = files("downhole") / "experiments" / "weight_sets.toml"
-
-_FIELDS = {"top_position", "node_position", "bit_position", "bit_velocity", "string_velocity",
-           "r", "integral"}
-
-
-def _load(path) -> tuple[str, dict]:
-    if isinstance(path, str):
-        path = Path(path)
-    where = str(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise DownholeInputError(f"{where}: cannot read the weight-set registry: "
-                                 f"{exc.strerror or exc}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise DownholeInputError(f"{where}: not a valid TOML weight-set registry: {exc}") from None
-    return where, data
-
-
-def weight_set_names(path=None) -> tuple[str, ...]:
-    """Names of the sets in the registry (default :data:`REGISTRY`)."""
-    return tuple(_load(REGISTRY if path is None else path)[1])
+#: The presets:
+#:
+#: - ``design``: the Ch. 4 claims' weights, equal to the defaults of ``PenaltyWeights()``.
+#: - ``robust``: softer weights (lower gains) that keep the 24-state design stable on the
+#:   68-state hybrid (the SIL chapter's controller, :func:`downhole.sil.testing.ch6_dhp`).
+#: - ``planned``: the gains about a planned step start-up on the Table 5.1 well (the SIL
+#:   scenario's default, with :func:`~downhole.control.dhp.plan.design_dhp_planned`; the claim
+#:   ``dhp.hybrid68``): soft (the plan does the start-up), integral action, damping injection on
+#:   the string velocities. Found by a (1+1) evolution strategy scoring the worst settling time
+#:   of the planned step on the 24-state FEM and the 68-state hybrid (approximate and delayed
+#:   depth of cut) and the tracking at epsilon 50 % and 300 %
+#:   (``examples/research/dhp_planned_weight_search.py``; docs/dhp.md).
+WEIGHT_SETS = {
+    "design": {"bit_velocity": (100.0, 100.0), "bit_position": (0.1, 0.1), "r": (1.0, 1.0)},
+    "robust": {"bit_velocity": (10.0, 10.0), "bit_position": (1.0, 10.0), "r": (1.0, 1.0)},
+    "planned": {"bit_velocity": (0.0114, 2.03), "bit_position": (0.157, 0.0917),
+                "string_velocity": (0.446, 0.0194), "r": (1.0, 2.07),
+                "integral": (87.1, 287.0)},
+}
 
 
-def weight_set(name: str, path=None) -> dict:
-    """The weight set ``name`` as keyword arguments of ``PenaltyWeights`` (tuples of floats).
+def weight_set_names() -> tuple[str, ...]:
+    """Names of the presets."""
+    return tuple(WEIGHT_SETS)
 
-    Parameters
-    ----------
-    name : str
-        A table of the registry, e.g. ``"planned"``.
-    path : str or Path, optional
-        Registry file; default the one shipped in ``downhole/experiments/weight_sets.toml``.
+
+def weight_set(name: str) -> dict:
+    """The preset ``name`` as keyword arguments of ``PenaltyWeights`` (a fresh dict).
 
     Raises
     ------
     DownholeInputError
-        Unknown name (the known ones are listed), unknown field, or a value that is not a pair of
-        finite numbers >= 0 -- each naming the file and the dotted field.
+        Unknown name (the known ones are listed).
     """
-    where, data = _load(REGISTRY if path is None else path)
-    if name not in data or not isinstance(data[name], dict):
-        raise DownholeInputError(f"{where}: no weight set {name!r}; known: {sorted(data)}")
-    out = {}
-    for key, val in data[name].items():
-        if key not in _FIELDS:
-            raise DownholeInputError(f"{where}: {name}.{key}: unknown field; expected one of "
-                                     f"{sorted(_FIELDS)}")
-        if (not isinstance(val, list) or len(val) != 2
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                           for x in val)
-                or not all(math.isfinite(x) and x >= 0 for x in val)):
-            raise DownholeInputError(f"{where}: {name}.{key}: expected two finite numbers >= 0 "
-                                     f"(axial, torsional), got {val!r}")
-        out[key] = (float(val[0]), float(val[1]))
-    return out
+    if not isinstance(name, str) or name not in WEIGHT_SETS:
+        raise DownholeInputError(f"no weight set {name!r}; known: {sorted(WEIGHT_SETS)}")
+    return dict(WEIGHT_SETS[name])

@@ -1,13 +1,14 @@
 """Equivalent-input-disturbance (EID) control of the neutral-type drill string (seed Ch. 3):
 LMI synthesis, the controller (observer, estimator, filter, internal model, predictor),
-references and closed-loop stability analysis; over the drilling envelope, the schedule of
-designs by the regenerative bit/rock margin and the predictive bit damper
-(:mod:`downhole.control.eid.envelope`, :mod:`downhole.control.eid.predictor`)."""
+references and closed-loop stability analysis; over the drilling envelope, a schedule of designs
+by the regenerative bit/rock margin (:class:`EIDSchedule`, which takes its candidate tunings as an
+argument) and the EID with the predictive bit damper (:class:`PredictiveEID`: options
+``angle_doc``, ``axial_filter``, ``depth_of_cut_gain``); :mod:`downhole.control.eid.schedule`,
+:mod:`downhole.control.eid.predictor`."""
 
 from downhole.control.eid.controller import EIDController, design_eid, load_eid
 from downhole.control.eid.design import ChannelGains, LMIInfeasible, LMIReport
-from downhole.control.eid.envelope import EIDSchedule, operating_point, settle_metrics
-from downhole.control.eid.predictor import PredictiveEID
+from downhole.control.eid.predictor import PredictiveEID, predictive_closed_loop
 from downhole.control.eid.references import (
                                              Reference,
                                              constant_reference,
@@ -17,6 +18,7 @@ from downhole.control.eid.references import (
                                              startup_reference,
                                              user_reference,
 )
+from downhole.control.eid.schedule import EIDSchedule, closed_loop_margin, operating_point
 
 __all__ = [
                                              "ChannelGains",
@@ -26,14 +28,15 @@ __all__ = [
                                              "LMIReport",
                                              "PredictiveEID",
                                              "Reference",
+                                             "closed_loop_margin",
                                              "constant_reference",
                                              "design_eid",
                                              "envelope_tracking_reference",
                                              "load_eid",
                                              "operating_point",
+                                             "predictive_closed_loop",
                                              "rotate_then_drill",
                                              "seed_tracking_reference",
-                                             "settle_metrics",
                                              "startup_reference",
                                              "user_reference",
 ]

@@ -20,7 +20,6 @@ __all__ = [
     "coupled_axial_reference",
     "damper_arrays",
     "damper_step",
-    "torsional_damper_step",
 ]
 
 
@@ -43,21 +42,6 @@ class DamperParams(NamedTuple):
         Control step, s.
     stride : int
         Control steps per Euler step of the prediction.
-    k_t : float
-        Torsional damping gain on the predicted bit angular-velocity error (0: off).
-    tau_t_steps, h_t_steps : int
-        The torsional channel's delays in steps of ``dt``.
-    a0t, a1t, g1t, bt : float
-        The torsional design-model coefficients.
-    bit_inertia : float
-        Bit (BHA) moment of inertia, kg m^2.
-    stride_t : int
-        Control steps per Euler step of the torsional prediction (the last step is shorter).
-    filter_t : float
-        Bandwidth (rad/s) of the first-order low-pass filter on the torsional damping command
-        (0: none). The discretized prediction integral of a finite-spectrum-assignment law is
-        unstable at high frequency without one (Van Assche et al. 1999; Mondie & Michiels
-        2003).
     k_c : float
         Depth-of-cut coupling of the axial reference (0: off): the axial reference becomes
         ``r_a (1 + k_c (omega / r_w - 1))`` with the measured bit angular velocity ``omega``
@@ -73,7 +57,7 @@ class DamperParams(NamedTuple):
     filter_a : float
         Bandwidth (rad/s) of a first-order low-pass filter on the axial damping command (0:
         none). At high gain (k_d = 4) the discretized prediction loop oscillates near the
-        Nyquist frequency without one, as the torsional one does.
+        Nyquist frequency without one.
     """
 
     k_d: float
@@ -87,25 +71,9 @@ class DamperParams(NamedTuple):
     n_blades: float
     dt: float
     stride: int
-    k_t: float = 0.0
-    tau_t_steps: int = 1
-    h_t_steps: int = 1
-    a0t: float = 0.0
-    a1t: float = 0.0
-    g1t: float = 0.0
-    bt: float = 0.0
-    bit_inertia: float = 1.0
-    stride_t: int = 1
-    filter_t: float = 0.0
     k_c: float = 0.0
     angle_doc: bool = False
     filter_a: float = 0.0
-
-
-@njit(cache=True)
-def _at(dh, row, k, cap):
-    """History ``row`` at step k (0 before the start)."""
-    return dh[row, k % cap] if k >= 0 else 0.0
 
 
 @njit(cache=True)
@@ -205,7 +173,8 @@ PREDICTION_STEP = 1e-3
 def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
     """One step of the predictive damper at t_n (n = ds[1]) with measured bit velocities ``v``,
     ``w``, axial reference ``r_a`` and the EID's axial command ``u_eid`` (relative to the hanging
-    equilibrium). Stores the histories ``dh`` (5, cap: v, v', W, X, u) and returns ``du``."""
+    equilibrium). Stores the histories ``dh`` (rows :data:`_V` .. :data:`_TH`: v, v', W, X, u,
+    theta) and returns ``du``."""
     cap = dh.shape[1]
     n = int(ds[1])
     dt = dp.dt
@@ -223,12 +192,9 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
     du = 0.0
     known = True
     if dp.angle_doc:
-        if dp.k_t > 0.0:  # torsional_damper_step stored theta_n and advanced ds[2]
-            th = dh[_TH, k]
-        else:
-            th = ds[2]
-            dh[_TH, k] = th
-            ds[2] = th + dt * w
+        th = ds[2]
+        dh[_TH, k] = th
+        ds[2] = th + dt * w
         xb = _surface_at(dh[_TH], dh[_X], n, cap, th - 2.0 * math.pi / nbl)
     elif ntn < cap:
         xb = dh[3, (n - ntn) % cap] if n - ntn >= 0 else 0.0
@@ -243,8 +209,8 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
         if dp.k_d > 0.0:
             du = -dp.k_d * (_predict(dh, n, cap, dp, bp, om, xbuf, ntn) - r_a)
             if dp.filter_a > 0.0:
-                du = ds[4] + (1.0 - math.exp(-dp.filter_a * dt)) * (du - ds[4])
-                ds[4] = du
+                du = ds[3] + (1.0 - math.exp(-dp.filter_a * dt)) * (du - ds[3])
+                ds[3] = du
     else:
         dh[2, k] = 0.0
     dh[4, k] = u_eid + du
@@ -253,9 +219,9 @@ def damper_step(dp, dh, ds, xbuf, bp, v, w, r_a, u_eid):
     return du
 
 
-#: Rows of the damper's history array ``dh``: axial v, v', W, X, u; torsional omega, omega', T,
-#: theta, u_T.
-_V, _DV, _W, _X, _U, _OM, _DOM, _T, _TH, _UT = range(10)
+#: Rows of the damper's history array ``dh``: bit axial velocity v, v', WOB, bit position X,
+#: axial command u, bit angle theta.
+_V, _DV, _W, _X, _U, _TH = range(6)
 
 
 @njit(cache=True)
@@ -284,124 +250,14 @@ def _surface_at(th_row, x_row, n, cap, target):
     return x_row[lo % cap]
 
 
-@njit(cache=True)
-def _predict_torsional(dh, n, cap, dp, bp, v, pbuf):
-    """Predicted bit angular velocity at t_n + tau_t from the stored histories: Euler steps of
-    the torsional neutral equation
-
-        omega' = a0 omega + a1 omega(t-h) + g1 omega'(t-h) + b u_T(t - tau) - (T - g1 T(t-h))/I
-
-    with T the bit law's torque at the depth of cut of the *predicted* angle (the blade ahead
-    passed theta - 2 pi/n when the bit was at the X looked up in the measured history or, for
-    angles reached within the horizon, in the predicted one ``pbuf``). The axial motion is
-    predicted with it (Eq. 3.9 with the WOB at the same depth of cut; the torque on bit is as
-    sensitive to the bit position as to the angle, 2.5e6 N m per m of depth with Table 3.1),
-    with the axial commands after the last one stored held at it. Implicit in the forces'
-    velocity dependence (stiff friction regularization)."""
-    nt = dp.tau_t_steps
-    nh = dp.h_t_steps
-    stride = dp.stride_t
-    nsub = (nt + stride - 1) // stride
-    pitch = 2.0 * math.pi / dp.n_blades
-    k0 = n % cap
-    w = dh[_OM, k0]
-    th = dh[_TH, k0]
-    x = dh[_X, k0]
-    th_n = th
-    u_last = dh[_U, (n - 1) % cap] if n > 0 else 0.0
-    for i in range(nsub):
-        steps = stride if i < nsub - 1 else nt - (nsub - 1) * stride
-        h = steps * dp.dt
-        k = n + i * stride
-        kh = k - nh
-        wd = _at(dh, _OM, kh, cap)
-        dwd = _at(dh, _DOM, kh, cap)
-        td = _at(dh, _T, kh, cap)
-        ku = k - nt
-        ud = _at(dh, _UT, ku, cap)
-        kha = k - dp.h_steps
-        vd = _at(dh, _V, kha, cap)
-        dvd = _at(dh, _DV, kha, cap)
-        wbd = _at(dh, _W, kha, cap)
-        kua = k - dp.tau_steps
-        if kua >= n:
-            uad = u_last
-        else:
-            uad = _at(dh, _U, kua, cap)
-        pbuf[0, i] = th
-        pbuf[1, i] = x
-        target = th - pitch
-        if target <= th_n:
-            xs = _surface_at(dh[_TH], dh[_X], n, cap, target)
-        else:
-            j = 0
-            while j + 1 < i and pbuf[0, j + 1] <= target:
-                j += 1
-            t0 = pbuf[0, j]
-            t1 = pbuf[0, j + 1]
-            f = (target - t0) / (t1 - t0) if t1 > t0 else 0.0
-            f = min(f, 1.0)
-            xs = (1.0 - f) * pbuf[1, j] + f * pbuf[1, j + 1]
-        d = dp.n_blades * (x - xs)
-        d = max(d, 0.0)
-        sl = bit_forces_and_slopes(d, v, w, bp)
-        dw = (dp.a0t * w + dp.a1t * wd + dp.g1t * dwd + dp.bt * ud
-              - (sl[1] - dp.g1t * td) / dp.bit_inertia)
-        dv = dp.a0 * v + dp.a1 * vd + dp.g1 * dvd + dp.b * uad - (sl[0] - dp.g1 * wbd) / dp.bit_mass
-        th += h * w
-        x += h * v
-        w += h * dw / (1.0 + h * (max(sl[6], 0.0) / dp.bit_inertia - dp.a0t))
-        v += h * dv / (1.0 + h * (max(sl[3], 0.0) / dp.bit_mass - dp.a0))
-    return w
-
-
-@njit(cache=True)
-def torsional_damper_step(dp, dh, ds, pbuf, bp, v, w, r_w, u_t):
-    """The torsional half of the predictive damper at t_n (n = ds[1], to be called *before*
-    :func:`damper_step`, which advances n): stores omega, omega', theta, the torque on bit at
-    the measured angle-based depth of cut and the torsional command; returns
-    ``du_T = -k_t (omegahat(t + tau_t) - r_w)`` through the low-pass filter of bandwidth
-    ``filter_t`` (0 with ``k_t = 0``)."""
-    cap = dh.shape[1]
-    n = int(ds[1])
-    k = n % cap
-    th = ds[2]
-    x = ds[0]
-    dh[_OM, k] = w
-    dh[_TH, k] = th
-    dh[_X, k] = x
-    dh[_V, k] = v
-    if n > 0:
-        dh[_DOM, (n - 1) % cap] = (w - dh[_OM, (n - 1) % cap]) / dp.dt
-        dh[_DV, (n - 1) % cap] = (v - dh[_V, (n - 1) % cap]) / dp.dt
-    xs = _surface_at(dh[_TH], dh[_X], n, cap, th - 2.0 * math.pi / dp.n_blades)
-    d = dp.n_blades * (x - xs)
-    d = max(d, 0.0)
-    dh[_T, k] = bit_forces(d, v, w, bp)[1]
-    du = 0.0
-    if dp.k_t > 0.0:
-        du = -dp.k_t * (_predict_torsional(dh, n, cap, dp, bp, v, pbuf) - r_w)
-        if dp.filter_t > 0.0:
-            du = ds[3] + (1.0 - math.exp(-dp.filter_t * dp.dt)) * (du - ds[3])
-            ds[3] = du
-    dh[_UT, k] = u_t + du
-    ds[2] = th + dp.dt * w
-    return du
-
-
 def _stride(nt: int, target: float) -> int:
     """Largest divisor of ``nt`` not above ``target`` (the prediction's Euler steps then end
     exactly at t + tau)."""
     return max(k for k in range(1, max(1, int(round(target))) + 1) if nt % k == 0)
 
 
-
 def damper_arrays(dp: DamperParams):
-    """Fresh ``(dh, ds, xbuf, pbuf)`` (histories, state [X, n, theta, filtered du_T, filtered
-    du], axial and torsional prediction buffers) for parameters ``dp``."""
+    """Fresh ``(dh, ds, xbuf)`` (histories, state [X, n, theta, filtered du], prediction buffer)
+    for parameters ``dp``."""
     cap = dp.tau_steps + dp.h_steps + 8
-    if dp.k_t > 0.0:
-        cap = max(cap, dp.tau_t_steps + dp.h_t_steps + 8)
-    nsub_t = (dp.tau_t_steps + dp.stride_t - 1) // dp.stride_t
-    return (np.zeros((10, cap)), np.zeros(5), np.zeros(dp.tau_steps // dp.stride + 2),
-            np.zeros((2, nsub_t + 2)))
+    return np.zeros((6, cap)), np.zeros(4), np.zeros(dp.tau_steps // dp.stride + 2)

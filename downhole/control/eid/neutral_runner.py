@@ -21,7 +21,6 @@ from downhole.control.eid.damper import (
     coupled_axial_reference,
     damper_arrays,
     damper_step,
-    torsional_damper_step,
 )
 from downhole.string.neutral import (
     neutral_advance,
@@ -41,16 +40,14 @@ EID_CHANNELS = ("measured_axial_velocity", "measured_angular_velocity",
 @njit(cache=True)
 def run_neutral_eid(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, approx,
                     ha, pa, wpa, ht, pt, wpt, surf, istate, rp,
-                    cp, cs, ch, cpos, dp, dh, ds, xbuf, pbuf, bpc, ref, noise, fnoise, nsteps, dt,
+                    cp, cs, ch, cpos, dp, dh, ds, xbuf, bpc, ref, noise, fnoise, nsteps, dt,
                     every, out, sigout):
     """Closed loop from the state held in the wave buffers (``pa``, ``pt``) with the bit at rest
     at t = 0: ``nsteps`` steps of ``dt`` with the EID controller (parameters ``cp``, states
     ``cs``, ``ch``, ``cpos`` from :func:`~downhole.control.eid._kernel.eid_arrays`) and, when
     ``dp.k_d > 0``, the predictive bit damper added to its axial command
-    (:func:`~downhole.control.eid.predictor.damper_step`: parameters ``dp``, states ``dh``,
-    ``ds``, ``xbuf``, the controller's bit law ``bpc``) and, when ``dp.k_t > 0``, its torsional
-    half added to the torsional command (:func:`~downhole.control.eid.damper.
-    torsional_damper_step`, prediction buffer ``pbuf``). Records every ``every`` steps and the
+    (:func:`~downhole.control.eid.damper.damper_step`: parameters ``dp``, states ``dh``,
+    ``ds``, ``xbuf``, the controller's bit law ``bpc``). Records every ``every`` steps and the
     last into ``out`` (:data:`~downhole.string.neutral.NEUTRAL_CHANNELS`) and ``sigout``
     (:data:`EID_CHANNELS`); returns (status, step, channel)."""
     x = 0.0
@@ -72,10 +69,7 @@ def run_neutral_eid(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp
         eid_step(cp, cs, ch, cpos, y, r, dt, uvec, sig)
         ua = uvec[0]
         ut = uvec[1]
-        if dp.k_t > 0.0:
-            ut += torsional_damper_step(dp, dh, ds, pbuf, bpc, y[0], y[1], r[1],
-                                        uvec[1] - cp[1].offset)
-        if dp.k_d > 0.0 or dp.k_t > 0.0:
+        if dp.k_d > 0.0:
             ua += damper_step(dp, dh, ds, xbuf, bpc, y[0], y[1], r[0], uvec[0] - off)
         top_bit = neutral_top_and_bit(
             za, zt, alpha_a, alpha_t, f_top, bitp, approx, surf, istate, rp,
@@ -121,10 +115,10 @@ def make_neutral_runner(cp, damper=None):
             dp, bpc = NO_DAMPER, plant_args[9]  # plant_args[9]: the plant's bit law
         else:
             dp, bpc = damper
-        dh, ds, xbuf, pbuf = damper_arrays(dp)
+        dh, ds, xbuf = damper_arrays(dp)
         sigout = np.zeros((out.shape[0], len(EID_CHANNELS)))
         status, kfail, cfail = run_neutral_eid(*plant_args, cp, cs, ch, cpos, dp, dh, ds, xbuf,
-                                               pbuf, bpc, ref, mnoise, fnoise, nsteps, dt, every,
+                                               bpc, ref, mnoise, fnoise, nsteps, dt, every,
                                                out, sigout)
         return status, kfail, cfail, {name: sigout[:, j] for j, name in enumerate(EID_CHANNELS)}
 

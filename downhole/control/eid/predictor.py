@@ -44,7 +44,6 @@ import math
 
 import numpy as np
 
-from downhole.bit.law import bit_forces, bit_forces_and_slopes  # noqa: F401
 from downhole.control.eid.damper import (
     PREDICTION_STEP,
     DamperParams,
@@ -52,21 +51,15 @@ from downhole.control.eid.damper import (
     coupled_axial_reference,
     damper_arrays,
     damper_step,
-    torsional_damper_step,
 )
 from downhole.errors import DownholeInputError
 
 __all__ = [
-    "TORSIONAL_FILTER",
     "DamperParams",
     "PredictiveEID",
     "damper_step",
     "predictive_closed_loop",
 ]
-
-#: Bandwidth (rad/s) of the low-pass filter on the torsional damping command: well above the
-#: low-frequency torsional mode it damps (1-3 rad/s), well below the Euler step of its prediction.
-TORSIONAL_FILTER = 20.0
 
 
 class PredictiveEID:
@@ -83,17 +76,6 @@ class PredictiveEID:
         The plant model the prediction uses (string coefficients, bit mass, bit law).
     damping_gain : float
         k_d (the bit sees M_B b k_d N s/m; 2.0 gives about 8.8e5 N s/m = 2.5 Z with Table 3.1).
-    torsional_gain : float
-        k_t of the torsional half (0: off): ``du_T = -k_t (omegahat(t + tau_2) - r_w)`` from a
-        prediction of the bit angular velocity over the torsional delay (the torsional neutral
-        equation with the bit law's torque at the angle-based depth of cut, the axial velocity
-        held); with an exact prediction the bit sees a rotary damper I_B b_T k_t N m s (about
-        600 N m s = 1.25 Z_T at k_t = 1 with Table 3.1). It holds the low-frequency torsional
-        mode that the delayed depth of cut destabilizes at low rotary speed and high rate of
-        penetration (torque on bit ~ 1/omega at a given rate of penetration).
-    torsional_filter : float
-        Bandwidth (rad/s) of the low-pass filter on the torsional damping command (see
-        :class:`DamperParams`; 0: none).
     depth_of_cut_gain : float
         k_c of the depth-of-cut coupling in [0, 2] (0: off): the axial reference, of the EID
         and of the damper, becomes ``r_a (1 + k_c (omega / r_w - 1))`` with the measured bit
@@ -112,12 +94,10 @@ class PredictiveEID:
     commands = ("top_drive_axial_velocity", "top_drive_angular_velocity")
     label = "eid+predictive-damper"
 
-    def __init__(self, eid, model, damping_gain: float = 2.0, torsional_gain: float = 0.0,
-                 torsional_filter: float = TORSIONAL_FILTER, depth_of_cut_gain: float = 0.0,
+    def __init__(self, eid, model, damping_gain: float = 2.0, *, depth_of_cut_gain: float = 0.0,
                  angle_doc: bool = False, axial_filter: float = 0.0):
         gains = []
-        for name, val in (("damping_gain", damping_gain), ("torsional_gain", torsional_gain),
-                          ("torsional_filter", torsional_filter),
+        for name, val in (("damping_gain", damping_gain),
                           ("depth_of_cut_gain", depth_of_cut_gain),
                           ("axial_filter", axial_filter)):
             k = float(val)
@@ -126,11 +106,10 @@ class PredictiveEID:
                                          f"got {val!r}")
             gains.append(k)
         self.eid, self.model = eid, model
-        if gains[3] > 2.0:
+        if gains[1] > 2.0:
             raise DownholeInputError(f"PredictiveEID: depth_of_cut_gain must be in [0, 2] "
                                      f"(1: constant depth of cut), got {depth_of_cut_gain!r}")
-        (self.damping_gain, self.torsional_gain, self.torsional_filter,
-         self.depth_of_cut_gain, self.axial_filter) = gains
+        self.damping_gain, self.depth_of_cut_gain, self.axial_filter = gains
         self.angle_doc = bool(angle_doc)
         self.reference = eid.reference
         self.dt = eid.dt
@@ -139,26 +118,18 @@ class PredictiveEID:
         """The damper's parameters (:class:`DamperParams`) at step ``dt``."""
         ch = self.eid.model_coeffs[0]
         tau = max(1, int(round(ch["tau"] / dt)))
-        ct = self.eid.model_coeffs[1]
-        tau_t = max(1, int(round(ct["tau"] / dt)))
         return DamperParams(k_d=float(self.damping_gain), tau_steps=tau,
                             h_steps=max(1, int(round(ch["h"] / dt))), a0=float(ch["a0"]),
                             a1=float(ch["a1"]), g1=float(ch["g1"]), b=float(ch["b"]),
                             bit_mass=float(self.model.params.bit_mass),
                             n_blades=float(self.model.bit.n_blades), dt=float(dt),
                             stride=int(_stride(tau, PREDICTION_STEP / dt)),
-                            k_t=float(self.torsional_gain), tau_t_steps=tau_t,
-                            h_t_steps=max(1, int(round(ct["h"] / dt))), a0t=float(ct["a0"]),
-                            a1t=float(ct["a1"]), g1t=float(ct["g1"]), bt=float(ct["b"]),
-                            bit_inertia=float(self.model.params.bit_inertia),
-                            stride_t=max(1, int(round(PREDICTION_STEP / dt))),
-                            filter_t=float(self.torsional_filter),
                             k_c=float(self.depth_of_cut_gain), angle_doc=self.angle_doc,
                             filter_a=self.axial_filter)
 
     @staticmethod
     def damper_arrays(dp: DamperParams):
-        """Fresh ``(dh, ds, xbuf, pbuf)`` for parameters ``dp``."""
+        """Fresh ``(dh, ds, xbuf)`` for parameters ``dp``."""
         return damper_arrays(dp)
 
     def neutral_runner(self, dt: float):
@@ -175,7 +146,7 @@ class PredictiveEID:
         self.eid.dt = self.dt
         self.eid.reset()
         self._dp = self.damper_params(float(self.dt))
-        self._dh, self._ds, self._xbuf, self._pbuf = self.damper_arrays(self._dp)
+        self._dh, self._ds, self._xbuf = self.damper_arrays(self._dp)
         self._bp = self.model.bit.kernel_params()
 
     def command(self, t: float, observation: dict, reference=None) -> dict:
@@ -199,25 +170,18 @@ class PredictiveEID:
                       float(r[1])])
         out = self.eid.command(t, observation, r)
         u = out["top_drive_axial_velocity"]
-        ut = out["top_drive_angular_velocity"]
-        dut = 0.0
-        if self._dp.k_t > 0:
-            dut = torsional_damper_step(self._dp, self._dh, self._ds, self._pbuf, self._bp, v, w,
-                                        float(r[1]), ut)
         du = damper_step(self._dp, self._dh, self._ds, self._xbuf, self._bp, v, w, float(r[0]),
                          u)
         return {"top_drive_axial_velocity": float(u + du),
-                "top_drive_angular_velocity": float(ut + dut)}
+                "top_drive_angular_velocity": float(out["top_drive_angular_velocity"])}
 
 
 def predictive_closed_loop(controller, model, rop: float, omega: float,
-                           damping_gain: float = 2.0, im_max: float = 200.0,
-                           torsional_gain: float = 0.0,
-                           torsional_filter: float = TORSIONAL_FILTER,
+                           damping_gain: float = 2.0, im_max: float = 200.0, *,
                            depth_of_cut_gain: float = 0.0, axial_filter: float = 0.0) -> dict:
     """Spectral abscissa of the EID loop with an exact predictive damper (axial plant row
-    + b k_d, torsional plant row + b_T k_t bf/(s + bf) with the filter bandwidth bf, or
-    + b_T k_t without a filter) and the linearized delayed depth of cut:
+    + b k_d, times af/(s + af) with the axial filter's bandwidth af) and the linearized delayed
+    depth of cut:
     :func:`regenerative_closed_loop`'s characteristic matrix with those terms added. With the
     depth-of-cut coupling k_c the axial reference perturbation is k_c (rop/omega) times the bit
     angular velocity: it enters the internal model (x_R' = B_R (r - x_p)) and the damper,
@@ -232,7 +196,6 @@ def predictive_closed_loop(controller, model, rop: float, omega: float,
     p = model.params
     g1, u1 = model.gammas[0], model.upsilons[0]
     b = controller.model_coeffs[0]["b"]
-    bt = controller.model_coeffs[1]["b"]
     br = controller.gains[0].br
     n = 5
 
@@ -251,8 +214,7 @@ def predictive_closed_loop(controller, model, rop: float, omega: float,
         M[:, 0, 0] += fa * kw + b * damping_gain * fil_a
         M[:, 0, n] += -fa * kw * c
         M[:, n, 0] += ft * kt
-        filt = torsional_filter / (s + torsional_filter) if torsional_filter > 0 else 1.0
-        M[:, n, n] += -ft * kt * c + bt * torsional_gain * filt
+        M[:, n, n] += -ft * kt * c
         if depth_of_cut_gain > 0:
             kap = depth_of_cut_gain * rop / omega
             M[:, 3, n] += -br * kap
