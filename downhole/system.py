@@ -44,12 +44,25 @@ from downhole.string.drillstring import DrillString, StringSegment
 from downhole.units import si_or_number
 from downhole.well.path import WellPath
 
-__all__ = ["FIDELITIES", "DrillingSystem", "LumpedDerivation", "Rig"]
+__all__ = ["BUILD_OPTIONS", "FIDELITIES", "DrillingSystem", "LumpedDerivation", "Rig"]
 
 #: Model fidelities a description can be built at.
 FIDELITIES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
 
 _BHA_KINDS = ("collar", "bha")
+
+#: The options of :meth:`DrillingSystem.build` per fidelity and their defaults: the keys (and
+#: defaults) of the scenario tables ``[model.<fidelity>]`` (tested against the schema).
+BUILD_OPTIONS = {
+    "lumped4": {"reference_elements": 400},
+    "lumped12": {"reference_elements": 400},
+    "neutral": {},
+    "fem": {"n_elements": None, "max_element_length": 50.0,
+            "max_element_angle": math.radians(2.0), "mass": "consistent"},
+    "hybrid": {"preset": None, "n_ab": None, "n_cd": None, "n_lags": 0,
+               "max_element_length": 50.0, "max_element_angle": math.radians(2.0),
+               "mass": "consistent"},
+}
 
 
 @dataclass(frozen=True)
@@ -124,8 +137,10 @@ class DrillingSystem:
     >>> sysm = DrillingSystem.table_5_1()
     >>> [f for f in FIDELITIES]
     ['lumped4', 'lumped12', 'neutral', 'fem', 'hybrid']
-    >>> sysm.build("fem").n_states
+    >>> sysm.build("fem", n_elements=107).n_states     # the seed's 432-state FEM
     432
+    >>> sysm.build("fem").n_states     # derived from the description: 102 elements <= 50 m
+    412
     """
 
     well: WellPath
@@ -212,14 +227,16 @@ class DrillingSystem:
         a vertical string."""
         if self.wave_section is not None:
             return float(self.wave_section[0]), float(self.wave_section[1])
-        md = np.linspace(self.top_md, self.well.total_depth, 4001)
-        inc = np.asarray(self.well.inclination(md), float)
-        dev = np.nonzero(np.sin(inc) > 1e-6)[0]
+        st = self.well.stations
         top = self.top_md
+        below = st["md"] > top + 1e-9
+        dev = np.nonzero(below & (np.sin(st["inclination"]) > 1e-6))[0]
         if dev.size == 0:
             length = self.string.length
             return top + 2.0 / 3.0 * length, top + 0.9 * length
-        kop = float(md[max(dev[0] - 1, 0)])
+        # the kick-off point: the station before the first inclined one (minimum curvature
+        # leaves the vertical there), or the string top
+        kop = max(float(st["md"][dev[0] - 1]) if dev[0] > 0 else top, top)
         return top + 2.0 / 3.0 * (kop - top), kop
 
     # ------------------------------------------------------------------ builders
@@ -230,10 +247,17 @@ class DrillingSystem:
         ----------
         fidelity : {"lumped4", "lumped12", "neutral", "fem", "hybrid"}
         **options
-            ``fem``: ``n_elements`` (default 107) and the other keywords of
-            :func:`~downhole.string.fem.fem_model`; ``hybrid``: ``preset`` (default
-            ``"hybrid68"``), ``n_ab``, ``n_cd``, ``n_lags``; ``lumped*``: ``reference_elements``
-            (FEM used for the first natural frequency, default 400).
+            The keywords of the scenario tables ``[model.<fidelity>]``, with the same names and
+            defaults (:data:`BUILD_OPTIONS`): ``fem``: ``n_elements`` (default None: the mesh
+            derived from the description, a node at every string joint and survey station
+            where the path turns, elements <= ``max_element_length`` = 50 m and turning by <=
+            ``max_element_angle`` = 2 deg), ``max_element_length``, ``max_element_angle``,
+            ``mass`` and the other keywords of :func:`~downhole.string.fem.fem_model`;
+            ``hybrid``: ``preset`` (default None: derived mesh; or ``"hybrid24"``,
+            ``"hybrid68"``, ``"hybrid108"``), ``n_ab``, ``n_cd``, ``n_lags``,
+            ``max_element_length``, ``max_element_angle``, ``mass``; ``lumped*``:
+            ``reference_elements`` (FEM used for the first natural frequency, default 400);
+            every fidelity: ``friction`` (overrides :attr:`friction`).
 
         Returns
         -------
@@ -246,21 +270,48 @@ class DrillingSystem:
         """
         if fidelity not in FIDELITIES:
             raise DownholeInputError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
+        known = self._options(fidelity)
+        for key in options:
+            if key not in known:
+                import difflib
+
+                near = difflib.get_close_matches(key, known, 1, 0.5)
+                hint = f" (did you mean {near[0]!r}?)" if near else ""
+                raise DownholeInputError(
+                    f"unknown option {key!r} for fidelity {fidelity!r}{hint}; it takes "
+                    f"{', '.join(known) or 'no options'}")
         return getattr(self, f"_build_{fidelity}")(**options)
+
+    @staticmethod
+    def _options(fidelity: str) -> list[str]:
+        """The keywords :meth:`build` takes at ``fidelity``: :data:`BUILD_OPTIONS`, and at
+        ``fem`` / ``hybrid`` every other keyword of the builder (``friction``, ``damping``,
+        ``md_b``, ...)."""
+        names = list(BUILD_OPTIONS[fidelity])
+        if fidelity in ("fem", "hybrid"):
+            import inspect
+
+            from downhole.string.fem import fem_model
+            from downhole.string.hybrid import hybrid_model
+
+            fn = fem_model if fidelity == "fem" else hybrid_model
+            names += [k for k in inspect.signature(fn).parameters
+                      if k not in names and k not in ("well", "string", "bit")]
+        return names
 
     def _fem_common(self) -> dict:
         return dict(friction=self.friction, rayleigh_alpha=self.rayleigh_alpha,
                     rayleigh_beta=self.rayleigh_beta)
 
-    def _build_fem(self, n_elements: int = 107, **options):
+    def _build_fem(self, **options):
         from downhole.string.fem import fem_model
 
         b, c = self.wave_points()
         kw = dict(self._fem_common(), md_b=b, md_c=c)
         kw.update(options)
-        return fem_model(self.well, self.string, self.bit, n_elements=n_elements, **kw)
+        return fem_model(self.well, self.string, self.bit, **kw)
 
-    def _build_hybrid(self, preset: str | None = "hybrid68", **options):
+    def _build_hybrid(self, preset: str | None = None, **options):
         from downhole.string.hybrid import hybrid_model
 
         b, c = self.wave_points()
@@ -272,8 +323,17 @@ class DrillingSystem:
     def lumped_derivation(self, reference_elements: int = 400) -> LumpedDerivation:
         """Static stiffness, first natural frequency and damping of the string, per field (see the
         module docstring), from which the lumped chains are matched."""
-        from downhole.string.fem import fem_model
+        from downhole.string.fem import _check_int, _count_keys, fem_model
 
+        reference_elements = _check_int("reference_elements", reference_elements, 1)
+        sections = _count_keys(self.well, self.string, self.top_md, self.well.total_depth,
+                               self.top_md).size - 1
+        if reference_elements < sections:
+            raise DownholeInputError(
+                f"reference_elements = {reference_elements} is too few: the survey stations and "
+                f"string joints split the string into {sections} sections, each needs an "
+                f"element; give reference_elements >= {sections} (scenario key "
+                "model.lumped4.reference_elements or model.lumped12.reference_elements)")
         ref = fem_model(self.well, self.string, self.bit, n_elements=reference_elements,
                         friction=0.0, rayleigh_alpha=self.rayleigh_alpha,
                         rayleigh_beta=self.rayleigh_beta)
