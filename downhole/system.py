@@ -44,7 +44,8 @@ from downhole.string.drillstring import DrillString, StringSegment
 from downhole.units import si_or_number
 from downhole.well.path import WellPath
 
-__all__ = ["BUILD_OPTIONS", "FIDELITIES", "DrillingSystem", "LumpedDerivation", "Rig"]
+__all__ = ["BUILD_OPTIONS", "FIDELITIES", "DrillingSystem", "LumpedDerivation", "Rig",
+           "steady_bit_state"]
 
 #: Model fidelities a description can be built at.
 FIDELITIES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
@@ -63,6 +64,34 @@ BUILD_OPTIONS = {
                "max_element_length": 50.0, "max_element_angle": math.radians(2.0),
                "mass": "consistent"},
 }
+
+
+def steady_bit_state(bit, surface_speed: float, rop: float | None = None,
+                     wob: float | None = None) -> tuple[float, float, float]:
+    """``(rop, wob, tob)`` of steady cutting at ``surface_speed`` with the approximate depth of
+    cut d = 2 pi v / omega (Eq. 2.11): from the ROP, or the ROP that gives ``wob``.
+
+    Raises
+    ------
+    DownholeInputError
+        When no ROP up to 1 m/s reaches ``wob``.
+    """
+    from scipy.optimize import brentq
+
+    from downhole.bit.law import bit_forces_py
+
+    def forces(v):
+        d = 2 * math.pi * v / max(surface_speed, bit.omega_floor)
+        return bit_forces_py(d, v, surface_speed, bit)
+
+    if rop is None:
+        hi = 1.0
+        if forces(hi)[0] < wob:
+            raise DownholeInputError(f"operation.wob = {wob:g} N is not reached at any ROP up "
+                                     f"to {hi:g} m/s with this bit at {surface_speed:g} rad/s")
+        rop = brentq(lambda v: forces(v)[0] - wob, 1e-12, hi, xtol=1e-14, rtol=1e-12)
+    w, t = forces(rop)
+    return float(rop), float(w), float(t)
 
 
 @dataclass(frozen=True)
@@ -122,7 +151,7 @@ class DrillingSystem:
     rig : Rig
         Top drive and hook.
     friction : float
-        Wellbore (soft-string) friction coefficient; 0 disables wall contact.
+        Wellbore (soft-string) friction coefficient; 0 (default) disables wall contact.
     rayleigh_alpha, rayleigh_beta : float
         String damping alpha0 M + beta0 K (1/s and s).
     lump_length : float
@@ -147,7 +176,7 @@ class DrillingSystem:
     string: DrillString
     bit: BitParams
     rig: Rig = field(default_factory=Rig)
-    friction: float = 0.5
+    friction: float = 0.0
     rayleigh_alpha: float = 0.05
     rayleigh_beta: float = 0.03
     lump_length: float = 10.0
@@ -365,13 +394,25 @@ class DrillingSystem:
             total += w * 0.5 * (b - a) * float(np.dot(wq, cos_inc))
         return total
 
-    def torque_drag(self, friction=(0.1, 0.2, 0.3), wob: float = 0.0, tob: float = 0.0,
-                    step: float = 10.0, hook_load: bool = True):
+    def torque_drag(self, friction=(0.1, 0.2, 0.3), wob: float = 0.0,
+                    tob: float | None = None, step: float = 10.0, hook_load: bool = True,
+                    surface_speed: float | None = None):
         """Soft-string torque and drag of this string in this well at the friction factors
-        ``friction`` (the drilling case with ``wob`` N and ``tob`` N m at the bit):
-        :func:`downhole.string.torque_drag.torque_drag`."""
+        ``friction``: :func:`downhole.string.torque_drag.torque_drag`.
+
+        The drilling case has ``wob`` (N) and ``tob`` (N m) at the bit; ``tob`` defaults to the
+        bit law's torque at that WOB and ``surface_speed`` (default: the top drive's set-point
+        ``rig.top_drive.speed``) in steady cutting (:func:`steady_bit_state`), as
+        ``downhole torque-drag`` does with the scenario's ``[operation]``; ``tob = 0`` drops it.
+        The defaults of ``friction`` and ``step`` are the scenario keys
+        ``torque_drag.friction_factors`` and ``torque_drag.step``."""
         from downhole.string.torque_drag import torque_drag
 
+        wob = si_or_number(wob, "force", "wob")
+        if tob is None:
+            speed = self.rig.top_drive.speed if surface_speed is None else si_or_number(
+                surface_speed, "angular_velocity", "surface_speed")
+            tob = steady_bit_state(self.bit, speed, wob=wob)[2] if wob > 0 else 0.0
         return torque_drag(self.well, self.string, friction=friction, wob=wob, tob=tob,
                            step=step, hook_load=hook_load)
 

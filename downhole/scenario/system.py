@@ -86,6 +86,7 @@ from downhole.scenario.directional import (
     _string,
     _well,
 )
+from downhole.system import steady_bit_state
 
 __all__ = [
     "FIDELITY_NAMES",
@@ -384,34 +385,6 @@ def _mesh_field(fid: str, msg: str) -> str | None:
         if msg.startswith(key) or f"model.{fid}.{key}" in msg:
             return f"model.{fid}.{key}"
     return None
-
-
-def steady_bit_state(bit, surface_speed: float, rop: float | None = None,
-                     wob: float | None = None) -> tuple[float, float, float]:
-    """``(rop, wob, tob)`` of steady cutting at ``surface_speed`` with the approximate depth of
-    cut d = 2 pi v / omega (Eq. 2.11): from the ROP, or the ROP that gives ``wob``.
-
-    Raises
-    ------
-    DownholeInputError
-        When no ROP up to 1 m/s reaches ``wob``.
-    """
-    from scipy.optimize import brentq
-
-    from downhole.bit.law import bit_forces_py
-
-    def forces(v):
-        d = 2 * math.pi * v / max(surface_speed, bit.omega_floor)
-        return bit_forces_py(d, v, surface_speed, bit)
-
-    if rop is None:
-        hi = 1.0
-        if forces(hi)[0] < wob:
-            raise DownholeInputError(f"operation.wob = {wob:g} N is not reached at any ROP up "
-                                     f"to {hi:g} m/s with this bit at {surface_speed:g} rad/s")
-        rop = brentq(lambda v: forces(v)[0] - wob, 1e-12, hi, xtol=1e-14, rtol=1e-12)
-    w, t = forces(rop)
-    return float(rop), float(w), float(t)
 
 
 def validate_system_scenario(data: dict, source: str, fidelity: str | None = None):

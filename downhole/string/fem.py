@@ -477,7 +477,9 @@ def fem_model(well: WellPath | None = None, string: DrillString | None = None,
     rayleigh_alpha, rayleigh_beta : float, optional
         Default 0.05 1/s and 0.03 s (Table 5.1, as :class:`~downhole.system.DrillingSystem`).
     friction : float, optional
-        Wellbore friction coefficient (Table 5.1: 0.5); 0 disables contact.
+        Wellbore friction coefficient; 0 disables contact. Default: Table 5.1's 0.5 when the
+        well is Table 5.1's (no ``well`` given), else 0 (as
+        :class:`~downhole.system.DrillingSystem` and the scenario key ``model.friction``).
     v_eps : float
         Friction regularization velocity, m/s.
     mass : {"consistent", "lumped"}
@@ -503,6 +505,7 @@ def fem_model(well: WellPath | None = None, string: DrillString | None = None,
     103
     """
     well0, string0, bit0, p = table_5_1_setup()
+    seed_well = well is None
     well = well or well0
     string = string or (string0 if well is well0 else
                         DrillString.uniform(well.total_depth, p.pipe, g=p.g))
@@ -518,7 +521,7 @@ def fem_model(well: WellPath | None = None, string: DrillString | None = None,
             f"{well.total_depth:g} m")
     alpha = p.rayleigh_alpha if rayleigh_alpha is None else float(rayleigh_alpha)
     beta = p.rayleigh_beta if rayleigh_beta is None else float(rayleigh_beta)
-    mu = p.wellbore_friction if friction is None else float(friction)
+    mu = (p.wellbore_friction if seed_well else 0.0) if friction is None else float(friction)
     if alpha < 0 or beta < 0 or mu < 0 or v_eps <= 0:
         raise DownholeInputError(
             f"rayleigh_alpha, rayleigh_beta, friction must be >= 0 and v_eps > 0; got "
@@ -546,7 +549,7 @@ def fem_model(well: WellPath | None = None, string: DrillString | None = None,
 
 
 def fem_from_nodes(well, string, bit, md, *, damping="rayleigh", rayleigh_alpha=0.05,
-                   rayleigh_beta=0.03, modal_ratio=0.03, friction=0.5, v_eps=1e-3,
+                   rayleigh_beta=0.03, modal_ratio=0.03, friction=0.0, v_eps=1e-3,
                    mass="consistent", md_b=2000.0, md_c=3000.0, name="fem") -> DirectionalModel:
     """A FEM with nodes at the given measured depths (top of string first, bit last)."""
     md = np.asarray(md, float)

@@ -94,7 +94,8 @@ def hybrid_model(preset: str | None = None, *, n_ab: int | None = None,
     damping : {"rayleigh", "modal"}
         FEM damping; with Rayleigh the line gets the end dashpots and lags described above.
     rayleigh_alpha, rayleigh_beta, friction : float, optional
-        As :func:`~downhole.string.fem.fem_model`.
+        As :func:`~downhole.string.fem.fem_model` (friction: Table 5.1's 0.5 on its well, else
+        0).
     n_lags : int
         First-order lags per incoming wave approximating beta0 (default 0 = lossless line with
         the alpha0 end dashpots only: against a 1000-element FEM with Table 5.1 damping this is
@@ -121,6 +122,7 @@ def hybrid_model(preset: str | None = None, *, n_ab: int | None = None,
     (41, 43)
     """
     well0, string0, bit0, p = table_5_1_setup()
+    seed_well = well is None
     well = well or well0
     string = string or (string0 if well is well0 else
                         DrillString.uniform(well.total_depth, p.pipe, g=p.g))
@@ -165,7 +167,7 @@ def hybrid_model(preset: str | None = None, *, n_ab: int | None = None,
     pipe = string.segments[int(seg_idx[0])].section
     alpha = p.rayleigh_alpha if rayleigh_alpha is None else float(rayleigh_alpha)
     beta = p.rayleigh_beta if rayleigh_beta is None else float(rayleigh_beta)
-    mu = p.wellbore_friction if friction is None else float(friction)
+    mu = (p.wellbore_friction if seed_well else 0.0) if friction is None else float(friction)
     md_ab = (_derived_md(well, string, top_md, md_b, top_md, h, angle) if n_ab is None else
              _chain_md(well, string, top_md, md_b, top_md, n_ab, "n_ab"))
     md_cd = (_derived_md(well, string, md_c, well.total_depth, top_md, h, angle)
