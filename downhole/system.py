@@ -45,7 +45,7 @@ from downhole.units import si_or_number
 from downhole.well.path import WellPath
 
 __all__ = ["BUILD_OPTIONS", "FIDELITIES", "DrillingSystem", "LumpedDerivation", "Rig",
-           "steady_bit_state"]
+           "steady_bit_state", "wave_points"]
 
 #: Model fidelities a description can be built at.
 FIDELITIES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
@@ -64,6 +64,21 @@ BUILD_OPTIONS = {
                "max_element_length": 50.0, "max_element_angle": math.radians(2.0),
                "mass": "consistent"},
 }
+
+
+def wave_points(well: WellPath, string: DrillString) -> tuple[float, float]:
+    """Default measured depths (B, C) of the hybrid model's wave segment for ``string`` hanging
+    in ``well`` (bit at total depth): B at two thirds and C at the end of the vertical part
+    above the kick-off point (the station before the first inclined one), or at two thirds and
+    90 % of the string when the well is vertical."""
+    st = well.stations
+    top = well.total_depth - string.length
+    below = st["md"] > top + 1e-9
+    dev = np.nonzero(below & (np.sin(st["inclination"]) > 1e-6))[0]
+    if dev.size == 0:
+        return top + 2.0 / 3.0 * string.length, top + 0.9 * string.length
+    kop = max(float(st["md"][dev[0] - 1]) if dev[0] > 0 else top, top)
+    return top + 2.0 / 3.0 * (kop - top), kop
 
 
 def steady_bit_state(bit, surface_speed: float, rop: float | None = None,
@@ -251,22 +266,12 @@ class DrillingSystem:
     def wave_points(self) -> tuple[float, float]:
         """Measured depths (B, C) of the hybrid model's wave segment.
 
-        ``wave_section`` when given; otherwise B at two thirds and C at the end of the vertical
-        part above the kick-off point (Table 5.1: 2000 and 3000 m), or at two thirds and 90 % of
-        a vertical string."""
+        ``wave_section`` when given; otherwise :func:`wave_points` of the well and string: B at
+        two thirds and C at the end of the vertical part above the kick-off point (Table 5.1:
+        2000 and 3000 m), or at two thirds and 90 % of a vertical string."""
         if self.wave_section is not None:
             return float(self.wave_section[0]), float(self.wave_section[1])
-        st = self.well.stations
-        top = self.top_md
-        below = st["md"] > top + 1e-9
-        dev = np.nonzero(below & (np.sin(st["inclination"]) > 1e-6))[0]
-        if dev.size == 0:
-            length = self.string.length
-            return top + 2.0 / 3.0 * length, top + 0.9 * length
-        # the kick-off point: the station before the first inclined one (minimum curvature
-        # leaves the vertical there), or the string top
-        kop = max(float(st["md"][dev[0] - 1]) if dev[0] > 0 else top, top)
-        return top + 2.0 / 3.0 * (kop - top), kop
+        return wave_points(self.well, self.string)
 
     # ------------------------------------------------------------------ builders
     def build(self, fidelity: str, **options):

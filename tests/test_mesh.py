@@ -241,3 +241,22 @@ def test_scenario_mesh_errors_name_the_file_key(tmp_path):
     with pytest.raises(ScenarioError) as info:
         validate_system_scenario(data, "x.toml")
     assert info.value.field == "model.hybrid.n_cd" and "n_cd >= 3" in str(info.value)
+
+
+def test_preset_dialect_meshes_the_described_survey_by_default_too():
+    from downhole.scenario.directional import validate_directional_scenario
+
+    md, inc, azi = _j_well_ft()
+    base = {"well": {"md": (md * FT).tolist(), "inclination": inc.tolist(),
+                     "azimuth": azi.tolist()},
+            "operation": {"surface_speed": "10 rad/s", "wob": "80 kN"},
+            "simulation": {"duration": "0.1 s", "dt": "1 ms"}}
+    for fid, nodes in (("fem", 31 + 30 + 40 + 1), ("hybrid", 22 + 71)):
+        data = {**base, "model": {"fidelity": fid, "preset": "table_5_1", "friction": 0.3}}
+        _, _, model = validate_directional_scenario(data, "x.toml")
+        # the preset's uniform pipe over the whole well: no joints; 40 elements on the hold
+        assert model.n_nodes == nodes, fid
+    data = {**base, "model": {"fidelity": "fem", "fem": {"n_elements": 107}}}
+    with pytest.raises(ScenarioError) as info:
+        validate_directional_scenario(data, "x.toml")
+    assert info.value.field == "model.fem.n_elements" and "n_elements >= 130" in str(info.value)

@@ -12,7 +12,9 @@ scenario, :mod:`downhole.scenario.schema`)::
     fidelity = "fem"                # or "hybrid"
     preset = "table_5_1"            # a 'directional' preset: well, pipe, bit, damping, friction
     wave_section = ["2000 m", "3000 m"]  # B and C: ends of the hybrid's wave segment (BC must
-                                    #   be straight, vertical, one pipe); FEM: where force_b/c are
+                                    #   be straight, vertical, one pipe); FEM: where force_b/c are;
+                                    #   default: the preset's, with a described [well] its
+                                    #   vertical part above the kick-off (as DrillingSystem)
     damping = "rayleigh"            # or "modal"
     rayleigh_alpha = 0.05           # 1/s  (default: the preset)
     rayleigh_beta = 0.03            # s
@@ -598,6 +600,12 @@ def build_directional(sc: DirectionalScenario, source: str = "<dict>"):
             return fem_model(well, string, bit, n_elements=m.n_elements, **m.mesh_sizes,
                              **common)
     preset = m.hybrid_preset
+    if sc.well is not None and m.wave_section is None:
+        # a described well: B and C in its vertical part above the kick-off point, as the
+        # system dialect (DrillingSystem.wave_points)
+        from downhole.system import wave_points
+
+        common["md_b"], common["md_c"] = wave_points(well, string)
     if common["md_b"] is None:
         common["md_b"] = params.length_ab
     if common["md_c"] is None:
