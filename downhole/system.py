@@ -290,8 +290,9 @@ class DrillingSystem:
             ``hybrid``: ``preset`` (default None: derived mesh; or ``"hybrid24"``,
             ``"hybrid68"``, ``"hybrid108"``), ``n_ab``, ``n_cd``, ``n_lags``,
             ``max_element_length``, ``max_element_angle``, ``mass``; ``lumped*``:
-            ``reference_elements`` (FEM used for the first natural frequency, default 400);
-            every fidelity: ``friction`` (overrides :attr:`friction`).
+            ``reference_elements`` (FEM used for the first natural frequency, default 400).
+            ``fem`` and ``hybrid`` also take ``friction``, ``rayleigh_alpha``,
+            ``rayleigh_beta`` (overriding the description's), ``md_b``/``md_c`` and ``damping``.
 
         Returns
         -------
