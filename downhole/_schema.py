@@ -75,9 +75,13 @@ RENAMES: dict[str, str] = {
     "model.type": "model.fidelity (lumped4 | lumped12 | neutral | fem | hybrid)",
     "model.bit": "[bit] (the bit law's parameters over the preset's, e.g. bit.epsilon)",
     "model.hybrid": "model.hybrid.preset",  # only when a string (see check_dialect)
-    "model.elements": "model.fem.elements",
-    "model.nodes_ab": "model.hybrid.nodes_ab",
-    "model.nodes_cd": "model.hybrid.nodes_cd",
+    "model.elements": "model.fem.n_elements",
+    "model.nodes_ab": "model.hybrid.n_ab",
+    "model.nodes_cd": "model.hybrid.n_cd",
+    # one name in Python (DrillingSystem.build, fem_model, hybrid_model) and in files
+    "model.fem.elements": "model.fem.n_elements",
+    "model.hybrid.nodes_ab": "model.hybrid.n_ab",
+    "model.hybrid.nodes_cd": "model.hybrid.n_cd",
     "model.n_lags": "model.hybrid.n_lags",
     "model.md_b": "model.wave_section = [B, C]",
     "model.md_c": "model.wave_section = [B, C]",
@@ -115,7 +119,7 @@ RENAMES: dict[str, str] = {
     "plant.surface_torque": "operation.surface_torque",
     "plant.axial_velocity": "operation.rop",
     "plant.design": "controller.dhp.design",
-    "plant.n_elements": "model.fem.elements",
+    "plant.n_elements": "model.fem.n_elements",
     "plant.lumped_preset": "model.preset",
     "plant.order": "model.fidelity (lumped4 | lumped12)",
     # [runtime] (SIL files) -> [simulation] and [realtime]

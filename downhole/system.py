@@ -44,12 +44,69 @@ from downhole.string.drillstring import DrillString, StringSegment
 from downhole.units import si_or_number
 from downhole.well.path import WellPath
 
-__all__ = ["FIDELITIES", "DrillingSystem", "LumpedDerivation", "Rig"]
+__all__ = ["BUILD_OPTIONS", "FIDELITIES", "DrillingSystem", "LumpedDerivation", "Rig",
+           "steady_bit_state", "wave_points"]
 
 #: Model fidelities a description can be built at.
 FIDELITIES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
 
 _BHA_KINDS = ("collar", "bha")
+
+#: The options of :meth:`DrillingSystem.build` per fidelity and their defaults: the keys (and
+#: defaults) of the scenario tables ``[model.<fidelity>]`` (tested against the schema).
+BUILD_OPTIONS = {
+    "lumped4": {"reference_elements": 400},
+    "lumped12": {"reference_elements": 400},
+    "neutral": {},
+    "fem": {"n_elements": None, "max_element_length": 50.0,
+            "max_element_angle": math.radians(2.0), "mass": "consistent"},
+    "hybrid": {"preset": None, "n_ab": None, "n_cd": None, "n_lags": 0,
+               "max_element_length": 50.0, "max_element_angle": math.radians(2.0),
+               "mass": "consistent"},
+}
+
+
+def wave_points(well: WellPath, string: DrillString) -> tuple[float, float]:
+    """Default measured depths (B, C) of the hybrid model's wave segment for ``string`` hanging
+    in ``well`` (bit at total depth): B at two thirds and C at the end of the vertical part
+    above the kick-off point (the station before the first inclined one), or at two thirds and
+    90 % of the string when the well is vertical."""
+    st = well.stations
+    top = well.total_depth - string.length
+    below = st["md"] > top + 1e-9
+    dev = np.nonzero(below & (np.sin(st["inclination"]) > 1e-6))[0]
+    if dev.size == 0:
+        return top + 2.0 / 3.0 * string.length, top + 0.9 * string.length
+    kop = max(float(st["md"][dev[0] - 1]) if dev[0] > 0 else top, top)
+    return top + 2.0 / 3.0 * (kop - top), kop
+
+
+def steady_bit_state(bit, surface_speed: float, rop: float | None = None,
+                     wob: float | None = None) -> tuple[float, float, float]:
+    """``(rop, wob, tob)`` of steady cutting at ``surface_speed`` with the approximate depth of
+    cut d = 2 pi v / omega (Eq. 2.11): from the ROP, or the ROP that gives ``wob``.
+
+    Raises
+    ------
+    DownholeInputError
+        When no ROP up to 1 m/s reaches ``wob``.
+    """
+    from scipy.optimize import brentq
+
+    from downhole.bit.law import bit_forces_py
+
+    def forces(v):
+        d = 2 * math.pi * v / max(surface_speed, bit.omega_floor)
+        return bit_forces_py(d, v, surface_speed, bit)
+
+    if rop is None:
+        hi = 1.0
+        if forces(hi)[0] < wob:
+            raise DownholeInputError(f"operation.wob = {wob:g} N is not reached at any ROP up "
+                                     f"to {hi:g} m/s with this bit at {surface_speed:g} rad/s")
+        rop = brentq(lambda v: forces(v)[0] - wob, 1e-12, hi, xtol=1e-14, rtol=1e-12)
+    w, t = forces(rop)
+    return float(rop), float(w), float(t)
 
 
 @dataclass(frozen=True)
@@ -109,7 +166,7 @@ class DrillingSystem:
     rig : Rig
         Top drive and hook.
     friction : float
-        Wellbore (soft-string) friction coefficient; 0 disables wall contact.
+        Wellbore (soft-string) friction coefficient; 0 (default) disables wall contact.
     rayleigh_alpha, rayleigh_beta : float
         String damping alpha0 M + beta0 K (1/s and s).
     lump_length : float
@@ -124,15 +181,17 @@ class DrillingSystem:
     >>> sysm = DrillingSystem.table_5_1()
     >>> [f for f in FIDELITIES]
     ['lumped4', 'lumped12', 'neutral', 'fem', 'hybrid']
-    >>> sysm.build("fem").n_states
+    >>> sysm.build("fem", n_elements=107).n_states     # the seed's 432-state FEM
     432
+    >>> sysm.build("fem").n_states     # derived from the description: 102 elements <= 50 m
+    412
     """
 
     well: WellPath
     string: DrillString
     bit: BitParams
     rig: Rig = field(default_factory=Rig)
-    friction: float = 0.5
+    friction: float = 0.0
     rayleigh_alpha: float = 0.05
     rayleigh_beta: float = 0.03
     lump_length: float = 10.0
@@ -207,20 +266,12 @@ class DrillingSystem:
     def wave_points(self) -> tuple[float, float]:
         """Measured depths (B, C) of the hybrid model's wave segment.
 
-        ``wave_section`` when given; otherwise B at two thirds and C at the end of the vertical
-        part above the kick-off point (Table 5.1: 2000 and 3000 m), or at two thirds and 90 % of
-        a vertical string."""
+        ``wave_section`` when given; otherwise :func:`wave_points` of the well and string: B at
+        two thirds and C at the end of the vertical part above the kick-off point (Table 5.1:
+        2000 and 3000 m), or at two thirds and 90 % of a vertical string."""
         if self.wave_section is not None:
             return float(self.wave_section[0]), float(self.wave_section[1])
-        md = np.linspace(self.top_md, self.well.total_depth, 4001)
-        inc = np.asarray(self.well.inclination(md), float)
-        dev = np.nonzero(np.sin(inc) > 1e-6)[0]
-        top = self.top_md
-        if dev.size == 0:
-            length = self.string.length
-            return top + 2.0 / 3.0 * length, top + 0.9 * length
-        kop = float(md[max(dev[0] - 1, 0)])
-        return top + 2.0 / 3.0 * (kop - top), kop
+        return wave_points(self.well, self.string)
 
     # ------------------------------------------------------------------ builders
     def build(self, fidelity: str, **options):
@@ -230,10 +281,18 @@ class DrillingSystem:
         ----------
         fidelity : {"lumped4", "lumped12", "neutral", "fem", "hybrid"}
         **options
-            ``fem``: ``n_elements`` (default 107) and the other keywords of
-            :func:`~downhole.string.fem.fem_model`; ``hybrid``: ``preset`` (default
-            ``"hybrid68"``), ``n_ab``, ``n_cd``, ``n_lags``; ``lumped*``: ``reference_elements``
-            (FEM used for the first natural frequency, default 400).
+            The keywords of the scenario tables ``[model.<fidelity>]``, with the same names and
+            defaults (:data:`BUILD_OPTIONS`): ``fem``: ``n_elements`` (default None: the mesh
+            derived from the description, a node at every string joint and survey station
+            where the path turns, elements <= ``max_element_length`` = 50 m and turning by <=
+            ``max_element_angle`` = 2 deg), ``max_element_length``, ``max_element_angle``,
+            ``mass`` and the other keywords of :func:`~downhole.string.fem.fem_model`;
+            ``hybrid``: ``preset`` (default None: derived mesh; or ``"hybrid24"``,
+            ``"hybrid68"``, ``"hybrid108"``), ``n_ab``, ``n_cd``, ``n_lags``,
+            ``max_element_length``, ``max_element_angle``, ``mass``; ``lumped*``:
+            ``reference_elements`` (FEM used for the first natural frequency, default 400).
+            ``fem`` and ``hybrid`` also take ``friction``, ``rayleigh_alpha``,
+            ``rayleigh_beta`` (overriding the description's), ``md_b``/``md_c`` and ``damping``.
 
         Returns
         -------
@@ -246,21 +305,48 @@ class DrillingSystem:
         """
         if fidelity not in FIDELITIES:
             raise DownholeInputError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
+        known = self._options(fidelity)
+        for key in options:
+            if key not in known:
+                import difflib
+
+                near = difflib.get_close_matches(key, known, 1, 0.5)
+                hint = f" (did you mean {near[0]!r}?)" if near else ""
+                raise DownholeInputError(
+                    f"unknown option {key!r} for fidelity {fidelity!r}{hint}; it takes "
+                    f"{', '.join(known) or 'no options'}")
         return getattr(self, f"_build_{fidelity}")(**options)
+
+    @staticmethod
+    def _options(fidelity: str) -> list[str]:
+        """The keywords :meth:`build` takes at ``fidelity``: :data:`BUILD_OPTIONS`, and at
+        ``fem`` / ``hybrid`` every other keyword of the builder (``friction``, ``damping``,
+        ``md_b``, ...)."""
+        names = list(BUILD_OPTIONS[fidelity])
+        if fidelity in ("fem", "hybrid"):
+            import inspect
+
+            from downhole.string.fem import fem_model
+            from downhole.string.hybrid import hybrid_model
+
+            fn = fem_model if fidelity == "fem" else hybrid_model
+            names += [k for k in inspect.signature(fn).parameters
+                      if k not in names and k not in ("well", "string", "bit")]
+        return names
 
     def _fem_common(self) -> dict:
         return dict(friction=self.friction, rayleigh_alpha=self.rayleigh_alpha,
                     rayleigh_beta=self.rayleigh_beta)
 
-    def _build_fem(self, n_elements: int = 107, **options):
+    def _build_fem(self, **options):
         from downhole.string.fem import fem_model
 
         b, c = self.wave_points()
         kw = dict(self._fem_common(), md_b=b, md_c=c)
         kw.update(options)
-        return fem_model(self.well, self.string, self.bit, n_elements=n_elements, **kw)
+        return fem_model(self.well, self.string, self.bit, **kw)
 
-    def _build_hybrid(self, preset: str | None = "hybrid68", **options):
+    def _build_hybrid(self, preset: str | None = None, **options):
         from downhole.string.hybrid import hybrid_model
 
         b, c = self.wave_points()
@@ -272,8 +358,17 @@ class DrillingSystem:
     def lumped_derivation(self, reference_elements: int = 400) -> LumpedDerivation:
         """Static stiffness, first natural frequency and damping of the string, per field (see the
         module docstring), from which the lumped chains are matched."""
-        from downhole.string.fem import fem_model
+        from downhole.string.fem import _check_int, _count_keys, fem_model
 
+        reference_elements = _check_int("reference_elements", reference_elements, 1)
+        sections = _count_keys(self.well, self.string, self.top_md, self.well.total_depth,
+                               self.top_md).size - 1
+        if reference_elements < sections:
+            raise DownholeInputError(
+                f"reference_elements = {reference_elements} is too few: the survey stations and "
+                f"string joints split the string into {sections} sections, each needs an "
+                f"element; give reference_elements >= {sections} (scenario key "
+                "model.lumped4.reference_elements or model.lumped12.reference_elements)")
         ref = fem_model(self.well, self.string, self.bit, n_elements=reference_elements,
                         friction=0.0, rayleigh_alpha=self.rayleigh_alpha,
                         rayleigh_beta=self.rayleigh_beta)
@@ -305,13 +400,25 @@ class DrillingSystem:
             total += w * 0.5 * (b - a) * float(np.dot(wq, cos_inc))
         return total
 
-    def torque_drag(self, friction=(0.1, 0.2, 0.3), wob: float = 0.0, tob: float = 0.0,
-                    step: float = 10.0, hook_load: bool = True):
+    def torque_drag(self, friction=(0.1, 0.2, 0.3), wob: float = 0.0,
+                    tob: float | None = None, step: float = 10.0, hook_load: bool = True,
+                    surface_speed: float | None = None):
         """Soft-string torque and drag of this string in this well at the friction factors
-        ``friction`` (the drilling case with ``wob`` N and ``tob`` N m at the bit):
-        :func:`downhole.string.torque_drag.torque_drag`."""
+        ``friction``: :func:`downhole.string.torque_drag.torque_drag`.
+
+        The drilling case has ``wob`` (N) and ``tob`` (N m) at the bit; ``tob`` defaults to the
+        bit law's torque at that WOB and ``surface_speed`` (default: the top drive's set-point
+        ``rig.top_drive.speed``) in steady cutting (:func:`steady_bit_state`), as
+        ``downhole torque-drag`` does with the scenario's ``[operation]``; ``tob = 0`` drops it.
+        The defaults of ``friction`` and ``step`` are the scenario keys
+        ``torque_drag.friction_factors`` and ``torque_drag.step``."""
         from downhole.string.torque_drag import torque_drag
 
+        wob = si_or_number(wob, "force", "wob")
+        if tob is None:
+            speed = self.rig.top_drive.speed if surface_speed is None else si_or_number(
+                surface_speed, "angular_velocity", "surface_speed")
+            tob = steady_bit_state(self.bit, speed, wob=wob)[2] if wob > 0 else 0.0
         return torque_drag(self.well, self.string, friction=friction, wob=wob, tob=tob,
                            step=step, hook_load=hook_load)
 

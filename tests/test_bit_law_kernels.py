@@ -105,7 +105,7 @@ def test_fem_run_by_scenario_with_the_aarsnes_law():
 
     def run(name):
         data = {"title": "bit law", "model": {"fidelity": "fem", "preset": "table_5_1",
-                                              "fem": {"elements": 20}},
+                                              "fem": {"n_elements": 20}},
                 "bit": {"law": name},
                 "simulation": {"duration": "1 s", "dt": "1 ms", "depth_of_cut": "delayed",
                                "record_dt": "10 ms"}}

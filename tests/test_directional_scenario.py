@@ -50,7 +50,7 @@ dt = "1 ms"
 
 
 #: A directional preset with a described well or string (not the system runner).
-FEM20 = 'preset = "table_5_1"\n[model.fem]\nelements = 20'
+FEM20 = 'preset = "table_5_1"\n[model.fem]\nn_elements = 20'
 
 
 def _run_bad(tmp_path, capsys, mtype="fem", model=FEM20, extra=""):
@@ -95,14 +95,14 @@ def test_bad_survey_csv_is_reported_with_line(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("mtype,model,field,words", [
-    ("fem", "[model.fem]\nelements = 1", "model.fem.elements", "too few"),
+    ("fem", "[model.fem]\nn_elements = 1", "model.fem.n_elements", "too few"),
     ("fem", "element = 20", "model.element", "unknown key"),
     ("fem", "[model.fem]\nelement = 20", "model.fem.element", "unknown key"),
-    ("hybrid", "[model.hybrid]\nnodes_ab = 3\nnodes_cd = 1", "model.hybrid.nodes_cd",
+    ("hybrid", "[model.hybrid]\nn_ab = 3\nn_cd = 1", "model.hybrid.n_cd",
      "greater than or equal to 2"),
-    ("hybrid", "[model.hybrid]\npreset = \"hybrid68\"\n[model.fem]\nelements = 20", "model",
+    ("hybrid", "[model.hybrid]\npreset = \"hybrid68\"\n[model.fem]\nn_elements = 20", "model",
      "FEM option"),
-    ("fem", "[model.hybrid]\nnodes_ab = 4", "model", "hybrid options"),
+    ("fem", "[model.hybrid]\nn_ab = 4", "model", "hybrid options"),
     ("hybrid", "wave_section = [2500, 3500]\n[model.hybrid]\npreset = \"hybrid68\"",
      "model.wave_section", "curved"),
     ("hybrid", "wave_section = [3000, 2000]", "model.wave_section", "0 < B < C"),
@@ -172,7 +172,7 @@ def test_minimal_scenario_uses_the_table_5_1_defaults(tmp_path):
     from downhole.string.fem import fem_model
 
     p = tmp_path / "min.toml"
-    p.write_text('[model]\nfidelity = "fem"\n[model.fem]\nelements = 30\n'
+    p.write_text('[model]\nfidelity = "fem"\n[model.fem]\nn_elements = 30\n'
                  '[simulation]\nduration = "1 s"\n')
     res = run_scenario(p)
     assert res["reference_angular_velocity"][-1] == 10.0          # PI at 10 rad/s

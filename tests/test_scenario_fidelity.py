@@ -227,7 +227,8 @@ def test_preset_file_refuses_fidelity_override(tmp_path, capsys):
 
 @pytest.mark.parametrize("table, key, value, new", [
     ("model", "type", "fem", "renamed: use model.fidelity"),
-    ("model", "elements", 50, "model.fem.elements"),
+    ("model", "elements", 50, "model.fem.n_elements"),
+    ("model.fem", "elements", 50, "renamed: use model.fem.n_elements"),
     ("controller", "speed", "10 rad/s", "operation.surface_speed"),
     ("hook", "wob", "80 kN", "operation.wob"),
     ("surface", "axial_velocity", "10 mm/s", "operation.rop"),

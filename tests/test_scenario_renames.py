@@ -30,7 +30,7 @@ NEUTRAL = {"title": "renames, neutral", "model": {"fidelity": "neutral", "preset
            "operation": {"axial_command": "1.147224 m/s", "surface_speed": "22.5196 rad/s"},
            "simulation": {"duration": "0.2 s", "dt": "0.1 ms"}}
 FEM = {"title": "renames, FEM", "model": {"fidelity": "fem", "preset": "table_5_1",
-                                          "fem": {"elements": 20}},
+                                          "fem": {"n_elements": 20}},
        "operation": {"surface_speed": "10 rad/s", "wob": "120 kN"},
        "simulation": {"duration": "0.2 s", "dt": "1 ms"}}
 HYBRID = {"title": "renames, hybrid", "model": {"fidelity": "hybrid", "preset": "table_5_1"},
@@ -45,6 +45,9 @@ OLD_KEYS = {
     "model.elements": (FEM, 50),
     "model.nodes_ab": (HYBRID, 4),
     "model.nodes_cd": (HYBRID, 13),
+    "model.fem.elements": (FEM, 50),
+    "model.hybrid.nodes_ab": (HYBRID, 4),
+    "model.hybrid.nodes_cd": (HYBRID, 13),
     "model.n_lags": (HYBRID, 1),
     "model.md_b": (HYBRID, "2000 m"),
     "model.md_c": (HYBRID, "3000 m"),

@@ -256,9 +256,11 @@ def fig5_9(out_dir, quick):
         p = DirectionalWellParams(length_bc=L)
         well = WellPath.table_5_1(p)
         ds = DrillString.uniform(well.total_depth, p.pipe)
-        hm = hybrid_model("hybrid68", well=well, string=ds, md_b=2000.0, md_c=2000.0 + L)
+        # Table 5.1's wall friction (a described well defaults to none)
+        hm = hybrid_model("hybrid68", well=well, string=ds, md_b=2000.0, md_c=2000.0 + L,
+                          friction=p.wellbore_friction)
         fm = fem_model(well, ds, n_elements=int(round(well.total_depth / elem_len)),
-                       md_b=2000.0, md_c=2000.0 + L)
+                       md_b=2000.0, md_c=2000.0 + L, friction=p.wellbore_friction)
         simulate_directional(hm, duration=0.01, dt=1e-3)  # warm
         simulate_directional(fm, duration=0.01, dt=1e-3)
         t_h.append(best_of(hm, repeats))

@@ -12,7 +12,9 @@ scenario, :mod:`downhole.scenario.schema`)::
     fidelity = "fem"                # or "hybrid"
     preset = "table_5_1"            # a 'directional' preset: well, pipe, bit, damping, friction
     wave_section = ["2000 m", "3000 m"]  # B and C: ends of the hybrid's wave segment (BC must
-                                    #   be straight, vertical, one pipe); FEM: where force_b/c are
+                                    #   be straight, vertical, one pipe); FEM: where force_b/c are;
+                                    #   default: the preset's, with a described [well] its
+                                    #   vertical part above the kick-off (as DrillingSystem)
     damping = "rayleigh"            # or "modal"
     rayleigh_alpha = 0.05           # 1/s  (default: the preset)
     rayleigh_beta = 0.03            # s
@@ -21,12 +23,16 @@ scenario, :mod:`downhole.scenario.schema`)::
     friction_velocity = "1 mm/s"    # regularization velocity v_eps
     mass = "consistent"             # or "lumped"
     [model.fem]
-    elements = 107                  # fem: number of elements (4 (elements + 1) states)
+    n_elements = 107                # fem: number of elements (4 (n_elements + 1) states);
+                                    #   default: the mesh derived from the description (a node
+                                    #   at every joint and survey station where the path turns)
+    max_element_length = "50 m"     # the derived mesh's longest element
+    max_element_angle = "2 deg"     #   and largest turn per element
     [model.hybrid]
     preset = "hybrid68"             # "hybrid24" | "hybrid68" | "hybrid108" (seed sizes), or
-    nodes_ab = 4                    # FEM nodes on AB / on CD (override the preset)
-    nodes_cd = 13
-    n_lags = 0
+    n_ab = 4                        # FEM nodes on AB / on CD (override the preset);
+    n_cd = 13                       #   default: the derived mesh (also max_element_length /
+    n_lags = 0                      #   max_element_angle here)
     [model.string]                  # DirectionalWellParams overrides (length_ab, pipe, ...)
     [bit]                           # BitParams overrides (epsilon = "45 MPa", ...)
 
@@ -118,18 +124,23 @@ def _profile(value, dim, name):
 
 
 # ---------------------------------------------------------------------------------- schema
-class FemSettings(_Strict):
-    """``[model.fem]``: the FEM's discretization."""
+class _MeshSettings(_Strict):
+    max_element_length: Q["length"] = Field(50.0, ge=0.1, le=1e4)
+    max_element_angle: Q["angle"] = Field(math.radians(2.0), gt=0, le=math.pi)
 
-    elements: int | None = Field(None, ge=1, le=5000)
+
+class FemSettings(_MeshSettings):
+    """``[model.fem]``: the FEM's discretization (default: derived from the description)."""
+
+    n_elements: int | None = Field(None, ge=1, le=5000)
 
 
-class HybridSettings(_Strict):
-    """``[model.hybrid]``: the hybrid's discretization (a preset or node counts)."""
+class HybridSettings(_MeshSettings):
+    """``[model.hybrid]``: the hybrid's discretization (a preset, node counts, or derived)."""
 
     preset: Literal["hybrid24", "hybrid68", "hybrid108"] | None = None
-    nodes_ab: int | None = Field(None, ge=2, le=2000)
-    nodes_cd: int | None = Field(None, ge=2, le=2000)
+    n_ab: int | None = Field(None, ge=2, le=2000)
+    n_cd: int | None = Field(None, ge=2, le=2000)
     n_lags: int = Field(0, ge=0, le=8)
 
 
@@ -155,10 +166,10 @@ class DirectionalModelSettings(_Strict):
     def _kind_options(self):
         if self.fidelity == "fem" and self.hybrid is not None:
             raise ValueError("[model.hybrid]: hybrid options, but fidelity = 'fem' (use "
-                             "[model.fem] elements)")
+                             "[model.fem] n_elements)")
         if self.fidelity == "hybrid" and self.fem is not None:
             raise ValueError("[model.fem]: a FEM option, but fidelity = 'hybrid' (use "
-                             "[model.hybrid] preset = 'hybrid68' or nodes_ab / nodes_cd)")
+                             "[model.hybrid] preset = 'hybrid68' or n_ab / n_cd)")
         return self
 
     @field_validator("wave_section", mode="after")
@@ -170,20 +181,27 @@ class DirectionalModelSettings(_Strict):
 
     # the discretization, flat (None where not given)
     @property
-    def elements(self):
-        return self.fem.elements if self.fem is not None else None
+    def n_elements(self):
+        return self.fem.n_elements if self.fem is not None else None
+
+    @property
+    def mesh_sizes(self):
+        """``max_element_length`` and ``max_element_angle`` of the fidelity's table."""
+        t = (self.fem if self.fidelity == "fem" else self.hybrid) or _MeshSettings()
+        return {"max_element_length": t.max_element_length,
+                "max_element_angle": t.max_element_angle}
 
     @property
     def hybrid_preset(self):
         return self.hybrid.preset if self.hybrid is not None else None
 
     @property
-    def nodes_ab(self):
-        return self.hybrid.nodes_ab if self.hybrid is not None else None
+    def n_ab(self):
+        return self.hybrid.n_ab if self.hybrid is not None else None
 
     @property
-    def nodes_cd(self):
-        return self.hybrid.nodes_cd if self.hybrid is not None else None
+    def n_cd(self):
+        return self.hybrid.n_cd if self.hybrid is not None else None
 
     @property
     def n_lags(self):
@@ -577,25 +595,30 @@ def build_directional(sc: DirectionalScenario, source: str = "<dict>"):
             common["md_b"] = min(params.length_ab, well.total_depth)
         if m.md_c is None:
             common["md_c"] = min(params.length_ab + params.length_bc, well.total_depth)
-        field = "model.fem.elements"
+        field = "model.fem.n_elements"
         with _wrap(source, field):
-            return fem_model(well, string, bit, n_elements=m.elements or 107, **common)
-    preset = m.hybrid_preset if m.hybrid_preset is not None else (
-        None if (m.nodes_ab is not None and m.nodes_cd is not None) else "hybrid68")
+            return fem_model(well, string, bit, n_elements=m.n_elements, **m.mesh_sizes,
+                             **common)
+    preset = m.hybrid_preset
+    if sc.well is not None and m.wave_section is None:
+        # a described well: B and C in its vertical part above the kick-off point, as the
+        # system dialect (DrillingSystem.wave_points)
+        from downhole.system import wave_points
+
+        common["md_b"], common["md_c"] = wave_points(well, string)
     if common["md_b"] is None:
         common["md_b"] = params.length_ab
     if common["md_c"] is None:
         common["md_c"] = params.length_ab + params.length_bc
     try:
-        return hybrid_model(preset, n_ab=m.nodes_ab, n_cd=m.nodes_cd, well=well, string=string,
-                            bit=bit, n_lags=m.n_lags, **common)
+        return hybrid_model(preset, n_ab=m.n_ab, n_cd=m.n_cd, well=well, string=string,
+                            bit=bit, n_lags=m.n_lags, **m.mesh_sizes, **common)
     except DownholeInputError as exc:
         msg = str(exc)
-        if msg.startswith("n_ab") or (" nodes are too few for" in msg
-                                      and f"..{common['md_b']:g} m" in msg):
-            field = "model.hybrid.nodes_ab" if m.nodes_ab is not None else "model.hybrid"
-        elif msg.startswith("n_cd") or " nodes are too few for" in msg:
-            field = "model.hybrid.nodes_cd" if m.nodes_cd is not None else "model.hybrid"
+        if msg.startswith("n_ab"):
+            field = "model.hybrid.n_ab" if m.n_ab is not None else "model.hybrid.preset"
+        elif msg.startswith("n_cd"):
+            field = "model.hybrid.n_cd" if m.n_cd is not None else "model.hybrid.preset"
         elif "section BC" in msg or "md_b" in msg:
             field = "model.wave_section"
         elif "lags" in msg:

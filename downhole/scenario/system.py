@@ -15,9 +15,13 @@ the scenario's set-points. Schema (``docs/scenarios.md``, "Describing the system
     lump_length = "10 m"          # neutral, no BHA: bottom length lumped into the bit
     wave_section = ["2000 m", "3000 m"]   # hybrid: MD of B and C (default: DrillingSystem's)
     [model.fem]                   # per-fidelity options (each table optional)
-    elements = 107
+    n_elements = 107              # default: the mesh derived from the description (nodes at
+    max_element_length = "50 m"   #   every joint and survey station where the path turns,
+    max_element_angle = "2 deg"   #   elements <= 50 m and turning by <= 2 deg)
+    mass = "consistent"           # or "lumped"
     [model.hybrid]
-    preset = "hybrid68"           # or nodes_ab / nodes_cd
+    preset = "hybrid68"           # or n_ab / n_cd (nodes on AB / CD); default: derived mesh
+    n_lags = 0                    # also max_element_length, max_element_angle, mass
     [model.lumped4]               # and [model.lumped12]
     reference_elements = 400      # FEM whose first frequency the chain matches
     [model.neutral]
@@ -82,6 +86,7 @@ from downhole.scenario.directional import (
     _string,
     _well,
 )
+from downhole.system import steady_bit_state
 
 __all__ = [
     "FIDELITY_NAMES",
@@ -141,19 +146,24 @@ class NeutralOptions(_Options):
     lump: list[Literal["pipe", "heavyweight"]] = Field(default_factory=list, max_length=2)
 
 
-class FemOptions(_Options):
-    """``[model.fem]``."""
-
-    elements: int = Field(107, ge=1, le=5000)
+class _MeshOptions(_Options):
+    max_element_length: Q["length"] = Field(50.0, ge=0.1, le=1e4)
+    max_element_angle: Q["angle"] = Field(math.radians(2.0), gt=0, le=math.pi)
     mass: Literal["consistent", "lumped"] = "consistent"
 
 
-class HybridOptions(_Options):
-    """``[model.hybrid]``."""
+class FemOptions(_MeshOptions):
+    """``[model.fem]``: the keywords of ``DrillingSystem.build("fem", ...)``."""
+
+    n_elements: int | None = Field(None, ge=1, le=5000)
+
+
+class HybridOptions(_MeshOptions):
+    """``[model.hybrid]``: the keywords of ``DrillingSystem.build("hybrid", ...)``."""
 
     preset: Literal["hybrid24", "hybrid68", "hybrid108"] | None = None
-    nodes_ab: int | None = Field(None, ge=2, le=2000)
-    nodes_cd: int | None = Field(None, ge=2, le=2000)
+    n_ab: int | None = Field(None, ge=2, le=2000)
+    n_cd: int | None = Field(None, ge=2, le=2000)
     n_lags: int = Field(0, ge=0, le=8)
 
 
@@ -359,44 +369,22 @@ def build_system(sc: SystemScenario, source: str, fidelity: str):
 
 
 def _build_options(sc: SystemScenario, fidelity: str) -> dict:
-    if fidelity in ("lumped4", "lumped12"):
-        return {"reference_elements": getattr(sc.model, fidelity).reference_elements}
-    if fidelity == "fem":
-        return {"n_elements": sc.model.fem.elements, "mass": sc.model.fem.mass}
-    if fidelity == "hybrid":
-        h = sc.model.hybrid
-        preset = h.preset if h.preset is not None else (
-            None if (h.nodes_ab is not None and h.nodes_cd is not None) else "hybrid68")
-        return {"preset": preset, "n_ab": h.nodes_ab, "n_cd": h.nodes_cd, "n_lags": h.n_lags}
-    return {}
+    """The keywords of ``DrillingSystem.build(fidelity, ...)``: the keys of the file's
+    ``[model.<fidelity>]`` table, by the same names (:data:`downhole.system.BUILD_OPTIONS`;
+    ``friction`` and the neutral model's ``lump`` change the description instead)."""
+    from downhole.system import BUILD_OPTIONS
+
+    table = getattr(sc.model, fidelity)
+    return {k: getattr(table, k) for k in BUILD_OPTIONS[fidelity]}
 
 
-def steady_bit_state(bit, surface_speed: float, rop: float | None = None,
-                     wob: float | None = None) -> tuple[float, float, float]:
-    """``(rop, wob, tob)`` of steady cutting at ``surface_speed`` with the approximate depth of
-    cut d = 2 pi v / omega (Eq. 2.11): from the ROP, or the ROP that gives ``wob``.
-
-    Raises
-    ------
-    DownholeInputError
-        When no ROP up to 1 m/s reaches ``wob``.
-    """
-    from scipy.optimize import brentq
-
-    from downhole.bit.law import bit_forces_py
-
-    def forces(v):
-        d = 2 * math.pi * v / max(surface_speed, bit.omega_floor)
-        return bit_forces_py(d, v, surface_speed, bit)
-
-    if rop is None:
-        hi = 1.0
-        if forces(hi)[0] < wob:
-            raise DownholeInputError(f"operation.wob = {wob:g} N is not reached at any ROP up "
-                                     f"to {hi:g} m/s with this bit at {surface_speed:g} rad/s")
-        rop = brentq(lambda v: forces(v)[0] - wob, 1e-12, hi, xtol=1e-14, rtol=1e-12)
-    w, t = forces(rop)
-    return float(rop), float(w), float(t)
+def _mesh_field(fid: str, msg: str) -> str | None:
+    """The ``[model.<fid>]`` key a mesh error message names (None: not a mesh error)."""
+    for key in ("n_elements", "n_ab", "n_cd", "n_lags", "max_element_length",
+                "max_element_angle", "reference_elements"):
+        if msg.startswith(key) or f"model.{fid}.{key}" in msg:
+            return f"model.{fid}.{key}"
+    return None
 
 
 def validate_system_scenario(data: dict, source: str, fidelity: str | None = None):
@@ -423,7 +411,8 @@ def validate_system_scenario(data: dict, source: str, fidelity: str | None = Non
     try:
         model = system.build(fid, **_build_options(sc, fid))
     except DownholeInputError as exc:
-        field = "model.fidelity" if fidelity is None else "--fidelity"
+        field = _mesh_field(fid, str(exc)) or ("model.fidelity" if fidelity is None
+                                               else "--fidelity")
         raise ScenarioError(source, field, f"{fid}: {exc}") from None
     sim = sc.simulation
     dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]

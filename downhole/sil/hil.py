@@ -275,7 +275,7 @@ def build_hil_plant(model: str = "hybrid68", *, dt: float = 1e-3, wob: float = 1
     from downhole.string.fem import fem_model
     from downhole.string.hybrid import HYBRID_PRESETS, hybrid_model
 
-    dm = hybrid_model(model) if model in HYBRID_PRESETS else fem_model()
+    dm = hybrid_model(model) if model in HYBRID_PRESETS else fem_model(n_elements=107)
     hp = HILStringPlant(dm, dt, coupling)
     sp = SilPlant(_SurfaceOnly(hp), ("slack_off_force", "surface_torque"),
                   {"slack_off_force": wob, "surface_torque": surface_torque},

@@ -76,7 +76,7 @@ class _Strict(BaseModel):
 class FemSection(_Strict):
     """``[model.fem]``."""
 
-    elements: int = Field(23, ge=1, le=5000)
+    n_elements: int = Field(23, ge=1, le=5000)
 
 
 class ModelSection(_Strict):
@@ -457,7 +457,7 @@ def build_from_scenario(sc: SilScenario, *, controller_file: str | None = None,
         plant = build_plant(m.plant_name, interface=m.interface, dt=sim.dt,
                             depth_of_cut=sim.depth_of_cut, wob=op.wob,
                             top_drive_speed=op.surface_speed, surface_torque=op.surface_torque,
-                            design=sc.controller.dhp.design, n_elements=m.fem.elements,
+                            design=sc.controller.dhp.design, n_elements=m.fem.n_elements,
                             lumped_preset=m.preset or "table_2_1",
                             order=4 if m.fidelity == "lumped4" else 12,
                             axial_velocity=op.rop, bit=scenario_bit(sc))

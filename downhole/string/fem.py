@@ -15,6 +15,7 @@ control-affine form for the DHP design (Eqs. 4.13-4.19, 4.25) is built from it o
 
 from __future__ import annotations
 
+import itertools
 import math
 import weakref
 from dataclasses import dataclass, field
@@ -280,12 +281,84 @@ def _mesh(keys, n_elements, min_per_interval=1):
     return np.array(md)
 
 
+#: Longest element of the mesh derived from the description (:func:`fem_model` and
+#: :func:`~downhole.string.hybrid.hybrid_model` without element / node counts), m.
+MAX_ELEMENT_LENGTH = 50.0
+#: Largest change of direction along one element of the derived mesh (curved parts), rad.
+MAX_ELEMENT_ANGLE = math.radians(2.0)
+#: Survey stations closer than this fraction of ``max_element_length`` to a node already placed
+#: are not made nodes of the derived mesh (a dense gyro survey); joints always are.
+_STATION_SPACING = 0.2
+
+
+def _joints(string, lo, hi, top_md):
+    """Measured depths of the string's section joints strictly inside (lo, hi)."""
+    return [top_md + float(b) for b in string.boundaries[1:-1] if lo < top_md + b < hi]
+
+
+def _count_keys(well, string, lo, hi, top_md):
+    """Node depths that a mesh of given element count keeps: lo, hi, every survey station and
+    string joint in between (the seed's meshes)."""
+    keys = [lo, hi] + [m for m in well.stations["md"] if lo < m < hi]
+    keys += _joints(string, lo, hi, top_md)
+    return np.unique(np.round(np.array(keys, float), 9))
+
+
+def _station_curvature(well):
+    """Survey stations (md) and the curvature (rad/m) of each interval between them."""
+    md = np.asarray(well.stations["md"], float)
+    return md, np.asarray(well.curvature(0.5 * (md[:-1] + md[1:])), float)
+
+
+def _derived_md(well, string, lo, hi, top_md, max_element_length=MAX_ELEMENT_LENGTH,
+                max_element_angle=MAX_ELEMENT_ANGLE):
+    """Node depths from lo to hi derived from the description: a node at every string joint,
+    at every survey station where the path changes direction (the ends of a straight run and
+    the stations of curved parts; stations closer than ``_STATION_SPACING *
+    max_element_length`` to a node already placed are skipped), then each interval split into
+    equal elements no longer than ``max_element_length`` and turning by at most
+    ``max_element_angle`` (the largest curvature over the interval)."""
+    st, kappa = _station_curvature(well)
+    hard = [lo, hi] + _joints(string, lo, hi, top_md)
+    curved = kappa > 1e-12
+    bends = [m for i, m in enumerate(st)
+             if lo < m < hi and ((i > 0 and curved[i - 1]) or (i < curved.size and curved[i]))]
+    keys = sorted(set(np.round(hard, 9)))
+    gap = _STATION_SPACING * max_element_length
+    for m in bends:
+        j = int(np.searchsorted(keys, m))
+        near = min(abs(m - keys[j - 1]) if j > 0 else np.inf,
+                   abs(keys[j] - m) if j < len(keys) else np.inf)
+        if near >= gap:
+            keys.insert(j, float(m))
+    md = [keys[0]]
+    for a, b in itertools.pairwise(keys):
+        # largest curvature of the station intervals overlapping [a, b]
+        i0 = max(int(np.searchsorted(st, a, side="right")) - 1, 0)
+        i1 = min(int(np.searchsorted(st, b, side="left")), kappa.size)
+        k = float(np.max(kappa[i0:i1])) if i1 > i0 else 0.0
+        h = max_element_length if k <= 0 else min(max_element_length, max_element_angle / k)
+        n = max(1, math.ceil((b - a) / h - 1e-9))
+        md.extend(np.linspace(a, b, n + 1)[1:])
+    return np.array(md)
+
+
 def _check_int(name, value, lo):
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise DownholeInputError(f"{name} must be an integer, got {value!r}")
     if value < lo:
         raise DownholeInputError(f"{name} must be >= {lo}, got {value}")
     return int(value)
+
+
+def _check_mesh_sizes(max_element_length, max_element_angle):
+    h = si_or_number(max_element_length, "length", "max_element_length")
+    a = si_or_number(max_element_angle, "angle", "max_element_angle")
+    for name, v, hi in (("max_element_length", h, 1e4), ("max_element_angle", a, math.pi)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) \
+                or not (0 < v <= hi) or not math.isfinite(v):
+            raise DownholeInputError(f"{name} must be a number in (0, {hi:g}] (SI), got {v!r}")
+    return float(h), float(a)
 
 
 def _assemble_chain(well, string, md, top_md, mass="consistent"):
@@ -372,7 +445,9 @@ def table_5_1_setup(params: DirectionalWellParams | None = None):
 
 
 def fem_model(well: WellPath | None = None, string: DrillString | None = None,
-              bit: BitParams | None = None, *, n_elements: int = 107,
+              bit: BitParams | None = None, *, n_elements: int | None = None,
+              max_element_length: float = MAX_ELEMENT_LENGTH,
+              max_element_angle: float = MAX_ELEMENT_ANGLE,
               damping: str = "rayleigh", rayleigh_alpha: float | None = None,
               rayleigh_beta: float | None = None, modal_ratio: float = 0.03,
               friction: float | None = None, v_eps: float = 1e-3, mass: str = "consistent",
@@ -385,14 +460,26 @@ def fem_model(well: WellPath | None = None, string: DrillString | None = None,
     well, string, bit : optional
         Default: the seed's Table 5.1 setup (:func:`table_5_1_setup`). The string hangs from
         the top with its bit at the well's total depth (string length <= well depth).
-    n_elements : int
-        Number of elements (>= 1); nodes are placed at well stations and string joints. The
-        seed's 432-state FEM is ``n_elements=107`` (108 nodes).
+    n_elements : int, optional
+        Number of elements (>= 1), spread over the survey stations and string joints (each
+        interval between them gets at least one): the seed's meshes (432-state FEM:
+        ``n_elements=107``, 108 nodes). Default (None): the mesh derived from the description,
+        with a node at every string joint and at every survey station where the path turns, and
+        elements no longer than ``max_element_length`` and turning by at most
+        ``max_element_angle`` (the Table 5.1 well: 102 elements).
+    max_element_length : float or quantity
+        Longest element of the derived mesh, m (default 50 m).
+    max_element_angle : float or quantity
+        Largest change of direction along one element of the derived mesh, rad (default 2 deg).
     damping : {"rayleigh", "modal"}
         Rayleigh alpha0 M + beta0 K (Table 5.1: 0.05, 0.03) or modal (``modal_ratio`` of
         critical in every mode; dense, slower).
+    rayleigh_alpha, rayleigh_beta : float, optional
+        Default 0.05 1/s and 0.03 s (Table 5.1, as :class:`~downhole.system.DrillingSystem`).
     friction : float, optional
-        Wellbore friction coefficient (Table 5.1: 0.5); 0 disables contact.
+        Wellbore friction coefficient; 0 disables contact. Default: Table 5.1's 0.5 when the
+        well is Table 5.1's (no ``well`` given), else 0 (as
+        :class:`~downhole.system.DrillingSystem` and the scenario key ``model.friction``).
     v_eps : float
         Friction regularization velocity, m/s.
     mass : {"consistent", "lumped"}
@@ -406,20 +493,26 @@ def fem_model(well: WellPath | None = None, string: DrillString | None = None,
     Raises
     ------
     DownholeInputError
-        Too few elements, a string longer than the well, bad damping or mass names.
+        Too few elements (the message names the count that works), a string longer than the
+        well, bad damping or mass names.
 
     Examples
     --------
     >>> m = fem_model(n_elements=107)
     >>> m.n_states
     432
+    >>> fem_model().n_nodes          # derived: nodes at 0, 3000 m (kick-off) and the bit
+    103
     """
     well0, string0, bit0, p = table_5_1_setup()
+    seed_well = well is None
     well = well or well0
     string = string or (string0 if well is well0 else
                         DrillString.uniform(well.total_depth, p.pipe, g=p.g))
     bit = bit or bit0
-    n_elements = _check_int("n_elements", n_elements, 1)
+    if n_elements is not None:
+        n_elements = _check_int("n_elements", n_elements, 1)
+    h, angle = _check_mesh_sizes(max_element_length, max_element_angle)
     if mass not in ("consistent", "lumped"):
         raise DownholeInputError(f"mass must be 'consistent' or 'lumped', got {mass!r}")
     if string.length > well.total_depth + 1e-6:
@@ -428,31 +521,35 @@ def fem_model(well: WellPath | None = None, string: DrillString | None = None,
             f"{well.total_depth:g} m")
     alpha = p.rayleigh_alpha if rayleigh_alpha is None else float(rayleigh_alpha)
     beta = p.rayleigh_beta if rayleigh_beta is None else float(rayleigh_beta)
-    mu = p.wellbore_friction if friction is None else float(friction)
+    mu = (p.wellbore_friction if seed_well else 0.0) if friction is None else float(friction)
     if alpha < 0 or beta < 0 or mu < 0 or v_eps <= 0:
         raise DownholeInputError(
             f"rayleigh_alpha, rayleigh_beta, friction must be >= 0 and v_eps > 0; got "
             f"{alpha}, {beta}, {mu}, {v_eps}")
     top_md = well.total_depth - string.length
-    keys = [top_md, well.total_depth]
-    keys += [m_ for m_ in well.stations["md"] if top_md < m_ < well.total_depth]
-    keys += list(top_md + string.boundaries[1:-1])
-    keys = np.unique(np.round(np.array(keys), 9))
-    if n_elements < keys.size - 1:
-        raise DownholeInputError(
-            f"n_elements = {n_elements} is too few: the well and string have {keys.size - 1} "
-            "sections, each needs at least one element")
-    md = _mesh(keys, n_elements)
+    if n_elements is None:
+        md = _derived_md(well, string, top_md, well.total_depth, top_md, h, angle)
+        label = f"fem {md.size - 1} elements (derived)"
+    else:
+        keys = _count_keys(well, string, top_md, well.total_depth, top_md)
+        if n_elements < keys.size - 1:
+            raise DownholeInputError(
+                f"n_elements = {n_elements} is too few: the survey stations and string joints "
+                f"split the string into {keys.size - 1} sections, each needs at least one "
+                f"element; give n_elements >= {keys.size - 1} (scenario key "
+                "model.fem.n_elements) or leave it unset for the mesh derived from the "
+                f"description (nodes at every joint, elements <= {h:g} m)")
+        md = _mesh(keys, n_elements)
+        label = f"fem {n_elements} elements"
     md_b = p.length_ab if md_b is None else md_b
     md_c = p.length_ab + p.length_bc if md_c is None else md_c
     return fem_from_nodes(well, string, bit, md, damping=damping, rayleigh_alpha=alpha,
                           rayleigh_beta=beta, modal_ratio=modal_ratio, friction=mu, v_eps=v_eps,
-                          mass=mass, md_b=md_b, md_c=md_c,
-                          name=name or f"fem {n_elements} elements")
+                          mass=mass, md_b=md_b, md_c=md_c, name=name or label)
 
 
 def fem_from_nodes(well, string, bit, md, *, damping="rayleigh", rayleigh_alpha=0.05,
-                   rayleigh_beta=0.03, modal_ratio=0.03, friction=0.5, v_eps=1e-3,
+                   rayleigh_beta=0.03, modal_ratio=0.03, friction=0.0, v_eps=1e-3,
                    mass="consistent", md_b=2000.0, md_c=3000.0, name="fem") -> DirectionalModel:
     """A FEM with nodes at the given measured depths (top of string first, bit last)."""
     md = np.asarray(md, float)

@@ -27,11 +27,16 @@ from downhole.params import BitParams
 from downhole.sim.wave import WaveSegment
 from downhole.string.drillstring import DrillString
 from downhole.string.fem import (
+    MAX_ELEMENT_ANGLE,
+    MAX_ELEMENT_LENGTH,
     DirectionalModel,
     _apply_stabilizers,
     _assemble_chain,
     _check_int,
+    _check_mesh_sizes,
+    _count_keys,
     _damping,
+    _derived_md,
     _mesh,
     table_5_1_setup,
 )
@@ -43,18 +48,24 @@ __all__ = ["HYBRID_PRESETS", "hybrid_model"]
 HYBRID_PRESETS = {"hybrid24": (2, 4), "hybrid68": (4, 13), "hybrid108": (7, 20)}
 
 
-def _chain_md(well, lo, hi, n_nodes):
-    keys = [lo, hi] + [m for m in well.stations["md"] if lo < m < hi]
-    keys = np.unique(np.round(np.array(keys), 9))
+def _chain_md(well, string, lo, hi, top_md, n_nodes, name):
+    """Node depths of a FEM chain from lo to hi: ``n_nodes`` spread over the survey stations and
+    string joints, or (None) the mesh derived from the description."""
+    keys = _count_keys(well, string, lo, hi, top_md)
     if n_nodes - 1 < keys.size - 1:
         raise DownholeInputError(
-            f"{n_nodes} nodes are too few for {lo:g}..{hi:g} m, which spans {keys.size - 1} "
-            f"well sections (need at least {keys.size} nodes)")
+            f"{name} = {n_nodes} nodes are too few for {lo:g}..{hi:g} m, which the survey "
+            f"stations and string joints split into {keys.size - 1} sections: give {name} >= "
+            f"{keys.size} (scenario key model.hybrid.{name}), or leave {name} and the preset "
+            "unset for the mesh derived from the description")
     return _mesh(keys, n_nodes - 1)
 
 
-def hybrid_model(preset: str | None = "hybrid68", *, n_ab: int | None = None,
-                 n_cd: int | None = None, well: WellPath | None = None,
+def hybrid_model(preset: str | None = None, *, n_ab: int | None = None,
+                 n_cd: int | None = None,
+                 max_element_length: float = MAX_ELEMENT_LENGTH,
+                 max_element_angle: float = MAX_ELEMENT_ANGLE,
+                 well: WellPath | None = None,
                  string: DrillString | None = None, bit: BitParams | None = None,
                  md_b: float | None = None, md_c: float | None = None,
                  damping: str = "rayleigh", rayleigh_alpha: float | None = None,
@@ -66,9 +77,15 @@ def hybrid_model(preset: str | None = "hybrid68", *, n_ab: int | None = None,
     Parameters
     ----------
     preset : {"hybrid24", "hybrid68", "hybrid108"} or None
-        Node counts of the seed's models; ``n_ab``/``n_cd`` override.
-    n_ab, n_cd : int
-        FEM nodes on AB (surface to B, >= 2) and on CD (C to bit, >= 2).
+        Node counts of the seed's models; ``n_ab``/``n_cd`` override. Default (None): the
+        counts given, and where none is given the mesh derived from the description (as
+        :func:`~downhole.string.fem.fem_model` without ``n_elements``: a node at every string
+        joint and at every survey station where the path turns, elements no longer than
+        ``max_element_length`` and turning by at most ``max_element_angle``).
+    n_ab, n_cd : int, optional
+        FEM nodes on AB (string top to B, >= 2) and on CD (C to bit, >= 2).
+    max_element_length, max_element_angle : float or quantity
+        Of the derived mesh: default 50 m and 2 deg.
     well, string, bit : optional
         Default: Table 5.1 (AB vertical 2000 m, BC vertical 1000 m, CD arc R = 4000 m, 30 deg).
     md_b, md_c : float, optional
@@ -76,6 +93,9 @@ def hybrid_model(preset: str | None = "hybrid68", *, n_ab: int | None = None,
         vertical (no contact) and of one uniform segment.
     damping : {"rayleigh", "modal"}
         FEM damping; with Rayleigh the line gets the end dashpots and lags described above.
+    rayleigh_alpha, rayleigh_beta, friction : float, optional
+        As :func:`~downhole.string.fem.fem_model` (friction: Table 5.1's 0.5 on its well, else
+        0).
     n_lags : int
         First-order lags per incoming wave approximating beta0 (default 0 = lossless line with
         the alpha0 end dashpots only: against a 1000-element FEM with Table 5.1 damping this is
@@ -90,15 +110,19 @@ def hybrid_model(preset: str | None = "hybrid68", *, n_ab: int | None = None,
     Raises
     ------
     DownholeInputError
-        Unknown preset, too few nodes, BC curved / inclined / non-uniform, line shorter than
-        its lags.
+        Unknown preset, too few nodes (the message names the count that works), BC curved /
+        inclined / non-uniform, line shorter than its lags.
 
     Examples
     --------
     >>> hybrid_model("hybrid68").n_states
     68
+    >>> m = hybrid_model()            # derived: AB 0..2000 m, CD 3000 m..bit
+    >>> (m.info["n_ab"], m.info["n_cd"])
+    (41, 43)
     """
     well0, string0, bit0, p = table_5_1_setup()
+    seed_well = well is None
     well = well or well0
     string = string or (string0 if well is well0 else
                         DrillString.uniform(well.total_depth, p.pipe, g=p.g))
@@ -110,11 +134,12 @@ def hybrid_model(preset: str | None = "hybrid68", *, n_ab: int | None = None,
         pa, pc = HYBRID_PRESETS[preset]
         n_ab = pa if n_ab is None else n_ab
         n_cd = pc if n_cd is None else n_cd
-    if n_ab is None or n_cd is None:
-        raise DownholeInputError("give a preset or both n_ab and n_cd")
-    n_ab = _check_int("n_ab (nodes on AB)", n_ab, 2)
-    n_cd = _check_int("n_cd (nodes on CD)", n_cd, 2)
+    if n_ab is not None:
+        n_ab = _check_int("n_ab (nodes on AB)", n_ab, 2)
+    if n_cd is not None:
+        n_cd = _check_int("n_cd (nodes on CD)", n_cd, 2)
     n_lags = _check_int("n_lags", n_lags, 0)
+    h, angle = _check_mesh_sizes(max_element_length, max_element_angle)
     if string.length > well.total_depth + 1e-6:
         raise DownholeInputError(f"string length {string.length:g} m exceeds the well's total "
                                  f"depth {well.total_depth:g} m")
@@ -142,9 +167,13 @@ def hybrid_model(preset: str | None = "hybrid68", *, n_ab: int | None = None,
     pipe = string.segments[int(seg_idx[0])].section
     alpha = p.rayleigh_alpha if rayleigh_alpha is None else float(rayleigh_alpha)
     beta = p.rayleigh_beta if rayleigh_beta is None else float(rayleigh_beta)
-    mu = p.wellbore_friction if friction is None else float(friction)
-    md_ab = _chain_md(well, top_md, md_b, n_ab)
-    md_cd = _chain_md(well, md_c, well.total_depth, n_cd)
+    mu = (p.wellbore_friction if seed_well else 0.0) if friction is None else float(friction)
+    md_ab = (_derived_md(well, string, top_md, md_b, top_md, h, angle) if n_ab is None else
+             _chain_md(well, string, top_md, md_b, top_md, n_ab, "n_ab"))
+    md_cd = (_derived_md(well, string, md_c, well.total_depth, top_md, h, angle)
+             if n_cd is None else
+             _chain_md(well, string, md_c, well.total_depth, top_md, n_cd, "n_cd"))
+    n_ab, n_cd = md_ab.size, md_cd.size
     chains = [_assemble_chain(well, string, md_ab, top_md, mass),
               _assemble_chain(well, string, md_cd, top_md, mass)]
     md = np.concatenate([md_ab, md_cd])

@@ -204,7 +204,9 @@ def torque_drag(well: WellPath, string: DrillString, *, friction=(0.1, 0.2, 0.3)
         Friction factor(s) mu (0..10).
     wob, tob : float, str or pint Quantity
         Weight on bit (N, >= 0) and torque on bit (N m) of the drilling case (``"20 klbf"``,
-        ``"10 kft*lbf"``: unit strings and quantities are accepted).
+        ``"10 kft*lbf"``: unit strings and quantities are accepted). This function knows no bit:
+        :meth:`downhole.system.DrillingSystem.torque_drag` and ``downhole torque-drag`` take
+        the TOB from the bit law at the WOB by default.
     step : float, str or pint Quantity
         Largest element length, m (``"30 ft"``); every survey station and segment joint is a
         node.

@@ -115,6 +115,16 @@ def _inc_azi(t):
     return inc, azi
 
 
+def _dogleg(t1, t2) -> float:
+    """Angle between unit tangents t1 and t2, rad: arccos of their dot product, and below
+    1e-6 rad 2 arcsin(|t2 - t1| / 2) (arccos near 1 loses half the digits: equal tangents
+    of a straight interval would turn by ~1e-8 rad)."""
+    beta = math.acos(float(np.clip(np.dot(t1, t2), -1.0, 1.0)))
+    if beta < 1e-6:
+        beta = 2.0 * math.asin(min(1.0, 0.5 * float(np.linalg.norm(t2 - t1))))
+    return beta
+
+
 def minimum_curvature(md, inc, azi, start=(0.0, 0.0, 0.0)):
     """Positions of survey stations by the minimum-curvature method.
 
@@ -143,8 +153,7 @@ def minimum_curvature(md, inc, azi, start=(0.0, 0.0, 0.0)):
     pos[0] = start
     for i in range(md.size - 1):
         dmd = md[i + 1] - md[i]
-        cosb = float(np.clip(np.dot(t[i], t[i + 1]), -1.0, 1.0))
-        beta = math.acos(cosb)
+        beta = _dogleg(t[i], t[i + 1])
         rf = 1.0 if beta < 1e-9 else 2.0 / beta * math.tan(beta / 2.0)
         pos[i + 1] = pos[i] + dmd / 2.0 * (t[i] + t[i + 1]) * rf
     return pos
@@ -215,7 +224,7 @@ class WellPath:
         n = md.size - 1
         self._beta = np.empty(n)
         for i in range(n):
-            self._beta[i] = math.acos(float(np.clip(np.dot(self._t[i], self._t[i + 1]), -1, 1)))
+            self._beta[i] = _dogleg(self._t[i], self._t[i + 1])
 
     # --- constructors ------------------------------------------------------------------------
     @classmethod
