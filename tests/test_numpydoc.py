@@ -160,7 +160,6 @@ PENDING: set[tuple[str, str]] = {
     ("scenario/system.py", "check_fidelity"),
     ("scenario/system.py", "is_system_dialect"),
     ("scenario/system.py", "run_system_scenario"),
-    ("scenario/system.py", "steady_bit_state"),
     ("scenario/system.py", "validate_system_scenario"),
     ("scenario/torque_drag.py", "run_torque_drag"),
     ("scenario/torque_drag.py", "torque_drag_case"),
@@ -192,6 +191,8 @@ PENDING: set[tuple[str, str]] = {
     ("string/fem.py", "fem_from_nodes"),
     ("string/fem.py", "table_5_1_setup"),
     ("string/torque_drag.py", "md_nodes"),
+    ("system.py", "steady_bit_state"),
+    ("system.py", "wave_points"),
 }
 
 
