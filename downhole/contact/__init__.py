@@ -1,25 +1,6 @@
 """Wellbore contact: soft-string normal force and regularized, implicitly applied friction."""
 
-from downhole.contact.softstring import (
-                                         ELEM_LAYOUT,
-                                         contact_elements,
-                                         element_normal_half,
-                                         friction_damper,
-                                         friction_forces,
-                                         nodal_friction_forces,
-                                         normal_force_per_length,
-                                         normal_weight,
-                                         soft_string_normal_force,
-)
+from downhole.contact import softstring as _softstring
+from downhole.contact.softstring import *  # noqa: F403 -- re-exported: the public names of downhole.contact.softstring
 
-__all__ = [
-                                         "ELEM_LAYOUT",
-                                         "contact_elements",
-                                         "element_normal_half",
-                                         "friction_damper",
-                                         "friction_forces",
-                                         "nodal_friction_forces",
-                                         "normal_force_per_length",
-                                         "normal_weight",
-                                         "soft_string_normal_force",
-]
+__all__ = list(_softstring.__all__)

@@ -11,12 +11,12 @@ Z-torque, SoftSpeed-tuned soft torque, the stiff top-drive PI and an auto-drille
 from downhole.control.autodriller import AutoDriller, autodriller_gains
 from downhole.control.base import Controller, check_pair, run_closed_loop
 from downhole.control.softspeed import (
-                                        SoftSpeed,
-                                        TopDriveSpeedPI,
-                                        reflection_coefficient,
-                                        softspeed_tuning,
-                                        stick_slip_frequency,
-                                        top_drive_impedance,
+    SoftSpeed,
+    TopDriveSpeedPI,
+    reflection_coefficient,
+    softspeed_tuning,
+    stick_slip_frequency,
+    top_drive_impedance,
 )
 from downhole.control.ztorque import ZTorque, torsional_impedance
 
@@ -25,18 +25,18 @@ BASELINES = {"ztorque": ZTorque, "softspeed": SoftSpeed, "stiff_pi": TopDriveSpe
              "autodriller": AutoDriller}
 
 __all__ = [
-                                        "BASELINES",
-                                        "AutoDriller",
-                                        "Controller",
-                                        "SoftSpeed",
-                                        "TopDriveSpeedPI",
-                                        "ZTorque",
-                                        "autodriller_gains",
-                                        "check_pair",
-                                        "reflection_coefficient",
-                                        "run_closed_loop",
-                                        "softspeed_tuning",
-                                        "stick_slip_frequency",
-                                        "top_drive_impedance",
-                                        "torsional_impedance",
+    "BASELINES",
+    "AutoDriller",
+    "Controller",
+    "SoftSpeed",
+    "TopDriveSpeedPI",
+    "ZTorque",
+    "autodriller_gains",
+    "check_pair",
+    "reflection_coefficient",
+    "run_closed_loop",
+    "softspeed_tuning",
+    "stick_slip_frequency",
+    "top_drive_impedance",
+    "torsional_impedance",
 ]

@@ -6,13 +6,13 @@ from downhole.params.presets import PRESETS, Preset, get_preset
 from downhole.params.strings import DirectionalWellParams, NeutralStringParams, PipeSection
 
 __all__ = [
-           "PRESETS",
-           "BitParams",
-           "DirectionalWellParams",
-           "LumpedParams",
-           "NeutralStringParams",
-           "PipeSection",
-           "Preset",
-           "TwelfthOrderSplit",
-           "get_preset",
+    "PRESETS",
+    "BitParams",
+    "DirectionalWellParams",
+    "LumpedParams",
+    "NeutralStringParams",
+    "PipeSection",
+    "Preset",
+    "TwelfthOrderSplit",
+    "get_preset",
 ]

@@ -6,10 +6,10 @@ from downhole.report.html import CHAPTERS, build_index
 from downhole.report.reproduce import machine_description, reproduce, run_one
 
 __all__ = [
-           "CHAPTERS",
-           "bench_markdown",
-           "build_index",
-           "machine_description",
-           "reproduce",
-           "run_one",
+    "CHAPTERS",
+    "bench_markdown",
+    "build_index",
+    "machine_description",
+    "reproduce",
+    "run_one",
 ]

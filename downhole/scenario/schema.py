@@ -3,20 +3,7 @@ command reads (``TABLES``), the renames of the older dialects (``RENAMES``, ``VA
 and the reader every command uses (``read_scenario``: the hardened reader, then
 ``check_dialect``)."""
 
-from downhole._schema import (
-                              RENAMES,
-                              TABLES,
-                              VALUE_RENAMES,
-                              check_dialect,
-                              raise_validation,
-                              read_scenario,
-)
+from downhole import _schema
+from downhole._schema import *  # noqa: F403 -- re-exported: the public names of downhole._schema
 
-__all__ = [
-                              "RENAMES",
-                              "TABLES",
-                              "VALUE_RENAMES",
-                              "check_dialect",
-                              "raise_validation",
-                              "read_scenario",
-]
+__all__ = list(_schema.__all__)

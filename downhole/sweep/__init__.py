@@ -11,27 +11,27 @@ See ``docs/sweeps.md``.
 
 from downhole.sweep.plots import REGIMES, classify_regimes, plot_sweep, stability_map
 from downhole.sweep.runner import (
-                                   failed_cases,
-                                   load_sweep,
-                                   load_sweep_file,
-                                   run_cases,
-                                   run_sweep,
-                                   save_sweep,
+    failed_cases,
+    load_sweep,
+    load_sweep_file,
+    run_cases,
+    run_sweep,
+    save_sweep,
 )
 from downhole.sweep.spec import METRICS, ParamSpec, parse_param
 
 __all__ = [
-                                   "METRICS",
-                                   "REGIMES",
-                                   "ParamSpec",
-                                   "classify_regimes",
-                                   "failed_cases",
-                                   "load_sweep",
-                                   "load_sweep_file",
-                                   "parse_param",
-                                   "plot_sweep",
-                                   "run_cases",
-                                   "run_sweep",
-                                   "save_sweep",
-                                   "stability_map",
+    "METRICS",
+    "REGIMES",
+    "ParamSpec",
+    "classify_regimes",
+    "failed_cases",
+    "load_sweep",
+    "load_sweep_file",
+    "parse_param",
+    "plot_sweep",
+    "run_cases",
+    "run_sweep",
+    "save_sweep",
+    "stability_map",
 ]

@@ -1,21 +1,6 @@
 """Well trajectories: sections, survey import and minimum-curvature geometry along measured depth."""
 
-from downhole.well.path import (
-                                Arc,
-                                BuildTurn,
-                                Tangent,
-                                Vertical,
-                                WellPath,
-                                minimum_curvature,
-                                read_survey_csv,
-)
+from downhole.well import path as _path
+from downhole.well.path import *  # noqa: F403 -- re-exported: the public names of downhole.well.path
 
-__all__ = [
-                                "Arc",
-                                "BuildTurn",
-                                "Tangent",
-                                "Vertical",
-                                "WellPath",
-                                "minimum_curvature",
-                                "read_survey_csv",
-]
+__all__ = list(_path.__all__)
