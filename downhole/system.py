@@ -70,7 +70,20 @@ def wave_points(well: WellPath, string: DrillString) -> tuple[float, float]:
     """Default measured depths (B, C) of the hybrid model's wave segment for ``string`` hanging
     in ``well`` (bit at total depth): B at two thirds and C at the end of the vertical part
     above the kick-off point (the station before the first inclined one), or at two thirds and
-    90 % of the string when the well is vertical."""
+    90 % of the string when the well is vertical.
+
+    Parameters
+    ----------
+    well : WellPath
+        The well (bit at its total depth).
+    string : DrillString
+        The string hanging in it.
+
+    Returns
+    -------
+    tuple of (float, float)
+        Measured depths of B and C, m.
+    """
     st = well.stations
     top = well.total_depth - string.length
     below = st["md"] > top + 1e-9

@@ -81,7 +81,6 @@ PENDING: set[tuple[str, str]] = {
     ("control/dhp/plan.py", "planned_controller"),
     ("control/dhp/riccati.py", "draw_offsets"),
     ("control/dhp/riccati.py", "train_riccati"),
-    ("control/dhp/weight_sets.py", "weight_set"),
     ("control/dp/__init__.py", "solve"),
     ("control/dp/kernels.py", "advance"),
     ("control/dp/kernels.py", "backward_plain"),
@@ -109,9 +108,6 @@ PENDING: set[tuple[str, str]] = {
     ("control/eid/references.py", "envelope_tracking_reference"),
     ("control/eid/references.py", "startup_reference"),
     ("control/eid/references.py", "startup_time"),
-    ("control/eid/schedule.py", "closed_loop_margin"),
-    ("control/eid/schedule.py", "open_loop_abscissa"),
-    ("control/eid/schedule.py", "operating_point"),
     ("control/eid/stability.py", "bit_rock_open_loop_roots"),
     ("control/eid/stability.py", "channel_loop_matrices"),
     ("control/eid/stability.py", "characteristic_roots"),
@@ -192,7 +188,6 @@ PENDING: set[tuple[str, str]] = {
     ("string/fem.py", "table_5_1_setup"),
     ("string/torque_drag.py", "md_nodes"),
     ("system.py", "steady_bit_state"),
-    ("system.py", "wave_points"),
 }
 
 

@@ -43,6 +43,16 @@ def weight_set_names() -> tuple[str, ...]:
 def weight_set(name: str) -> dict:
     """The preset ``name`` as keyword arguments of ``PenaltyWeights`` (a fresh dict).
 
+    Parameters
+    ----------
+    name : str
+        One of :data:`WEIGHT_SETS` (``design``, ``robust``, ``planned``).
+
+    Returns
+    -------
+    dict
+        The penalty weights, a fresh copy.
+
     Raises
     ------
     DownholeInputError

@@ -104,6 +104,24 @@ def operating_point(model, rop: float, omega: float, *, max_depth_of_cut: float 
     revolution, e.g. the cutter exposure times the number of blades; None: no limit), if the
     torque on bit is not positive, or if a command is outside ``u_limits`` (plant units, the axial
     one relative to the hanging equilibrium, as :class:`EIDController.u_limits`).
+
+    Parameters
+    ----------
+    model : NeutralModel
+        The neutral-type plant.
+    rop : float
+        Rate of penetration, m/s (> 0).
+    omega : float
+        Bit rotary speed, rad/s (> 0).
+    max_depth_of_cut : float, optional
+        The bit's limit, m per revolution; None: no limit.
+    u_limits : tuple of (float, float) pairs
+        Admissible axial and torsional commands, plant units.
+
+    Returns
+    -------
+    OperatingPoint
+        The steady state and whether (and why not) it is reachable.
     """
     from downhole.bit.law import bit_forces_py
 
@@ -134,7 +152,22 @@ def operating_point(model, rop: float, omega: float, *, max_depth_of_cut: float 
 def open_loop_abscissa(model, rop: float, omega: float) -> tuple[float, float]:
     """(growth rate 1/s, frequency rad/s) of the rightmost root of the open-loop plant linearized
     with the delayed depth of cut (:func:`~downhole.control.eid.stability.
-    bit_rock_open_loop_roots`), leaving out the drift root s = 0 of the bit position."""
+    bit_rock_open_loop_roots`), leaving out the drift root s = 0 of the bit position.
+
+    Parameters
+    ----------
+    model : NeutralModel
+        The neutral-type plant.
+    rop : float
+        Rate of penetration, m/s.
+    omega : float
+        Bit rotary speed, rad/s.
+
+    Returns
+    -------
+    tuple of (float, float)
+        Growth rate (1/s; ``-inf`` without roots) and frequency (rad/s).
+    """
     from downhole.control.eid.stability import bit_rock_open_loop_roots
 
     r = [z for z in bit_rock_open_loop_roots(model, rop, omega) if abs(z) > 1e-6]
@@ -146,7 +179,25 @@ def open_loop_abscissa(model, rop: float, omega: float) -> tuple[float, float]:
 def closed_loop_margin(c, model, rop: float, omega: float) -> dict:
     """Linearized closed loop with the delayed depth of cut of an EIDController
     (:func:`~downhole.control.eid.stability.regenerative_closed_loop`) or a PredictiveEID
-    (:func:`~downhole.control.eid.predictor.predictive_closed_loop`) at (rop, omega)."""
+    (:func:`~downhole.control.eid.predictor.predictive_closed_loop`) at (rop, omega).
+
+    Parameters
+    ----------
+    c : EIDController or PredictiveEID
+        The controller.
+    model : NeutralModel
+        The neutral-type plant.
+    rop : float
+        Rate of penetration, m/s.
+    omega : float
+        Bit rotary speed, rad/s.
+
+    Returns
+    -------
+    dict
+        The characteristic roots and spectral abscissa of the linearized loop (the keys of
+        the function called).
+    """
     from downhole.control.eid.predictor import PredictiveEID, predictive_closed_loop
     from downhole.control.eid.stability import regenerative_closed_loop
 
