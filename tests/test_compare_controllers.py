@@ -23,6 +23,7 @@ from downhole.compare import (
     gym_policy,
     register,
 )
+from downhole.compare.builtin import EID_DELAYED_SERVO
 from downhole.compare.runner import case_plant, score_run
 from downhole.compare.suite import NOISE, Case
 from downhole.control.base import Controller
@@ -110,10 +111,10 @@ def test_smoke_scores_are_physically_sensible(smoke_run):
     assert abs(zero["mean_rop"]) < 1e-4
     assert zero["stuck_fraction"] > 0.95
     assert zero["time_to_suppress"] is None
-    # n/a with the reason check_pair gives
-    assert cells["eid"]["status"] == "n/a"
-    assert "top_drive_axial_velocity" in cells["eid"]["reason"]
-    assert cells["dhp"]["status"] == "n/a" and "'state'" in cells["dhp"]["reason"]
+    # EID's block-velocity servo cannot run through the case's actuator delay (n/a with the
+    # reason); DHP runs from the surface observer through the rig's hook and speed PI
+    assert cells["eid"] == {"status": "n/a", "reason": EID_DELAYED_SERVO}
+    assert cells["dhp"]["status"] == "ok"
 
 
 def test_a_python_object_a_factory_and_a_gym_policy_through_the_api(tmp_path):
@@ -326,8 +327,7 @@ def test_a_factory_or_a_controller_that_raises_fails_its_cell_only():
     assert s["summary"]["broken"]["failed"] == 1
 
 
-def test_a_saved_dhp_is_scored_from_its_file_and_is_na_where_the_plant_lacks_its_state(
-        tmp_path):
+def test_a_saved_dhp_not_trained_on_a_directional_fem_is_na_with_the_reason(tmp_path):
     from downhole.control.dhp import DHPController
     from downhole.control.dhp.references import BitReference
 
@@ -342,8 +342,9 @@ def test_a_saved_dhp_is_scored_from_its_file_and_is_na_where_the_plant_lacks_its
                "--controller", str(tmp_path / "my_dhp.json")])
     assert rc == 0
     cell = json.loads((out / "scores.json").read_text())["cells"][SMOKE.id]["my_dhp"]
-    assert cell == {"status": "n/a", "reason": "DHPController needs ['state'], which "
-                    "DirectionalPlant does not observe"}
+    assert cell == {"status": "n/a", "reason": "my_dhp was not trained on a directional FEM "
+                    "design model (model '?'), the only DHP design the benchmark's surface "
+                    "observer runs on"}
 
 
 @pytest.mark.parametrize("change, message", [
