@@ -293,12 +293,38 @@ def _on_rig(dhp, dm, des, system, case):
                         top_drive=system.rig.top_drive)
 
 
+def _design_of(system, n_nodes: int, name: str, weight: float, label: str):
+    """The design FEM of ``system`` a DHP with this design (node count, model name, hanging hook
+    load) was trained on: a coarse FEM of the system (``n_nodes - 1`` elements) or the design
+    FEM of its ``hybrid24`` model (the Ch. 4 24-state FEM); (None, reason) when neither is."""
+    cands = []
+    try:
+        cands.append(system.build("fem", n_elements=n_nodes - 1))
+    except DownholeInputError:
+        pass
+    if name.startswith("hybrid"):
+        try:
+            cands.append(system.build("hybrid", preset="hybrid24").design_model())
+        except DownholeInputError:
+            pass
+    for dm in cands:
+        if dm.name == name and dm.design_model().n_nodes == n_nodes \
+                and abs(dm.buoyed_weight - weight) <= 1e-6 * dm.buoyed_weight:
+            return dm, ""
+    here = float(system.hanging_weight())
+    return None, (f"{label} was trained on another string or mesh: its design FEM {name!r} "
+                  f"({n_nodes} nodes) hangs {weight / 1e3:.3f} kN; no FEM of this case's "
+                  f"string with {n_nodes - 1} elements, nor its hybrid24 design FEM, matches "
+                  f"it (the string hangs {here / 1e3:.3f} kN)")
+
+
 def dhp_for_case(dhp, label: str = "dhp"):
     """A benchmark factory ``(system, case) -> controller`` for a trained DHP (e.g. loaded from
-    a file): n/a unless it was trained on a directional design model of the case's string (the
-    same node count and hanging hook load as a coarse FEM of the case's system, and the case's
-    step) and the case's hook takes a hook load; otherwise :func:`observed_dhp` on the FEM of
-    the case's system with the DHP's node count."""
+    a file): n/a unless it was trained on a directional design FEM of the case's string (the
+    model name, node count and hanging hook load of a coarse FEM of the case's system or of its
+    ``hybrid24`` design FEM, :func:`_design_of`) at the case's step, and the case's hook takes
+    a hook load; otherwise :func:`observed_dhp` on that FEM. The DHP tracks the reference it
+    was trained for (it ignores the case's)."""
     from downhole.compare.runner import NotApplicable
 
     model = dhp.meta.get("model") if isinstance(dhp.meta.get("model"), dict) else {}
@@ -315,17 +341,10 @@ def dhp_for_case(dhp, label: str = "dhp"):
         if abs(dhp.dt - case.dt) > 1e-12:
             raise NotApplicable(f"{label} runs every {dhp.dt:g} s; the case steps every "
                                 f"{case.dt:g} s")
-        n_el = int(md["n_nodes"]) - 1
-        try:
-            dm = system.build("fem", n_elements=n_el)
-        except DownholeInputError as exc:
-            raise NotApplicable(f"{label}'s design has {n_el} elements; the case's string "
-                                f"cannot be meshed so coarsely: {exc}") from None
-        w_dhp = float(model.get("hanging_hook_load") or 0.0)
-        if abs(dm.buoyed_weight - w_dhp) > 1e-6 * dm.buoyed_weight:
-            raise NotApplicable(f"{label} was not trained on this case's string (its design's "
-                                f"hanging hook load is {w_dhp / 1e3:.3f} kN, this string's "
-                                f"{dm.buoyed_weight / 1e3:.3f} kN)")
+        dm, why = _design_of(system, int(md["n_nodes"]), str(md.get("model", "")),
+                             float(model.get("hanging_hook_load") or 0.0), label)
+        if dm is None:
+            raise NotApplicable(why)
         from downhole.control.dhp.directional import directional_affine_model
 
         des = directional_affine_model(dm, dhp.dt)
