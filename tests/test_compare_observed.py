@@ -159,3 +159,28 @@ def test_dhp_built_in_and_from_a_file_score_and_hold_a_smooth_point(tmp_path):
     ch3 = STANDARD["ch3-wob-ss-cycle"]
     with pytest.raises(NotApplicable, match="^mine was trained on another string or mesh"):
         mine(ch3.drilling_system(), ch3)
+
+
+def test_a_dhp_trained_on_the_ch4_fem24_is_rebuilt_on_the_table_5_1_cases(tmp_path):
+    """A DHP trained on the Ch. 4 24-state FEM (the hybrid24 design FEM, as
+    examples/dhp_step_fem24.toml trains it) runs on the Table 5.1 cases of the suite: its
+    observer is rebuilt on that FEM of the case's system (the same nodes), the pair fits the
+    case's plant; on another string it is n/a."""
+    from downhole.compare import load_controller_spec
+    from downhole.control.base import check_pair
+    from downhole.control.dhp import BitReference, DHPSettings, design_dhp
+    from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
+
+    fem24, _ = table_5_1_models()
+    dhp = design_dhp(directional_affine_model(fem24), BitReference.step(0.01, 20.0),
+                     horizon=1.0, settings=DHPSettings(method="riccati", n_samples=50))
+    dhp.save(tmp_path / "fem24")
+    spec = load_controller_spec(tmp_path / "fem24.json")
+    case = STANDARD["t51-ss-rest"]
+    system = case.drilling_system()
+    ctrl = spec(system, case)
+    assert list(ctrl.inner.estimator.est.kf.A.shape) == [26, 26]      # 24 states + 2 forces
+    assert check_pair(ctrl, case_plant(case, system).inner) is None
+    hz = STANDARD["hz-smooth-steady"]
+    with pytest.raises(NotApplicable, match="^fem24 was trained on another string or mesh"):
+        spec(hz.drilling_system(), hz)
