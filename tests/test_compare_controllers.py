@@ -270,6 +270,25 @@ def test_cells_in_worker_processes_score_as_in_this_process():
     assert one["cells"] == two["cells"]
 
 
+#: The n/a cells of EID and DHP left on the standard suite, with their reasons (measured).
+DHP_VELOCITY_HOOK = ("DHP sets the slack-off force (the hook load) and this case's hook is a "
+                     "block velocity servo, which takes a block velocity: no hook load to set")
+EID_CH2_LMI = ("EID design: EID LMI infeasible on the axial channel: constraint family "
+               "'Theorem 1 LMI (Eq. 3.27) < 0' cannot be satisfied (solver status infeasible)")
+EID_HZ_LMI = EID_CH2_LMI.replace("axial", "torsional")
+STANDARD_NA = {
+    ("ch2-ss-rest", "eid"): EID_CH2_LMI,
+    ("ch2-ss-cycle-noisy", "eid"): EID_DELAYED_SERVO,
+    ("ch2-smooth-steady", "eid"): EID_CH2_LMI,
+    ("ch3-rop-ss-rest", "dhp"): DHP_VELOCITY_HOOK,
+    ("ch3-rop-smooth-steady-noisy", "dhp"): DHP_VELOCITY_HOOK,
+    ("t51-ss-cycle-noisy", "eid"): EID_DELAYED_SERVO,
+    ("j-smooth-steady-noisy", "eid"): EID_DELAYED_SERVO,
+    ("hz-ss-cycle-noisy", "eid"): EID_DELAYED_SERVO,
+    ("hz-smooth-steady", "eid"): EID_HZ_LMI,
+}
+
+
 @pytest.mark.slow
 def test_standard_suite_scores_every_builtin(tmp_path):
     scores = compare_controllers(None, suite="standard", out=tmp_path / "std", jobs=2)
@@ -282,12 +301,12 @@ def test_standard_suite_scores_every_builtin(tmp_path):
             assert sev > 0.5, cid
         else:
             assert sev < 0.1, cid
-        assert row["dhp"]["status"] == "n/a"
         for label in ("stiff-pi", "soft-torque", "z-torque"):
             assert row[label]["status"] == "ok", (cid, label, row[label])
-    # EID runs where the hook is velocity-driven (its axial command), and is n/a elsewhere
-    for cid, c in cases.items():
-        assert (scores["cells"][cid]["eid"]["status"] != "n/a") == (c["hook"] == "velocity"), cid
+    # EID and DHP are scored wherever the rig allows; what is left is n/a with its reason
+    na = {(cid, label): cell["reason"] for cid, row in scores["cells"].items()
+          for label, cell in row.items() if label in ("eid", "dhp") and cell["status"] != "ok"}
+    assert na == STANDARD_NA
     assert (tmp_path / "std" / "index.html").is_file()
 
 

@@ -13,7 +13,8 @@ needs its design model's full state; :func:`observed_dhp` runs it through
   buoyed weight) and the surface torque a speed set-point: the rig's PI gives the motor torque
   ``T = kp (w_sp - w) + ki e`` with ``e`` the integral of ``w_sp - w``, so the set-point
   ``w_sp = (T - ki e + kp w) / kp`` (``e`` advanced with the set-point) makes the drive apply
-  the torque DHP asked for (within the drive's speed range, ``downhole.signals``). The
+  the torque DHP asked for (within the drive's speed range, ``downhole.signals``; the hook load
+  within its range: a hook cannot push, so the slack-off is at most the weight ``W``). The
   adapter's integral starts from the surface torque it first reads (the drive in equilibrium,
   ``T = T_surface``).
 
@@ -81,6 +82,8 @@ class RigActuators(Controller):
 
         sig = signal("top_drive_angular_velocity")
         self._w_range = (float(sig.low), float(sig.high))
+        sig = signal("hook_load")
+        self._h_range = (float(sig.low), float(sig.high))
 
     @property
     def dt(self):
@@ -112,8 +115,10 @@ class RigActuators(Controller):
         w_sp = w + (torque - self.ki * self._e) / (self.kp + self.ki * self._dt)
         w_sp = min(max(w_sp, self._w_range[0]), self._w_range[1])   # the drive's speed range
         self._e += self._dt * (w_sp - w)
-        return {"hook_load": self.weight - float(cmd["slack_off_force"]),
-                "top_drive_angular_velocity": w_sp}
+        # a hook holds, it cannot push: the slack-off force is at most the string's weight
+        hook = min(max(self.weight - float(cmd["slack_off_force"]), self._h_range[0]),
+                   self._h_range[1])
+        return {"hook_load": hook, "top_drive_angular_velocity": w_sp}
 
 
 class VelocityServo(Controller):
@@ -149,6 +154,10 @@ class VelocityServo(Controller):
         self.needs = inner_needs + tuple(s for s in ("top_drive_axial_velocity", "hook_load")
                                          if s not in inner_needs)
         self.label = getattr(inner, "label", type(inner).__name__)
+        from downhole.signals import signal
+
+        sig = signal("hook_load")
+        self._h_range = (float(sig.low), float(sig.high))
 
     @property
     def dt(self):
@@ -174,7 +183,8 @@ class VelocityServo(Controller):
         cmd = dict(self.inner.command(t, observation, reference))
         v_cmd = float(cmd.pop("top_drive_axial_velocity"))
         self._e += self._dt * (v_cmd - v)
-        cmd["hook_load"] = self.h0 - self.k * self._e - self.c * (v_cmd - v)
+        hook = self.h0 - self.k * self._e - self.c * (v_cmd - v)
+        cmd["hook_load"] = min(max(hook, self._h_range[0]), self._h_range[1])  # cannot push
         return {c: float(cmd[c]) for c in self.commands}
 
 
