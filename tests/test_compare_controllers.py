@@ -271,8 +271,6 @@ def test_cells_in_worker_processes_score_as_in_this_process():
 
 
 #: The n/a cells of EID and DHP left on the standard suite, with their reasons (measured).
-DHP_VELOCITY_HOOK = ("DHP sets the slack-off force (the hook load) and this case's hook is a "
-                     "block velocity servo, which takes a block velocity: no hook load to set")
 EID_CH2_LMI = ("EID design: EID LMI infeasible on the axial channel: constraint family "
                "'Theorem 1 LMI (Eq. 3.27) < 0' cannot be satisfied (solver status infeasible)")
 EID_HZ_LMI = EID_CH2_LMI.replace("axial", "torsional")
@@ -280,8 +278,6 @@ STANDARD_NA = {
     ("ch2-ss-rest", "eid"): EID_CH2_LMI,
     ("ch2-ss-cycle-noisy", "eid"): EID_DELAYED_SERVO,
     ("ch2-smooth-steady", "eid"): EID_CH2_LMI,
-    ("ch3-rop-ss-rest", "dhp"): DHP_VELOCITY_HOOK,
-    ("ch3-rop-smooth-steady-noisy", "dhp"): DHP_VELOCITY_HOOK,
     ("t51-ss-cycle-noisy", "eid"): EID_DELAYED_SERVO,
     ("j-smooth-steady-noisy", "eid"): EID_DELAYED_SERVO,
     ("hz-ss-cycle-noisy", "eid"): EID_DELAYED_SERVO,

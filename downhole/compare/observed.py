@@ -35,8 +35,8 @@ import math
 from downhole.control.base import Controller
 from downhole.errors import DownholeInputError
 
-__all__ = ["DHP_SIGNALS", "RigActuators", "VelocityServo", "builtin_dhp", "design_fem", "dhp_for_case",
-           "observed_dhp"]
+__all__ = ["DHP_SIGNALS", "RigActuators", "VelocityServo", "builtin_dhp", "design_fem",
+           "dhp_for_case", "observed_dhp"]
 
 #: Surface signals the actuator adapter reads on top of its inner controller's.
 RIG_SIGNALS = ("surface_torque", "top_drive_angular_velocity", "time")
@@ -59,11 +59,16 @@ class RigActuators(Controller):
         at a hand-over assumes the PI was running on it.
     dt : float
         Step, s.
+    hook_servo : (float, float, float), optional
+        On a velocity-driven hook: its servo's hook load at zero error (N), stiffness (N/m) and
+        damping (N s/m). The adapter then sets the block velocity at which the servo applies
+        the hook load ``W - S``: ``v_cmd = v + (H_0 - H - k e) / (c + k dt)``, ``e`` the servo's
+        position error (started from the hook load it first reads), the inverse of
+        :class:`VelocityServo` (within the block velocity's range, ``downhole.signals``).
     """
 
-    commands = ("hook_load", "top_drive_angular_velocity")
-
-    def __init__(self, inner, *, weight: float, kp: float, ki: float, speed: float, dt: float):
+    def __init__(self, inner, *, weight: float, kp: float, ki: float, speed: float, dt: float,
+                 hook_servo=None):
         for name, v in (("weight", weight), ("kp", kp), ("ki", ki), ("dt", dt)):
             if not (math.isfinite(v) and v > 0):
                 raise DownholeInputError(f"RigActuators: {name} must be > 0, got {v!r}")
@@ -75,8 +80,16 @@ class RigActuators(Controller):
         self.inner = inner
         self.weight, self.kp, self.ki = float(weight), float(kp), float(ki)
         self.speed, self._dt = float(speed), float(dt)
+        self.hook_servo = None if hook_servo is None else tuple(float(x) for x in hook_servo)
+        if self.hook_servo is not None and not (len(self.hook_servo) == 3 and all(
+                math.isfinite(x) and x > 0 for x in self.hook_servo[1:])):
+            raise DownholeInputError(f"RigActuators: hook_servo must be (hook load, stiffness "
+                                     f"> 0, damping > 0), got {hook_servo!r}")
+        axial = "hook_load" if self.hook_servo is None else "top_drive_axial_velocity"
+        self.commands = (axial, "top_drive_angular_velocity")
+        extra = RIG_SIGNALS + (() if self.hook_servo is None else ("hook_load",))
         inner_needs = tuple(getattr(inner, "needs", ()) or ())
-        self.needs = inner_needs + tuple(s for s in RIG_SIGNALS if s not in inner_needs)
+        self.needs = inner_needs + tuple(s for s in extra if s not in inner_needs)
         self.label = getattr(inner, "label", type(inner).__name__)
         from downhole.signals import signal
 
@@ -84,6 +97,8 @@ class RigActuators(Controller):
         self._w_range = (float(sig.low), float(sig.high))
         sig = signal("hook_load")
         self._h_range = (float(sig.low), float(sig.high))
+        sig = signal("top_drive_axial_velocity")
+        self._v_range = (float(sig.low), float(sig.high))
 
     @property
     def dt(self):
@@ -99,6 +114,7 @@ class RigActuators(Controller):
     def reset(self) -> None:
         self.inner.reset()
         self._e = None
+        self._ex = None
 
     def command(self, t, observation, reference=None) -> dict:
         if not hasattr(self, "_e"):
@@ -118,7 +134,17 @@ class RigActuators(Controller):
         # a hook holds, it cannot push: the slack-off force is at most the string's weight
         hook = min(max(self.weight - float(cmd["slack_off_force"]), self._h_range[0]),
                    self._h_range[1])
-        return {"hook_load": hook, "top_drive_angular_velocity": w_sp}
+        if self.hook_servo is None:
+            return {"hook_load": hook, "top_drive_angular_velocity": w_sp}
+        h0, k, c = self.hook_servo
+        v = float(observation["top_drive_axial_velocity"])
+        if self._ex is None:  # the servo's error now, the block settled on the top's velocity
+            self._ex = (h0 - float(observation["hook_load"])) / k
+        # H = H_0 - k (e + dt (v_cmd - v)) - c (v_cmd - v)  ->  v_cmd
+        v_cmd = v + (h0 - hook - k * self._ex) / (c + k * self._dt)
+        v_cmd = min(max(v_cmd, self._v_range[0]), self._v_range[1])   # the drawworks' range
+        self._ex += self._dt * (v_cmd - v)
+        return {"top_drive_axial_velocity": v_cmd, "top_drive_angular_velocity": w_sp}
 
 
 class VelocityServo(Controller):
@@ -259,13 +285,6 @@ BUILTIN_DHP_SAMPLES = 50
 _DESIGNS: dict = {}
 
 
-def _why_not_rig(case) -> str | None:
-    if case.hook != "force":
-        return ("DHP sets the slack-off force (the hook load) and this case's hook is a block "
-                "velocity servo, which takes a block velocity: no hook load to set")
-    return None
-
-
 def _design_for(system, dt):
     dm = design_fem(system)
     from downhole.control.dhp.directional import directional_affine_model
@@ -278,12 +297,8 @@ def builtin_dhp(system, case):
     system (:func:`design_fem`) for a step to the case's reference (see
     :data:`BUILTIN_DHP_HORIZON`), run from the surface through :func:`observed_dhp`. One
     training per system, rock and reference (cached in the process)."""
-    from downhole.compare.runner import NotApplicable
     from downhole.control.dhp import BitReference, DHPSettings, design_dhp
 
-    why = _why_not_rig(case)
-    if why:
-        raise NotApplicable(why)
     key = (case.system, case.epsilon_scale, case.speed, case.reference_rop(), case.dt)
     if key not in _DESIGNS:
         dm, des = _design_for(system, case.dt)
@@ -299,8 +314,12 @@ def _on_rig(dhp, dm, des, system, case):
     import copy
 
     weight = system.build("fem", n_elements=case.n_elements).buoyed_weight
+    servo = None
+    if case.hook == "velocity":
+        hk = system.rig.hook
+        servo = (weight - case.wob, hk.servo_stiffness, hk.servo_damping)
     return observed_dhp(copy.deepcopy(dhp), dm, des, case, weight=weight,
-                        top_drive=system.rig.top_drive)
+                        top_drive=system.rig.top_drive, hook_servo=servo)
 
 
 def _design_of(system, n_nodes: int, name: str, weight: float, label: str):
@@ -341,9 +360,6 @@ def dhp_for_case(dhp, label: str = "dhp"):
     md = model.get("metadata") or {}
 
     def factory(system, case):
-        why = _why_not_rig(case)
-        if why:
-            raise NotApplicable(why)
         if md.get("family") != "directional" or "n_nodes" not in md:
             raise NotApplicable(f"{label} was not trained on a directional FEM design model "
                                 f"(model {model.get('name', '?')!r}), the only DHP design the "
@@ -371,7 +387,7 @@ def dhp_for_case(dhp, label: str = "dhp"):
     return factory
 
 
-def observed_dhp(dhp, dmodel, design, case, *, weight: float, top_drive):
+def observed_dhp(dhp, dmodel, design, case, *, weight: float, top_drive, hook_servo=None):
     """``dhp`` (trained on ``design``, the affine model of ``dmodel``) on the case's rig: the
     surface observer (started at the reference, :class:`_FromReference`) and
     :class:`RigActuators`."""
@@ -382,4 +398,4 @@ def observed_dhp(dhp, dmodel, design, case, *, weight: float, top_drive):
     fb.estimator.kf.bit_params = dmodel.design_model().bit.kernel_params()
     fb.estimator = _FromReference(fb.estimator, _start_estimate(dhp, fb.estimator.kf, n))
     return RigActuators(fb, weight=weight, kp=top_drive.kp, ki=top_drive.ki, speed=case.speed,
-                        dt=case.dt)
+                        dt=case.dt, hook_servo=hook_servo)
