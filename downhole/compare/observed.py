@@ -253,7 +253,7 @@ class _FromReference:
         return self.est.update(seen, command)
 
 
-def _start_estimate(dhp, kf, n):
+def _start_estimate(dhp, kf, n, bitp):
     """The observer's state at the DHP reference's first step (see :class:`_FromReference`)."""
     import numpy as np
 
@@ -262,14 +262,9 @@ def _start_estimate(dhp, kf, n):
     z = np.asarray(dhp.reference_nd[0], float)[:n] * np.asarray(dhp.state_scale, float)[:n]
     iv, iw = kf.bit_indices
     v, w = float(z[iv]), float(z[iw])
-    bitp = dhp_bit(dhp, kf)
     wob, tob = bit_forces(approx_depth_of_cut(v, w, bitp), v, w, bitp)
     rest = np.array([wob, tob]) - kf.bit_jacobian @ np.array([v, w])
     return np.concatenate([z, rest])
-
-
-def dhp_bit(dhp, kf):
-    return kf.bit_params
 
 
 #: What a DHP on the rig reads: the observer's surface signals and the adapter's.
@@ -394,8 +389,8 @@ def observed_dhp(dhp, dmodel, design, case, *, weight: float, top_drive, hook_se
     from downhole.control.observer import dhp_from_surface
 
     fb = dhp_from_surface(dhp, dmodel, design=design)
-    n = dmodel.design_model().n_states
-    fb.estimator.kf.bit_params = dmodel.design_model().bit.kernel_params()
-    fb.estimator = _FromReference(fb.estimator, _start_estimate(dhp, fb.estimator.kf, n))
+    m = dmodel.design_model()
+    x0 = _start_estimate(dhp, fb.estimator.kf, m.n_states, m.bit.kernel_params())
+    fb.estimator = _FromReference(fb.estimator, x0)
     return RigActuators(fb, weight=weight, kp=top_drive.kp, ki=top_drive.ki, speed=case.speed,
                         dt=case.dt, hook_servo=hook_servo)
