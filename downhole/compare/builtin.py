@@ -21,14 +21,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from downhole.compare.runner import SetPoint
+from downhole.compare.observed import DHP_SIGNALS
+from downhole.compare.runner import NotApplicable, SetPoint
 from downhole.control.ztorque import ZTorque
 
 __all__ = ["BUILTIN", "Entry", "NotApplicable", "declared_stand_in", "register"]
-
-
-class NotApplicable(Exception):
-    """A controller cannot be built for a case; the message says why (the cell is ``n/a``)."""
 
 
 @dataclass(frozen=True)
@@ -106,26 +103,68 @@ def _z_torque(system, case):
     return ZTorque(_top_impedance(system), dt=case.dt)
 
 
-def _eid(system, case):
-    from downhole.control.eid import LMIInfeasible, design_eid
+_EID_DESIGNS: dict = {}
+
+
+def _eid_design_model(system):
+    """The neutral-type model (Eq. 3.13) EID is designed on, and a note when it leaves out the
+    wall friction (the neutral model cannot represent wall contact: the design takes the
+    string without it; the plant keeps it)."""
+    from dataclasses import replace
+
     from downhole.errors import DownholeInputError
 
     try:
-        model = system.build("neutral")
+        return system.build("neutral"), ""
+    except DownholeInputError as exc:
+        if "wall contact" not in str(exc):
+            raise NotApplicable(f"EID is designed on the neutral-type model, which this "
+                                f"system does not have: {exc}") from None
+    try:
+        return replace(system, friction=0.0).build("neutral"), "designed without wall friction"
     except DownholeInputError as exc:
         raise NotApplicable(f"EID is designed on the neutral-type model, which this system "
                             f"does not have: {exc}") from None
-    try:
-        ctrl = design_eid(model)
-    except LMIInfeasible as exc:
-        raise NotApplicable(f"EID design: {exc}") from None
+
+
+def _eid(system, case):
+    import copy
+
+    from downhole.control.eid import LMIInfeasible, design_eid
+
+    if case.hook == "force" and case.delay > 0:
+        raise NotApplicable(EID_DELAYED_SERVO)
+    key = (case.system, case.epsilon_scale)
+    if key not in _EID_DESIGNS:
+        model, _ = _eid_design_model(system)
+        try:
+            _EID_DESIGNS[key] = design_eid(model)
+        except LMIInfeasible as exc:
+            raise NotApplicable(f"EID design: {exc}") from None
+    ctrl = copy.deepcopy(_EID_DESIGNS[key])
     ctrl.dt = case.dt
-    return ctrl
+    if case.hook == "velocity":
+        return ctrl
+    from downhole.compare.observed import VelocityServo
+
+    hk = system.rig.hook
+    weight = system.build("fem", n_elements=case.n_elements).buoyed_weight
+    return VelocityServo(ctrl, hook_load0=weight - case.wob, stiffness=hk.servo_stiffness,
+                         damping=hk.servo_damping, dt=case.dt)
+
+
+#: Why EID is n/a on a force-hook case with an actuator delay.
+EID_DELAYED_SERVO = ("EID sets the block velocity and this case's hook takes a hook load: the "
+                     "block-velocity servo EID is designed for (damping 1e6 N s/m on the top "
+                     "node) would run through the case's actuator delay, which makes it "
+                     "unstable (smoke case: the hook load leaves its range 0.2 s after the "
+                     "hand-over)")
 
 
 def _dhp(system, case):
-    raise NotApplicable("the built-in DHP has no trained controller for this system: train one "
-                        "(downhole design dhp) and score it with --controller FILE.json")
+    from downhole.compare.observed import builtin_dhp
+
+    return builtin_dhp(system, case)
 
 
 register("stiff-pi", _stiff_pi, "the rig's stiff top-drive PI (Kp 1e4 N m s/rad, Ki 2e3 N m/rad) "
@@ -139,14 +178,15 @@ register("z-torque", _z_torque, "Z-torque: speed yields to surface torque by the
          "torsional impedance, mean torque low-passed at 10 s; reads surface torque",
          needs=("surface_torque",), commands=("top_drive_angular_velocity",),
          class_name="ZTorque")
-register("eid", _eid, "EID (Ch. 3) designed on the system's neutral-type model; reads the bit "
-         "velocities, sets block velocity and speed",
-         needs=("bit_axial_velocity", "bit_angular_velocity"),
-         commands=("top_drive_axial_velocity", "top_drive_angular_velocity"),
-         class_name="EIDController", cache_key=lambda case: (case.system, case.epsilon_scale))
-register("dhp", _dhp, "DHP (Ch. 4): full design-model state feedback, sets slack-off force and "
-         "surface torque", needs=("state",), commands=("slack_off_force", "surface_torque"),
-         class_name="DHPController")
+register("eid", _eid, "EID (Ch. 3) designed on the system's neutral-type model (without the "
+         "wall friction where the well has contact); reads the bit velocities, sets block "
+         "velocity (on a force hook through the rig's block-velocity servo in software) and "
+         "speed", needs=("bit_axial_velocity", "bit_angular_velocity"),
+         class_name="EIDController")
+register("dhp", _dhp, "DHP (Ch. 4) trained on the coarse FEM of the case's string for a step "
+         "to the case's reference, its state estimated from the surface (top-drive velocities "
+         "and angle, block velocity); its slack-off force and surface torque set through the "
+         "rig's hook and speed PI", needs=DHP_SIGNALS, class_name="DHPController")
 
 
 # ------------------------------------------------------------------ industrial baselines

@@ -88,9 +88,9 @@ def gym_policy(policy, *, label: str = "gym-policy", **options):
 
 
 def load_controller_spec(path, *, allow_code: bool = False):
-    """The controller in ``path`` for the benchmark: a saved DHP (``.json``/``.npz``; it
-    declares that it needs the design model's full ``state`` and sets its own inputs, so that
-    cases whose plant has neither are ``n/a``) or, with ``allow_code``, a Python file defining
+    """The controller in ``path`` for the benchmark: a saved DHP (``.json``/``.npz``; a
+    factory that runs it from the surface on the cases of the string it was trained on,
+    :func:`downhole.compare.observed.dhp_for_case`, and is ``n/a`` elsewhere with the reason) or, with ``allow_code``, a Python file defining
     ``make_controller(plant)`` (called with None) or ``controller``
     (:func:`downhole.sil.controllers.load_controller_file`).
 
@@ -112,8 +112,9 @@ def load_controller_spec(path, *, allow_code: bool = False):
         msg = str(exc).splitlines()[0] if str(exc) else ""
         raise DownholeInputError(f"controller file {p}: {type(exc).__name__}: {msg}") from None
     if p.suffix in (".json", ".npz"):
-        ctrl.needs = ("state",)
-        ctrl.commands = tuple(ctrl.input_names)
+        from downhole.compare.observed import dhp_for_case
+
+        return dhp_for_case(ctrl, label=p.stem)
     ctrl.label = getattr(ctrl, "label", None) or p.stem
     if not isinstance(getattr(ctrl, "label", None), str):
         ctrl.label = p.stem

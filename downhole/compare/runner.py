@@ -29,6 +29,7 @@ __all__ = [
     "TRUE_CHANNELS",
     "HandOver",
     "MeasuredPlant",
+    "NotApplicable",
     "SetPoint",
     "case_plant",
     "run_cell",
@@ -47,6 +48,10 @@ SUPPRESS_HOLD = 5.0
 
 #: Trace decimation for the report's plots (one sample in this many plant steps).
 TRACE_EVERY = 50
+
+
+class NotApplicable(Exception):
+    """A controller cannot be built for a case; the message says why (the cell is ``n/a``)."""
 
 
 class MeasuredPlant(Plant):
