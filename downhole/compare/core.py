@@ -245,14 +245,12 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
     local = [t for t in todo if jobs == 1 or not _picklable(t[2])]
     remote = [t for t in todo if not any(t is x for x in local)]
     if remote:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from concurrent.futures import as_completed
         from concurrent.futures.process import BrokenProcessPool
 
-        from downhole._workers import broken_pool_error
+        from downhole._workers import broken_pool_error, worker_pool
 
-        with ProcessPoolExecutor(max_workers=jobs,
-                                 mp_context=multiprocessing.get_context("spawn")) as pool:
+        with worker_pool(jobs) as pool:
             futures = {pool.submit(_work, (case, ctrl, traces)): (case.id, label)
                        for case, label, ctrl in remote}
             for fut in as_completed(futures):

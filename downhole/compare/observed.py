@@ -216,7 +216,20 @@ class VelocityServo(Controller):
 
 def design_fem(system, *, min_elements: int = 5):
     """The coarse FEM of ``system`` that DHP and its observer are designed on: 5 elements (the
-    24 states of Ch. 4) or one per well/string section where it has more."""
+    24 states of Ch. 4) or one per well/string section where it has more.
+
+    Parameters
+    ----------
+    system : DrillingSystem
+        The case's system.
+    min_elements : int
+        Fewest elements tried; raised until the mesh takes every section.
+
+    Returns
+    -------
+    DirectionalModel
+        The design FEM.
+    """
     n = min_elements
     while True:
         try:
@@ -291,7 +304,20 @@ def builtin_dhp(system, case):
     """The built-in DHP of ``case`` (benchmark factory): trained on the coarse FEM of the case's
     system (:func:`design_fem`) for a step to the case's reference (see
     :data:`BUILTIN_DHP_HORIZON`), run from the surface through :func:`observed_dhp`. One
-    training per system, rock and reference (cached in the process)."""
+    training per system, rock and reference (cached in the process).
+
+    Parameters
+    ----------
+    system : DrillingSystem
+        The case's system.
+    case : Case
+        The benchmark case (reference, rock, step, rig).
+
+    Returns
+    -------
+    controller
+        The observed, actuator-adapted DHP.
+    """
     from downhole.control.dhp import BitReference, DHPSettings, design_dhp
 
     key = (case.system, case.epsilon_scale, case.speed, case.reference_rop(), case.dt)
@@ -348,7 +374,20 @@ def dhp_for_case(dhp, label: str = "dhp"):
     model name, node count and hanging hook load of a coarse FEM of the case's system or of its
     ``hybrid24`` design FEM, :func:`_design_of`) at the case's step, and the case's hook takes
     a hook load; otherwise :func:`observed_dhp` on that FEM. The DHP tracks the reference it
-    was trained for (it ignores the case's)."""
+    was trained for (it ignores the case's).
+
+    Parameters
+    ----------
+    dhp : DHPController
+        The trained controller.
+    label : str
+        Its name in the score table.
+
+    Returns
+    -------
+    callable
+        ``(system, case) -> controller``, raising ``NotApplicable`` with the reason.
+    """
     from downhole.compare.runner import NotApplicable
 
     model = dhp.meta.get("model") if isinstance(dhp.meta.get("model"), dict) else {}
@@ -385,7 +424,30 @@ def dhp_for_case(dhp, label: str = "dhp"):
 def observed_dhp(dhp, dmodel, design, case, *, weight: float, top_drive, hook_servo=None):
     """``dhp`` (trained on ``design``, the affine model of ``dmodel``) on the case's rig: the
     surface observer (started at the reference, :class:`_FromReference`) and
-    :class:`RigActuators`."""
+    :class:`RigActuators`.
+
+    Parameters
+    ----------
+    dhp : DHPController
+        The trained controller.
+    dmodel : DirectionalModel
+        Its design FEM.
+    design : ControlAffineModel
+        The affine model ``dhp`` was trained on.
+    case : Case
+        The benchmark case.
+    weight : float
+        Buoyed weight of the case's string, N (hook load = weight - slack-off).
+    top_drive : TopDrive
+        The case's top drive (PI gains, speed range).
+    hook_servo : optional
+        The case's velocity-hook servo, when the hook takes block velocities.
+
+    Returns
+    -------
+    controller
+        The observer-fed DHP with rig actuators.
+    """
     from downhole.control.observer import dhp_from_surface
 
     fb = dhp_from_surface(dhp, dmodel, design=design)
