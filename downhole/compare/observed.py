@@ -440,8 +440,9 @@ def observed_dhp(dhp, dmodel, design, case, *, weight: float, top_drive, hook_se
         Buoyed weight of the case's string, N (hook load = weight - slack-off).
     top_drive : TopDrive
         The case's top drive (PI gains, speed range).
-    hook_servo : optional
-        The case's velocity-hook servo, when the hook takes block velocities.
+    hook_servo : (float, float, float), optional
+        (hook load at zero error N, stiffness N/m, damping N s/m) of the case's velocity hook,
+        when it takes block velocities; None for a hook that takes hook loads.
 
     Returns
     -------
