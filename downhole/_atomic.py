@@ -445,6 +445,7 @@ class OutputFolder:
         self.owned = tuple(owned)
         self.command = command or "run"
         self._marked = False
+        self._created = False
         self._lock = _Lock(self.path / LOCK_NAME, f"output folder {self.path}")
 
     @property
@@ -452,6 +453,7 @@ class OutputFolder:
         return self.path / MARKER
 
     def _mark(self) -> None:
+        self._created = not self.path.exists()
         self.path.mkdir(parents=True, exist_ok=True)
         self._lock.acquire()
         write_text_atomic(self.marker, _marker_text(self.command, "started"))
@@ -498,8 +500,24 @@ class OutputFolder:
         if exc_type is None:
             self.writing()
             self.commit()
+        elif (self._created and issubclass(exc_type, DownholeInputError)
+              and self._only_marker()):
+            # refused for its input before it wrote anything: leave no trace of a folder that
+            # did not exist
+            with contextlib.suppress(OSError):
+                self.marker.unlink()
+            self._lock.release()
+            with contextlib.suppress(OSError):
+                self.path.rmdir()
+            self._marked = False
         else:
             self.fail(f"{exc_type.__name__}: {exc}".strip().rstrip(":"))
+
+    def _only_marker(self) -> bool:
+        try:
+            return {e.name for e in self.path.iterdir()} <= {MARKER, LOCK_NAME}
+        except OSError:
+            return False
 
 
 class OutputFile:

@@ -768,3 +768,15 @@ def test_sil_kill9_mid_run_leaves_no_stale_result_and_no_stale_chunks(tmp_path, 
     assert not out.exists() and (tmp_path / "run.nc.INCOMPLETE").exists()
     assert (chunks / MARKER).exists()
     assert not list(chunks.glob("chunk_*.npz"))  # the previous run's chunks were removed
+
+
+def test_a_run_refused_for_its_input_leaves_no_folder_it_created(tmp_path):
+    d = tmp_path / "new"
+    with pytest.raises(DownholeInputError), OutputFolder(d, ("x",), "t"):
+        assert is_incomplete(d)
+        raise DownholeInputError("bad field")
+    assert not d.exists()
+    d.mkdir()  # an existing folder keeps its marker and the reason
+    with pytest.raises(DownholeInputError), OutputFolder(d, ("x",), "t"):
+        raise DownholeInputError("bad field")
+    assert "failed: DownholeInputError: bad field" in (d / MARKER).read_text()
