@@ -175,8 +175,13 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
     # output paths first: a bad --out must not cost a controller design and a whole run
     if out is not None:
         check_output_path(out, kind="file")
-    if rtc.chunk_dir is not None:
-        check_output_path(rtc.chunk_dir, option=f"{scenario}: realtime.chunk_dir", kind="folder")
+    chunk_dir = None
+    if rtc.chunk_dir is not None:  # beside the result, never elsewhere on the host
+        if out is None:
+            fail(f"{scenario}: realtime.chunk_dir = {rtc.chunk_dir!r} needs --out: the chunk "
+                 "folder lives beside the run's result")
+        chunk_dir = Path(out).parent / rtc.chunk_dir
+        check_output_path(chunk_dir, option=f"{scenario}: realtime.chunk_dir", kind="folder")
     cfile = str(controller) if controller else None
     _check_controller_choice(sc, scenario, cfile)
     token = None
@@ -200,11 +205,21 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         reference={"axial": sc.reference.axial_velocity,
                    "angular": sc.reference.angular_velocity},
         paced=rtc.paced and not unpaced, record_every=every,
-        ring_rows=max(1, int(rtc.ring_seconds / sim.record_dt)), chunk_dir=rtc.chunk_dir,
+        ring_rows=max(1, int(rtc.ring_seconds / sim.record_dt)), chunk_dir=chunk_dir,
+        ring_bytes=int(rtc.ring_memory_mib * 2**20),
         max_lag=rtc.max_lag, wait_fraction=rtc.wait_fraction,
         safety=SafetyPolicy(sc.safety.timeout, sc.safety.hold, sc.safety.ramp, sc.safety.resume),
         controller_enabled=sc.controller.enabled and sc.controller.type != "none",
         realtime=rtc.enabled, link_key_file=link_key_file)
+    if runner.ring_capped is not None:
+        kept = runner.recorder.capacity * sim.record_dt
+        typer.echo(f"note: the recording keeps the last {kept:g} s in memory "
+                   f"([realtime] ring_memory_mib = {rtc.ring_memory_mib:g} for "
+                   f"{len(runner.channels)} channels every {sim.record_dt:g} s; ring_seconds = "
+                   f"{rtc.ring_seconds:g} would need "
+                   f"{runner.ring_capped * 8 * len(runner.channels) / 2**20:.0f} MiB)"
+                   + ("" if chunk_dir is not None else
+                      "; set [realtime] chunk_dir to keep the whole run on disk"), err=True)
     dur = duration if duration is not None else sim.duration
     patience = wait if wait is not None else sc.link.connect_timeout
     stopper = _StopOnSignal(runner).install()

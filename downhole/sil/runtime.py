@@ -134,9 +134,12 @@ class RealTimeRunner:
     record_every : int
         Record every n-th step.
     ring_rows : int
-        Rows kept in memory.
+        Rows kept in memory (the last ``ring_rows`` recorded).
     chunk_dir : path, optional
         Also write every recorded row to chunk files there.
+    ring_bytes : int, optional
+        Memory budget of the ring, bytes: ``ring_rows`` is lowered to what fits (8 bytes per
+        channel and row); :attr:`ring_capped` then says how many rows were asked for.
     max_lag : float
         Re-anchor the clock when more than this far behind, s.
     wait_fraction : float
@@ -169,7 +172,8 @@ class RealTimeRunner:
 
     def __init__(self, plant: SilPlant, controller=None, *, link=None, hil: bool = False,
                  reference: dict | None = None, paced: bool = True, record_every: int = 10,
-                 ring_rows: int = 200_000, chunk_dir=None, max_lag: float = 0.05,
+                 ring_rows: int = 200_000, chunk_dir=None, ring_bytes: int | None = None,
+                 max_lag: float = 0.05,
                  wait_fraction: float = 0.7, safety: SafetyPolicy | None = None,
                  controller_enabled: bool = True, spin: float = 2e-4, realtime: bool = True,
                  command_timeout: float | None = None, link_key=None, link_key_file=None,
@@ -236,6 +240,12 @@ class RealTimeRunner:
                          + REFERENCE_NAMES + cmd_cols
                          + ("wall_lag", "exec_time", "controller_on", "safe_action",
                             "rx_time", "rx_listen_time"))
+        self.ring_capped = None
+        if ring_bytes is not None:
+            fits = max(1, int(ring_bytes) // (8 * len(self.channels)))
+            if ring_rows > fits:
+                self.ring_capped = int(ring_rows)
+                ring_rows = fits
         self.recorder = RingRecorder(self.channels, ring_rows, chunk_dir)
         self._row = np.zeros(len(self.channels))
         self.events: deque = deque(maxlen=1000)

@@ -51,10 +51,17 @@ See ``docs/sil.md`` for every field.
 from __future__ import annotations
 
 import math
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from downhole.errors import ScenarioError
 from downhole.params.quantity import Q
@@ -135,9 +142,24 @@ class RealtimeSection(_Strict):
     enabled: bool = True
     paced: bool = True
     ring_seconds: Q["time"] = Field(3600.0, gt=0)
+    ring_memory_mib: float = Field(256.0, gt=0, le=65536)
     chunk_dir: str | None = None
     max_lag: Q["time"] = Field(0.05, gt=0)
     wait_fraction: float = Field(0.7, gt=0, lt=1)
+
+    @field_validator("chunk_dir")
+    @classmethod
+    def _chunk_dir_under_the_output(cls, v):
+        # the recorder owns its chunk folder (it removes the previous run's chunks there): it
+        # may only be a folder beside the run's --out, never any folder of the host
+        if v is None:
+            return v
+        parts = PurePosixPath(v.replace("\\", "/")).parts
+        if not v.strip() or "\x00" in v or v.startswith(("/", "~")) or ".." in parts \
+                or (len(v) > 1 and v[1] == ":"):
+            raise ValueError(f"{v!r} is not a folder name relative to the run's --out (e.g. "
+                             "\"chunks\"): the chunk folder lives beside the result")
+        return v
 
 
 class TrainingSection(_Strict):
