@@ -124,7 +124,7 @@ RENAMES: dict[str, str] = {
     "plant.order": "model.fidelity (lumped4 | lumped12)",
     # [runtime] (SIL files) -> [simulation] and [realtime]
     "runtime": "[simulation] (dt, duration, record_dt) and [realtime] (paced, max_lag, "
-               "ring_seconds, chunk_dir, wait_fraction, enabled)",
+               "ring_seconds, ring_memory_mib, chunk_dir, wait_fraction, enabled)",
     "runtime.dt": "simulation.dt",
     "runtime.duration": "simulation.duration",
     "runtime.record_dt": "simulation.record_dt",
