@@ -91,7 +91,7 @@ def test_bad_well_string_and_tables_name_file_and_field(tmp_path, capsys, extra,
 def test_bad_survey_csv_is_reported_with_line(tmp_path, capsys):
     (tmp_path / "s.csv").write_text("MD,INC,AZI\n0,0,0\n800,5,0\n700,10,0\n")
     err = _run_bad(tmp_path, capsys, extra='[well]\nsurvey = "s.csv"')
-    assert ": well.survey: " in err and "must increase" in err
+    assert ": well.survey: " in err and "line 4, column 'MD': measured depth 700 m does not increase (line 3: 800 m)" in err
 
 
 @pytest.mark.parametrize("mtype,model,field,words", [

@@ -175,7 +175,7 @@ def test_directional_survey_md_of_1e12_m(tmp_path):
     expect_error(p, "well.md", "station 2", "0 to 100000 m")
     (tmp_path / "w.csv").write_text("md,inc,azi\n0,0,0\n500,0,0\n1e12,10,0\n")
     p = write(tmp_path, base + '\n[well]\nsurvey = "w.csv"\n')
-    expect_error(p, "well.survey", "station 2", "0 to 100000 m")
+    expect_error(p, "well.survey", "line 4, column 'md'", "1e+12 m, is beyond any well drilled")
     (tmp_path / "w.csv").write_text("md,inc,azi\n0,0,0\n500,nan,0\n1000,10,0\n")
     with pytest.raises(ScenarioError) as info:
         validate(p)

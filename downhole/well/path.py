@@ -509,8 +509,33 @@ _INC_NAMES = ("inc", "inclination", "incl", "inc_deg", "inc (deg)")
 _AZI_NAMES = ("azi", "az", "azimuth", "azi_deg", "azi (deg)", "azimuth (deg)")
 
 
+#: Largest survey file read, bytes (a survey of 100,000 stations is ~3 MB).
+MAX_SURVEY_BYTES = 32 * 2**20
+#: Deepest measured depth of a plausible survey, m (the longest wells drilled reach ~15 km).
+MAX_SURVEY_MD = 15_000.0
+_DELIMITERS = ",;\t "
+
+
+def _survey_header(cells: list[str]) -> tuple[int, int, int] | None:
+    """Column indices of MD, INC, AZI when ``cells`` is a survey header, else None."""
+    header = [c.strip().lower() for c in cells]
+    try:
+        return (next(k for k, h in enumerate(header) if h in _MD_NAMES),
+                next(k for k, h in enumerate(header) if h in _INC_NAMES),
+                next(k for k, h in enumerate(header) if h in _AZI_NAMES))
+    except StopIteration:
+        return None
+
+
 def read_survey_csv(path, *, units: str = "si", angle_unit: str = "deg") -> WellPath:
     """Read a survey CSV with columns MD, INC, AZI (header names case-insensitive).
+
+    Title lines above the header are skipped (the header is the first line that names the three
+    columns); the delimiter (comma, semicolon, tab or spaces) is sniffed from the header line;
+    ``#`` lines and blank lines are ignored. The file must be a regular file of at most
+    :data:`MAX_SURVEY_BYTES`; its contents are never echoed in a message (a path naming some
+    other file of the host gets "no survey header", not its first line). Positions in messages
+    are the file's 1-based line numbers; values are in the file's units.
 
     Parameters
     ----------
@@ -530,41 +555,101 @@ def read_survey_csv(path, *, units: str = "si", angle_unit: str = "deg") -> Well
     Raises
     ------
     DownholeInputError
-        Missing file or column, non-numeric cell (row and column named), bad stations.
+        Missing or special file, no header, a non-numeric cell, a depth that does not increase,
+        an inclination outside 0-180 deg or an azimuth outside 0-360 deg (as written, before any
+        reduction), or a deepest station beyond :data:`MAX_SURVEY_MD` (with the hint to say
+        ``units = "oilfield"`` when the depths look like feet); each names the file, its line
+        and the column.
     """
+    from downhole._reader import read_regular_file
+
     p = Path(path)
-    if not p.is_file():
-        raise DownholeInputError(f"survey file {str(p)!r} does not exist")
     if units not in ("si", "oilfield"):
         raise DownholeInputError(f"units must be 'si' or 'oilfield', got {units!r}")
     if angle_unit not in ("deg", "rad"):
         raise DownholeInputError(f"angle_unit must be 'deg' or 'rad', got {angle_unit!r}")
-    with p.open(newline="") as fh:
-        rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
-    if len(rows) < 3:
-        raise DownholeInputError(f"{p}: expected a header and at least 2 stations, got {len(rows)} rows")
-    header = [h.strip().lower() for h in rows[0]]
-
-    def col(names, what):
-        for k, h in enumerate(header):
-            if h in names:
-                return k
-        raise DownholeInputError(f"{p}: no {what} column; header is {rows[0]}, expected one of {names}")
-
-    imd, iinc, iazi = col(_MD_NAMES, "measured depth"), col(_INC_NAMES, "inclination"), col(_AZI_NAMES, "azimuth")
+    raw = read_regular_file(p, MAX_SURVEY_BYTES, "a survey CSV (MD, INC, AZI)")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise DownholeInputError(f"{p}: not a text file (not UTF-8); expected a survey CSV "
+                                 "with columns MD, INC, AZI") from None
+    if "\x00" in text:
+        raise DownholeInputError(f"{p}: not a text file (NUL bytes); expected a survey CSV")
+    lines = text.splitlines()
+    found = None
+    for n, line in enumerate(lines[:200], start=1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        for delim in _DELIMITERS:
+            cells = line.split() if delim == " " else next(csv.reader([line], delimiter=delim))
+            cols = _survey_header(cells)
+            if cols is not None:
+                found = (n, delim, cells, cols)
+                break
+        if found:
+            break
+    if found is None:
+        raise DownholeInputError(
+            f"{p}: no survey header in its first lines: expected a line naming the columns "
+            f"measured depth ({'/'.join(_MD_NAMES[:2])}), inclination "
+            f"({'/'.join(_INC_NAMES[:2])}) and azimuth ({'/'.join(_AZI_NAMES[:2])}), separated "
+            "by commas, semicolons, tabs or spaces")
+    hline, delim, cells, (imd, iinc, iazi) = found
+    names = [c.strip() for c in cells]
+    md_name = names[imd].lower()
     length_unit = "ft" if units == "oilfield" else "m"
-    if "ft" in header[imd]:
+    if "ft" in md_name:
         length_unit = "ft"
-    elif header[imd].endswith("_m") or "(m)" in header[imd]:
+    elif md_name.endswith("_m") or "(m)" in md_name:
         length_unit = "m"
-    data = np.empty((len(rows) - 1, 3))
-    for r, row in enumerate(rows[1:], start=2):
-        for c, k in enumerate((imd, iinc, iazi)):
+    ang = "deg" if angle_unit == "deg" else "rad"
+    rows, where = [], []
+    for n, line in enumerate(lines[hline:], start=hline + 1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        row = line.split() if delim == " " else next(csv.reader([line], delimiter=delim))
+        vals = []
+        for k in (imd, iinc, iazi):
+            cell = row[k].strip() if k < len(row) else ""
             try:
-                data[r - 2, c] = float(row[k])
-            except (ValueError, IndexError):
-                raise DownholeInputError(
-                    f"{p}: line {r}, column {rows[0][k]!r}: expected a number, got "
-                    f"{row[k] if k < len(row) else '<missing>'!r}") from None
+                v = float(cell)
+            except ValueError:
+                v = math.nan
+            if not math.isfinite(v):
+                what = "is missing" if not cell else "is not a finite number"
+                raise DownholeInputError(f"{p}: line {n}, column {names[k]!r}: {what}")
+            vals.append(v)
+        rows.append(vals)
+        where.append(n)
+    if len(rows) < 2:
+        raise DownholeInputError(f"{p}: expected at least 2 stations below the header (line "
+                                 f"{hline}), got {len(rows)}")
+    data = np.array(rows)
+    full = 180.0 if ang == "deg" else math.pi
+    for r, n in enumerate(where):
+        md, inc, azi = data[r]
+        if not 0.0 <= inc <= full:
+            raise DownholeInputError(f"{p}: line {n}, column {names[iinc]!r}: inclination "
+                                     f"{inc:g} {ang} is outside 0 to {full:g} {ang}")
+        if not 0.0 <= azi <= 2.0 * full:
+            raise DownholeInputError(f"{p}: line {n}, column {names[iazi]!r}: azimuth "
+                                     f"{azi:g} {ang} is outside 0 to {2 * full:g} {ang}")
+        if md < 0.0:
+            raise DownholeInputError(f"{p}: line {n}, column {names[imd]!r}: measured depth "
+                                     f"{md:g} {length_unit} is negative")
+        if r and not md > data[r - 1, 0]:
+            raise DownholeInputError(f"{p}: line {n}, column {names[imd]!r}: measured depth "
+                                     f"{md:g} {length_unit} does not increase (line "
+                                     f"{where[r - 1]}: {data[r - 1, 0]:g} {length_unit})")
+    deepest = data[-1, 0] * (0.3048 if length_unit == "ft" else 1.0)
+    if deepest > MAX_SURVEY_MD:
+        hint = ("; if the depths are in feet, say units = \"oilfield\" or name the column "
+                "\"MD (ft)\"" if length_unit == "m" and deepest * 0.3048 <= MAX_SURVEY_MD
+                else "")
+        raise DownholeInputError(
+            f"{p}: line {where[-1]}, column {names[imd]!r}: the deepest station, "
+            f"{data[-1, 0]:g} {length_unit}, is beyond any well drilled "
+            f"({MAX_SURVEY_MD:g} m){hint}")
     return WellPath.from_survey(data[:, 0], data[:, 1], data[:, 2], degrees=angle_unit == "deg",
                                 length_unit=length_unit)
