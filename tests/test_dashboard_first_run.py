@@ -143,6 +143,8 @@ def test_browser_fields_follow_the_setpoints_count_refusals_and_label_severity(t
             page.wait_for_function("document.getElementById('refused').textContent"
                                    ".includes('admissible range')")
             page.wait_for_function("document.getElementById('rejected').textContent === '1'")
+            # the refused value does not stay in the field: it shows the set-point again
+            page.wait_for_function("document.getElementById('sp_rpm').value === '120'")
             # every axis has a label; the severity axis says what it is
             labels = page.evaluate("Object.fromEntries(Object.entries(window.dashboard.charts)"
                                    ".map(([k, c]) => [k, c.axes[1].label]))")

@@ -41,7 +41,11 @@ function $(id) { return document.getElementById(id); }
 function post(path, body) {
   return fetch(path, {method: "POST", headers: {"Content-Type": "application/json"},
     body: JSON.stringify(body || {})}).then(r => r.ok ? ($("refused").textContent = "", null)
-      : r.json().then(j => { $("refused").textContent = path + ": " + j.detail; }));
+      : r.json().then(j => {
+        $("refused").textContent = path + ": " + j.detail;
+        shown = {};  // a refused value does not stay in its field: the next update restores it
+        if (document.activeElement) document.activeElement.blur();
+      }));
 }
 
 $("start").onclick = () => post("/api/start");
@@ -132,8 +136,12 @@ function redraw() {
   dirty = false;
   for (const c of CHARTS) {
     const f = factor(c.q);
-    const ys = c.series.map(([, key]) => (store.cols[key] || []).map(v =>
-      v === null ? null : v * f));
+    const ys = c.series.map(([, key]) => {
+      const col = store.cols[key] || [];
+      // the depth is the advance from the first recorded row (a steady start is not at 0)
+      const first = c.id === "depth" ? (col.find(v => v !== null) ?? 0) : 0;
+      return col.map(v => v === null ? null : (v - first) * f);
+    });
     charts[c.id].setData([store.t.slice()].concat(ys));
   }
 }
