@@ -2,6 +2,7 @@
 values update, clicks stop, start, controller off/on and a reference change, and saves a
 screenshot."""
 
+import math
 import shutil
 import time
 from pathlib import Path
@@ -92,13 +93,15 @@ def test_browser_sees_updates_and_drives_the_run(tmp_path):
             assert runner.controller_enabled is False
             page.click("#ctrl_on")
             page.wait_for_function("document.getElementById('controller').textContent === 'on'")
-            # reference change
-            page.fill("#ref_angular", "25")
-            page.fill("#ref_axial", "0.015")
+            # reference change, in the page's display units (metric: rpm, m/h)
+            page.fill("#ref_angular", "240")
+            page.fill("#ref_axial", "54")
             page.click("#apply_ref")
-            page.wait_for_function("parseFloat(document.getElementById("
-                                   "'sig_reference_angular_velocity').textContent) === 25")
-            assert runner.reference == {"axial": 0.015, "angular": 25.0}
+            page.wait_for_function("Math.abs(parseFloat(document.getElementById("
+                                   "'sig_reference_angular_velocity').textContent) - 8 * "
+                                   "Math.PI) < 1e-3")
+            assert runner.reference["angular"] == pytest.approx(8 * math.pi)  # 240 rpm
+            assert runner.reference["axial"] == pytest.approx(0.015)  # 54 m/h
             time.sleep(1.0)  # let the plot show the new reference
             shot = Path(tmp_path) / "dashboard.png"
             page.screenshot(path=str(shot), full_page=True)

@@ -466,8 +466,11 @@ def test_browser_operator_view_draws_trends_setpoints_and_controller(tmp_path):
             assert runner.stats["steps"] == 0
             legend = page.inner_text("#chart_rpm .u-legend")
             assert "surface (rpm)" in legend and "bit (rpm)" in legend
-            assert "set-point (rpm)" in legend
-            assert page.input_value("#sp_rpm") == "190.99"  # 20 rad/s
+            assert "bit reference (rpm)" in legend
+            # the surface speed set-point is the top drive's 10 rad/s; the bit reference the
+            # PI tracks is the runner's 20 rad/s, shown beside it in the same unit
+            assert page.input_value("#sp_rpm") == "95.493"
+            assert page.input_value("#ref_angular") == "190.99"
             assert page.is_disabled("#sp_wob")  # a velocity-fed top takes no WOB set-point
             page.click("#start")
             page.wait_for_function("(() => { const t = window.dashboard.store.t; "

@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-__all__ = ["plot_overview", "save_figure", "severity_window"]
+__all__ = ["operating_line", "plot_overview", "save_figure", "severity_window"]
 
 # one colour per quantity, the same in every figure
 _COLORS = {"wob": "tab:blue", "tob": "tab:red", "hook_load": "tab:green",
@@ -65,7 +65,45 @@ def _bit_depth(result):
     pos = result["bit_axial_position"]
     if md is not None and np.size(md):
         return "bit measured depth", float(np.ravel(md)[-1]) + pos, True
-    return "bit advance", pos, False
+    return "bit advance", pos - (pos[0] if np.size(pos) else 0.0), False
+
+
+def _readable_limits(ax) -> None:
+    """Show a (nearly) constant signal as a flat line at its value: without this, matplotlib
+    zooms into its rounding noise (an axis of "1e-9 + 1.2e2" for a steady 120 rpm). A span of
+    less than 1e-6 of the magnitude gets +-5 % of it; offsets are never used."""
+    ys = [np.asarray(line.get_ydata(), float) for line in ax.get_lines()]
+    ys = [y[np.isfinite(y)] for y in ys]
+    ys = [y for y in ys if y.size]
+    if ys:
+        lo, hi = min(float(y.min()) for y in ys), max(float(y.max()) for y in ys)
+        scale = max(abs(lo), abs(hi))
+        if hi - lo < 1e-6 * scale:
+            c, half = 0.5 * (lo + hi), 0.05 * scale
+            ax.set_ylim(c + half, c - half) if ax.yaxis_inverted() else \
+                ax.set_ylim(c - half, c + half)
+    fmt = ax.yaxis.get_major_formatter()
+    if hasattr(fmt, "set_useOffset"):
+        fmt.set_useOffset(False)
+
+
+def operating_line(result, units) -> str:
+    """The operating point of ``result`` over its second half, in the figure ``units``:
+    ``"2nd half: surface 120 rpm, bit 120 rpm, WOB 100 kN, ROP 112 m/h"`` (the channels the run
+    has). :func:`plot_overview` puts it under the title, so that a figure states its operating
+    point in the units of its axes whatever its title says."""
+    t = np.asarray(result.time, float)
+    if t.size == 0:
+        return ""
+    half = t >= t[0] + 0.5 * (t[-1] - t[0])
+    parts = []
+    for name, label in (("top_drive_angular_velocity", "surface"), ("bit_angular_velocity", "bit"),
+                        ("wob", "WOB"), ("bit_axial_velocity", "ROP")):
+        if name in result:
+            v, _ = units.convert(name, np.asarray(result[name], float)[half])
+            v = float(np.nanmean(v)) if np.size(v) else float("nan")
+            parts.append(f"{label} {v:.3g} {units.label(name)}")
+    return ("mean over the 2nd half: " + ", ".join(parts)) if parts else ""
 
 
 def _load_panel(ax, result, t, left: tuple[str, str], right: tuple[str, str], units):
@@ -103,7 +141,8 @@ def plot_overview(result, path=None, title=None, units=None):
         PNG file to save the figure to (120 dpi); the figure is then closed in pyplot, but can
         still be inspected or saved again.
     title : str, optional
-        Figure title.
+        Figure title; the operating point in the figure's units (:func:`operating_line`) is
+        written under it.
     units : str or UnitSystem, optional
         A :class:`~downhole.units.UnitSystem` or a system name; default ``si``, whose figures
         use kN, kN·m, mm/s and rpm.
@@ -171,6 +210,10 @@ def plot_overview(result, path=None, title=None, units=None):
     _load_panel(axes[4], result, t, ("hook_load", "hook load"),
                 ("surface_torque", "surface torque"), units)
 
+    for a in fig.axes:  # the time-series panels and their twin axes, not the depth
+        if not has_depth or a is not axes[5]:
+            _readable_limits(a)
+
     # --- depth (where the run records the bit's position)
     if has_depth:
         ax = axes[5]
@@ -184,8 +227,9 @@ def plot_overview(result, path=None, title=None, units=None):
     axes[-1].set_xlabel(f"time [{tu}]")
     for a in axes:
         a.grid(alpha=0.3)
-    if title:
-        fig.suptitle(title)
+    op = operating_line(result, units)
+    if title or op:
+        fig.suptitle("\n".join(x for x in (title, op) if x))
     fig.tight_layout()
     if path is not None:
         save_figure(fig, path)

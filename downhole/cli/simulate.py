@@ -107,33 +107,111 @@ def simulate(
     console.print(f"written {out}/result.nc, summary.json, overview.png")
 
 
+#: The demo's drilling system, described once (the one-description scenario format,
+#: docs/scenarios.md): a 3000 m vertical well, 2820 m of 5" drill pipe (OD 127 mm, ID 108.6 mm)
+#: over 180 m of 6 3/4" collars, an 8 1/2" PDC bit (Table 2.1's cutter and wear-flat constants,
+#: radius 4.25 in), 1200 kg/m^3 mud; the 4th-order lumped chain matched to that string.
+#: ``examples/first_run.toml`` and ``examples/first_run_stickslip.toml`` are the same two cases
+#: as files (tests/test_first_run.py checks that they agree).
+DEMO_SYSTEM = {
+    "model": {"fidelity": "lumped4", "friction": 0.0},
+    "well": {"sections": [{"type": "vertical", "length": "3000 m"}]},
+    "string": {"mud_density": "1200 kg/m^3",
+               "segments": [{"kind": "pipe", "length": "2820 m", "outer_diameter": "127 mm",
+                             "inner_diameter": "108.6 mm"},
+                            {"kind": "collar", "outer_diameter": "6.75 in",
+                             "inner_diameter": "2.8125 in"}]},
+    "bit": {"preset": "table_2_1", "radius": "4.25 in"},
+}
+
+#: The demo's two operating points: the same WOB, nominal and low rotary speed.
+DEMO_CASES = {
+    "nominal": {"label": "nominal", "surface_speed": "120 rpm", "wob": "100 kN"},
+    "stickslip": {"label": "stick-slip (low rotary speed)", "surface_speed": "50 rpm",
+                  "wob": "100 kN"},
+}
+
+DEMO_WELL = "3000 m vertical well, 5 in pipe over 180 m of 6 3/4 in collars, 8 1/2 in PDC bit"
+
+
+def demo_scenario(name: str) -> dict:
+    """The scenario dict of demo case ``name`` (``nominal`` or ``stickslip``)."""
+    import copy
+
+    case = DEMO_CASES[name]
+    data = copy.deepcopy(DEMO_SYSTEM)
+    data["title"] = f"{DEMO_WELL}: {case['label']}"
+    data["operation"] = {"surface_speed": case["surface_speed"], "wob": case["wob"]}
+    data["simulation"] = {"duration": "30 s", "dt": "0.5 ms", "record_dt": "10 ms",
+                          "integrator": "euler", "depth_of_cut": "delayed", "start": "steady"}
+    return data
+
+
+def operating_point(data: dict, units) -> str:
+    """``"120 rpm, WOB 100 kN"``: a scenario's set-points in the display ``units``."""
+    from downhole.units import to_si
+
+    units = units.for_figures()
+    op = data["operation"]
+    parts = []
+    if "surface_speed" in op:
+        v, u = units.convert("top_drive_angular_velocity",
+                             to_si(op["surface_speed"], "angular_velocity"))
+        parts.append(f"{float(v):.4g} {u}")
+    if "wob" in op:
+        v, u = units.convert("wob", to_si(op["wob"], "force"))
+        parts.append(f"WOB {float(v):.4g} {u}")
+    if "rop" in op:
+        v, u = units.convert("bit_axial_velocity", to_si(op["rop"], "velocity"))
+        parts.append(f"ROP {float(v):.4g} {u}")
+    return ", ".join(parts)
+
+
+#: The channels of the demo's second table (mean and range over the second half of each run).
+DEMO_CHANNELS = ("hook_load", "wob", "tob", "surface_torque", "top_drive_angular_velocity",
+                 "bit_angular_velocity", "bit_axial_velocity")
+
+
+def channel_table(results: dict, units) -> Table:
+    """Mean and range (min to max) of :data:`DEMO_CHANNELS` over the second half of each run,
+    in the display ``units``."""
+    table = Table("channel: mean [min, max], 2nd half", "unit", *results)
+    for ch in DEMO_CHANNELS:
+        cells = []
+        for res in results.values():
+            t = res.time
+            x, _ = units.convert(ch, res[ch][t >= t[0] + (t[-1] - t[0]) / 2])
+            cells.append(f"{x.mean():.3g} [{x.min():.3g}, {x.max():.3g}]")
+        table.add_row(ch, units.label(ch), *cells)
+    return table
+
+
 @app.command()
 def demo(out: Path = typer.Option(Path("out"), "--out", help="output folder"),
-         units: str = UNITS_OPTION, unit: list[str] | None = UNIT_OPTION):
-    """The main demo on built-in defaults: nominal Table 2.1 drilling and the stick-slip case."""
+         units: str = typer.Option(
+             "metric", "--units", help="display units of the tables and figures: metric "
+             "(default here: m/h, rpm, kN, kN*m, MPa), si or oilfield; see docs/units.md"),
+         unit: list[str] | None = UNIT_OPTION):
+    """The main demo: a 3000 m vertical well with 5" pipe, collars and an 8 1/2" PDC bit, drilled
+    at 120 rpm (nominal) and at 50 rpm (stick-slip), both at 100 kN WOB."""
     from downhole.scenario import run_scenario
 
-    cases = {
-        "nominal": {"title": "Nominal Table 2.1: 10 mm/s, 10 rad/s, delayed depth of cut",
-                    "model": {"fidelity": "lumped4", "preset": "table_2_1"},
-                    "operation": {"rop": "10 mm/s", "surface_speed": "10 rad/s"},
-                    "reference": {"axial_velocity": "10 mm/s", "angular_velocity": "10 rad/s"},
-                    "simulation": {"duration": "60 s", "dt": "0.5 ms", "record_dt": "10 ms"}},
-        "stickslip": {"title": "Stick-slip: Table 2.1 at 2 rad/s, delayed depth of cut",
-                      "model": {"fidelity": "lumped4", "preset": "table_2_1"},
-                      "operation": {"rop": "10 mm/s", "surface_speed": "2 rad/s"},
-                      "simulation": {"duration": "100 s", "dt": "0.5 ms", "record_dt": "10 ms"}},
-    }
     display = resolve_units(units, unit)
     check_output_path(out, kind="folder")
-    for name in cases:
+    for name in DEMO_CASES:
         check_output_path(out / name, kind="folder")
-    rows = {}
+    rows, results = {}, {}
     with console.status("running the demo"):
-        for name, data in cases.items():
+        for name in DEMO_CASES:
+            data = demo_scenario(name)
+            title = f"{data['title']}\nset-points {operating_point(data, display)}"
             with OutputFolder(out / name, RUN_FILES, "demo") as folder:
                 res = run_scenario(data, source=f"<demo {name}>")
                 folder.writing()
-                rows[name] = write_run(res, out / name, title=data["title"], units=display)
+                rows[name] = write_run(res, out / name, title=title, units=display)
+                results[name] = res
+    console.print(DEMO_WELL + "; " + "; ".join(
+        f"{k}: {operating_point(demo_scenario(k), display)}" for k in DEMO_CASES))
     console.print(summary_table(rows, display))
+    console.print(channel_table(results, display))
     console.print(f"figures: {out}/nominal/overview.png, {out}/stickslip/overview.png")

@@ -89,7 +89,8 @@ def _doc_comparison(out_dir, quick, eid, title):
             caption="Case 1: comparison between model using time-delay based depth of cut and "
                     "that with the approximated depth of cut")
 def fig2_3(out_dir, quick):
-    return _doc_comparison(out_dir, quick, "fig2.3", "Fig. 2.3: 10 mm/s, 10 rad/s")
+    return _doc_comparison(out_dir, quick, "fig2.3", "Fig. 2.3: the seed's Table 2.1 string "
+                           "(787 t), 10 mm/s, 10 rad/s")
 
 
 @experiment("fig2.4", chapter=2, title="Delayed vs approximated depth of cut, 20 mm/s, 20 rad/s",
@@ -98,7 +99,8 @@ def fig2_3(out_dir, quick):
             caption="Case 2: comparison between model using time-delay based depth of cut and "
                     "that with the approximated depth of cut")
 def fig2_4(out_dir, quick):
-    return _doc_comparison(out_dir, quick, "fig2.4", "Fig. 2.4: 20 mm/s, 20 rad/s")
+    return _doc_comparison(out_dir, quick, "fig2.4", "Fig. 2.4: the seed's Table 2.1 string "
+                           "(787 t), 20 mm/s, 20 rad/s")
 
 
 @experiment("stickslip-lumped", chapter=2,
@@ -122,7 +124,8 @@ def stickslip_lumped(out_dir, quick):
     axes[1].set_xlabel("time [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
-    fig.suptitle("Table 2.1 string at 10 mm/s, 2 rad/s: stick-slip and bit bounce")
+    fig.suptitle("The seed's Table 2.1 string (787 t) at 10 mm/s, 2 rad/s: stick-slip and bit "
+                 "bounce")
     fig.tight_layout()
     save_figure(fig, out_dir / "stickslip.png")
     a.save(out_dir / "delayed.nc")
@@ -155,7 +158,8 @@ def models_4th_vs_12th(out_dir, quick):
     for ax in axes:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
-    fig.suptitle("4th- vs 12th-order lumped model, 10 mm/s, 10 rad/s")
+    fig.suptitle("4th- vs 12th-order lumped model of the seed's Table 2.1 string (787 t), "
+                 "10 mm/s, 10 rad/s")
     fig.tight_layout()
     save_figure(fig, out_dir / "models.png")
     r12.save(out_dir / "lumped12.nc")

@@ -336,7 +336,7 @@ class DashboardSession:
     ----------
     refused : dict
         Requests refused by the dashboard's checks, by reason (``host``, ``origin``,
-        ``content_type``, ``token``).
+        ``content_type``, ``token``), and refused set-points and references (``setpoint``).
     """
 
     def __init__(self, runner, duration: float | None = None, *, controllers: dict | None = None,
@@ -350,7 +350,7 @@ class DashboardSession:
         self._started_once = False
         self.error: str | None = None
         self.finished = threading.Event()
-        self.refused = {"host": 0, "origin": 0, "content_type": 0, "token": 0}
+        self.refused = {"host": 0, "origin": 0, "content_type": 0, "token": 0, "setpoint": 0}
         self._non_finite_reported: set[str] = set()
         self._lock = threading.Lock()
         if not (isinstance(severity_window, Real) and math.isfinite(severity_window)
@@ -376,9 +376,20 @@ class DashboardSession:
         elif "slack_off_force" in man:
             wob = man["slack_off_force"]
         #: the driller's set-points, SI: surface speed rad/s, WOB N (None: not a command of
-        #: this plant), ROP m/s
-        self.setpoints = {"surface_speed": float(runner.reference["angular"]), "wob": wob,
-                          "rop": float(runner.reference["axial"])}
+        #: this plant), ROP m/s. The surface speed (and, on a velocity-fed top, the ROP) is the
+        #: plant's open-loop command, the scenario's ``[operation]``; without such a command,
+        #: the bit reference. (It once showed the bit reference even where the top drive had
+        #: its own speed: 190.99 rpm for a scenario at 95.5 rpm with a 20 rad/s reference.)
+        speed = man.get("top_drive_angular_velocity", runner.reference["angular"])
+        rop = man.get("top_drive_axial_velocity", runner.reference["axial"]) \
+            if self._interface == "lumped" else runner.reference["axial"]
+        self.setpoints = {"surface_speed": float(speed), "wob": wob, "rop": float(rop)}
+        ref = runner.reference["angular"]
+        if not math.isclose(ref, speed, rel_tol=1e-9, abs_tol=1e-12):
+            # the scenario's [reference] and [operation] disagree: the page shows both
+            runner._event("reference_differs", f"bit reference {ref:g} rad/s, surface speed "
+                          f"set-point {speed:g} rad/s: the controller tracks the reference; a "
+                          "surface speed set-point sets both")
 
     @property
     def running(self) -> bool:
@@ -548,6 +559,18 @@ class DashboardSession:
                 self.setpoints[k] = float(v)
         return dict(self.setpoints)
 
+    def reject(self, why: str, counted: bool = False) -> None:
+        """Count a refused set-point or reference: ``refused["setpoint"]`` (kept over a Start,
+        which resets the runtime's counters; the state's ``stats["rejected_setpoints"]`` shows
+        the larger of the two) and the runtime's ``stats["rejected_setpoints"]`` with a
+        ``setpoint_rejected`` event, unless the runtime refused (and counted) it itself
+        (``counted``)."""
+        r = self.runner
+        self.refused["setpoint"] += 1
+        if not counted:
+            r.stats["rejected_setpoints"] = r.stats.get("rejected_setpoints", 0) + 1
+            r._event("setpoint_rejected", why)
+
     # ------------------------------------------------------------------ what is sent
     def snapshot(self) -> dict:
         """The state sent to the page: JSON-safe, every non-finite number replaced by None
@@ -563,7 +586,10 @@ class DashboardSession:
             t = e.get("time")
             ts = f"{t:.3f} s" if isinstance(t, Real) and math.isfinite(t) else "? s"
             events.append(f"{ts} {e.get('kind')} {e.get('detail')}")
-        raw = {"signals": sig, "stats": dict(r.stats), "running": self.running,
+        stats = dict(r.stats)
+        stats["rejected_setpoints"] = max(stats.get("rejected_setpoints", 0),
+                                          self.refused["setpoint"])
+        raw = {"signals": sig, "stats": stats, "running": self.running,
                "phase": self.phase, "duration": self.duration,
                "controller_enabled": bool(r.controller_enabled),
                "controller": self.controller_name if r.controller_enabled else "off",
@@ -912,9 +938,27 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
         return {"controller": body["name"],
                 "controller_enabled": session.runner.controller_enabled}
 
+    def counting_refusals(handler):
+        """Run ``handler``; a 422 (a refused value) is counted by :meth:`DashboardSession.
+        reject`, a refusal of the runtime too (and re-raised as 422)."""
+        before = session.runner.stats.get("rejected_setpoints", 0)
+        try:
+            return handler()
+        except HTTPException as exc:
+            if exc.status_code == 422:
+                session.reject(str(exc.detail))
+            raise
+        except DownholeInputError as exc:
+            session.reject(str(exc),
+                           counted=session.runner.stats.get("rejected_setpoints", 0) > before)
+            raise HTTPException(status_code=422, detail=str(exc)) from None
+
     @app.post("/api/setpoints")
     async def setpoints(request: Request):
         body = await json_object(request)
+        return counting_refusals(lambda: _apply_setpoints(body))
+
+    def _apply_setpoints(body: dict):
         fields = {"surface_rpm": "rotary_speed", "wob": "force", "rop": "rop"}
         extra = set(body) - set(fields)
         if extra:
@@ -935,15 +979,15 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
                 raise HTTPException(status_code=422, detail=(
                     f"{name} = {v * f:g} {unit} is outside the admissible range "
                     f"[{lo * f:g}, {hi * f:g}] {unit}"))
-        try:
-            sp = session.set_setpoints(si["surface_rpm"], si["wob"], si["rop"], limits=limits)
-        except DownholeInputError as exc:
-            raise HTTPException(status_code=422, detail=str(exc)) from None
+        sp = session.set_setpoints(si["surface_rpm"], si["wob"], si["rop"], limits=limits)
         return {"setpoints": sp, "reference": session.runner.reference}
 
     @app.post("/api/reference")
     async def reference(request: Request):
         body = await json_object(request)
+        return counting_refusals(lambda: _apply_reference(body))
+
+    def _apply_reference(body: dict):
         extra = set(body) - {"axial", "angular"}
         if extra:
             raise HTTPException(status_code=422, detail=f"unknown field(s) {sorted(extra)}; "

@@ -14,7 +14,7 @@ const CHARTS = [
   {id: "rpm", title: "Rotary speed", q: "rotary_speed", series: [
     ["surface", "top_drive_angular_velocity", "#1f77b4", false],
     ["bit", "bit_angular_velocity", "#d62728", false],
-    ["set-point", "reference_angular_velocity", "#2ca02c", true]]},
+    ["bit reference", "reference_angular_velocity", "#2ca02c", true]]},
   {id: "torque", title: "Surface torque", q: "torque", series: [
     ["surface torque", "surface_torque", "#9467bd", false]]},
   {id: "hook", title: "Hook load", q: "force", series: [
@@ -23,9 +23,9 @@ const CHARTS = [
     ["WOB", "wob", "#ff7f0e", false]]},
   {id: "rop", title: "Rate of penetration", q: "rop", series: [
     ["ROP", "bit_axial_velocity", "#17becf", false],
-    ["set-point", "reference_axial_velocity", "#2ca02c", true]]},
+    ["bit reference", "reference_axial_velocity", "#2ca02c", true]]},
   {id: "severity", title: "Stick-slip severity (max - min) / (2 mean) of bit rpm", q: null,
-   series: [["severity", "stick_slip_severity", "#e377c2", false]]},
+   axis: "severity (-)", series: [["severity", "stick_slip_severity", "#e377c2", false]]},
   {id: "depth", title: "Bit depth (axial position from the start)", q: "depth", series: [
     ["bit depth", "bit_axial_position", "#393b79", false]]},
 ];
@@ -41,7 +41,11 @@ function $(id) { return document.getElementById(id); }
 function post(path, body) {
   return fetch(path, {method: "POST", headers: {"Content-Type": "application/json"},
     body: JSON.stringify(body || {})}).then(r => r.ok ? ($("refused").textContent = "", null)
-      : r.json().then(j => { $("refused").textContent = path + ": " + j.detail; }));
+      : r.json().then(j => {
+        $("refused").textContent = path + ": " + j.detail;
+        shown = {};  // a refused value does not stay in its field: the next update restores it
+        if (document.activeElement) document.activeElement.blur();
+      }));
 }
 
 $("start").onclick = () => post("/api/start");
@@ -54,8 +58,10 @@ $("ctrl_apply").onclick = () => {
   ctrlPicked = false;
   post("/api/controller/select", {name: $("ctrl_select").value});
 };
+// the bit reference in display units; the API takes SI
 $("apply_ref").onclick = () => post("/api/reference", {
-  axial: parseFloat($("ref_axial").value), angular: parseFloat($("ref_angular").value)});
+  axial: parseFloat($("ref_axial").value) / factor("rop"),
+  angular: parseFloat($("ref_angular").value) / factor("rotary_speed")});
 $("apply_sp").onclick = () => {
   const body = {};
   for (const [id, key] of [["sp_rpm", "surface_rpm"], ["sp_wob", "wob"], ["sp_rop", "rop"]]) {
@@ -89,7 +95,7 @@ function makeCharts() {
       scales: {x: {time: false}, y: c.id === "severity" ? {range: (self, lo, hi) =>
         [0, Math.max(1, (hi || 0) * 1.1)]} : {}},
       axes: [{label: "time (s)", stroke: "#333", grid: {stroke: "#eee"}, ticks: {stroke: "#ccc"}},
-             {label: c.q ? u : "-", stroke: "#333", size: 64, grid: {stroke: "#eee"},
+             {label: c.q ? u : c.axis, stroke: "#333", size: 64, grid: {stroke: "#eee"},
               ticks: {stroke: "#ccc"}}],
       series: [{label: "time (s)"}].concat(c.series.map(([label, , color, dashed]) => ({
         label: label + (c.q ? " (" + u + ")" : ""), stroke: color, width: 2,
@@ -130,8 +136,12 @@ function redraw() {
   dirty = false;
   for (const c of CHARTS) {
     const f = factor(c.q);
-    const ys = c.series.map(([, key]) => (store.cols[key] || []).map(v =>
-      v === null ? null : v * f));
+    const ys = c.series.map(([, key]) => {
+      const col = store.cols[key] || [];
+      // the depth is the advance from the first recorded row (a steady start is not at 0)
+      const first = c.id === "depth" ? (col.find(v => v !== null) ?? 0) : 0;
+      return col.map(v => v === null ? null : (v - first) * f);
+    });
     charts[c.id].setData([store.t.slice()].concat(ys));
   }
 }
@@ -150,8 +160,6 @@ function fillControls(s) {
     put("sp_rpm", sp.surface_speed, "rotary_speed");
     put("sp_wob", sp.wob, "force");
     put("sp_rop", sp.rop, "rop");
-    $("ref_axial").value = s.reference.axial;
-    $("ref_angular").value = s.reference.angular;
     for (const el of document.querySelectorAll(".u")) el.textContent = unitLabel(el.dataset.q);
     filled = true;
   }
@@ -166,10 +174,29 @@ function fillControls(s) {
   if (!ctrlPicked) $("ctrl_select").value = s.controller || "off";
 }
 
+// The fields follow the server's set-points and reference whenever they change (a set-point
+// moves the reference too), except the one the operator is typing in.
+let shown = {};
+function follow(s) {
+  if (!units) return;
+  for (const [id, v, q] of [["sp_rpm", s.setpoints.surface_speed, "rotary_speed"],
+                            ["sp_wob", s.setpoints.wob, "force"],
+                            ["sp_rop", s.setpoints.rop, "rop"],
+                            ["ref_axial", s.reference.axial, "rop"],
+                            ["ref_angular", s.reference.angular, "rotary_speed"]]) {
+    const el = $(id);
+    if (v === null || v === undefined || el.disabled || shown[id] === v) continue;
+    if (document.activeElement === el) continue;
+    el.value = +(v * factor(q)).toPrecision(5);
+    shown[id] = v;
+  }
+}
+
 function update(s) {
   units = s.units;
   if (Object.keys(charts).length === 0) makeCharts();
   fillControls(s);
+  follow(s);
   $("model").textContent = s.model;
   const r = $("running");
   r.textContent = s.phase === "running" ? "running" : s.phase === "stopped" ? "stopped" : s.phase;
@@ -186,6 +213,7 @@ function update(s) {
   $("missfrac").textContent = (100 * s.stats.deadline_misses / Math.max(s.stats.steps, 1)).toFixed(2);
   $("overruns").textContent = s.stats.overruns;
   $("late").textContent = s.stats.late_commands;
+  $("rejected").textContent = s.stats.rejected_setpoints;
   $("sched").textContent = s.scheduler;
   $("error").textContent = s.error || "";
   let html = "";
