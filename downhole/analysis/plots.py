@@ -91,7 +91,20 @@ def operating_line(result, units) -> str:
     """The operating point of ``result`` over its second half, in the figure ``units``:
     ``"2nd half: surface 120 rpm, bit 120 rpm, WOB 100 kN, ROP 112 m/h"`` (the channels the run
     has). :func:`plot_overview` puts it under the title, so that a figure states its operating
-    point in the units of its axes whatever its title says."""
+    point in the units of its axes whatever its title says.
+
+    Parameters
+    ----------
+    result : Result
+        The run.
+    units : UnitSystem
+        The figure's display units.
+
+    Returns
+    -------
+    str
+        One line; empty for an empty run.
+    """
     t = np.asarray(result.time, float)
     if t.size == 0:
         return ""
