@@ -47,6 +47,11 @@ from downhole.well.path import WellPath
 __all__ = ["BUILD_OPTIONS", "FIDELITIES", "DrillingSystem", "LumpedDerivation", "Rig",
            "steady_bit_state", "wave_points"]
 
+#: The heaviest string a rig can hold, N (1,000 t; the largest land and offshore rigs are rated
+#: 1,000-1,400 short tons): a described string heavier than this is a mistake of units or
+#: lengths, refused with both named.
+MAX_STRING_WEIGHT = 1.0e7
+
 #: Model fidelities a description can be built at.
 FIDELITIES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
 
@@ -230,6 +235,15 @@ class DrillingSystem:
         if self.string.length > self.well.total_depth + 1e-6:
             raise DownholeInputError(f"string length {self.string.length:g} m exceeds the well's "
                                      f"total depth {self.well.total_depth:g} m")
+        weight = sum(seg.length * float(self.string.buoyed_weight_per_length(s0 + 0.5 * seg.length))
+                     for seg, s0 in zip(self.string.segments, self.string.boundaries[:-1]))
+        if weight > MAX_STRING_WEIGHT:
+            raise DownholeInputError(
+                f"the string weighs {weight / 1e3:,.0f} kN ({weight / 4448.2216:,.0f} klbf) in "
+                f"the mud, beyond any rig's hook capacity ({MAX_STRING_WEIGHT / 1e3:,.0f} kN, "
+                f"{MAX_STRING_WEIGHT / 4448.2216:,.0f} klbf): check the string's segment lengths "
+                f"({self.string!r}) and the well's depth units ({self.well.total_depth:,.0f} m "
+                "deep; a survey in feet read as metres?)")
 
     # ------------------------------------------------------------------ presets
     @classmethod
