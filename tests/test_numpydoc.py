@@ -72,7 +72,6 @@ PENDING: set[tuple[str, str]] = {
     ("compare/systems.py", "describe_system"),
     ("control/dhp/baseline.py", "riccati_numpy"),
     ("control/dhp/closed_loop.py", "channels_from_states"),
-    ("control/dhp/controller.py", "load_controller"),
     ("control/dhp/design.py", "build_problem"),
     ("control/dhp/drilling.py", "integral_augmented_model"),
     ("control/dhp/drilling.py", "penalty_matrices"),

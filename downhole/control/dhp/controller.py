@@ -31,6 +31,7 @@ description, reference, weights, version); :func:`load_controller` reads them ba
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 
@@ -39,7 +40,8 @@ import numpy as np
 from downhole.control.dhp.references import BitReference
 from downhole.errors import DownholeInputError
 
-__all__ = ["PAST_HORIZON_POLICIES", "DHPController", "load_controller"]
+__all__ = ["MAX_DHP_ARRAY_BYTES", "MAX_DHP_JSON_BYTES", "MAX_DHP_NPZ_BYTES",
+           "PAST_HORIZON_POLICIES", "DHPController", "load_controller"]
 
 PAST_HORIZON_POLICIES = ("stationary", "error")
 _FORMAT = "downhole.dhp_controller/1"
@@ -335,32 +337,255 @@ def _json_default(o):
     raise TypeError(f"not JSON-able: {type(o).__name__}")
 
 
+#: Largest JSON settings file of a saved DHP controller read (bytes; a few kB in practice).
+MAX_DHP_JSON_BYTES = 16 << 20
+#: Largest ``.npz`` archive of a saved DHP controller read (bytes on disk).
+MAX_DHP_NPZ_BYTES = 512 << 20
+#: Largest total size of its arrays once decompressed (bytes, as the archive declares them).
+MAX_DHP_ARRAY_BYTES = 1 << 30
+_JSON_DEPTH = 32
+_NAME_CHARS = 128
+_MAX_SIGNALS = 10_000
+_DHP_ARRAYS = ("kc", "kd", "reference_nd", "u_ff", "state_scale", "input_scale")
+
+
+def _refuse(source, field: str, message: str):
+    from downhole.errors import ScenarioError
+
+    return ScenarioError(str(source), field, message)
+
+
+def _json_constant(name: str):
+    raise ValueError(f"{name} is not a number a controller file may hold")
+
+
+def _check_json_tree(data, source) -> None:
+    """Nesting at most :data:`_JSON_DEPTH` deep, every number finite (iterative walk)."""
+    stack = [("", data, 0)]
+    while stack:
+        field, value, depth = stack.pop()
+        if depth > _JSON_DEPTH:
+            raise _refuse(source, field or "<top>", f"nested deeper than {_JSON_DEPTH} levels")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise _refuse(source, field, f"expected a finite number, got {value!r}")
+        if isinstance(value, dict):
+            stack.extend((f"{field}.{k}" if field else str(k), v, depth + 1)
+                         for k, v in value.items())
+        elif isinstance(value, list):
+            stack.extend((f"{field}.{i}" if field else str(i), v, depth + 1)
+                         for i, v in enumerate(value))
+
+
+def _read_dhp_json(js: Path) -> dict:
+    import json
+
+    from downhole._reader import read_regular_file
+
+    raw = read_regular_file(js, MAX_DHP_JSON_BYTES, "a saved DHP controller's JSON")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise _refuse(js, "", f"not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset "
+                      f"{exc.start})") from None
+    if not text.strip():
+        raise _refuse(js, "", "empty file; expected the JSON of a saved DHP controller")
+    try:
+        meta = json.loads(text, parse_constant=_json_constant)
+    except RecursionError:
+        raise _refuse(js, "", "not valid JSON: nested too deep") from None
+    except json.JSONDecodeError as exc:
+        raise _refuse(js, "", f"not valid JSON (truncated?): {exc.msg} (line {exc.lineno}, "
+                      f"column {exc.colno})") from None
+    except ValueError as exc:  # NaN, Infinity, a 5000-digit integer
+        raise _refuse(js, "", f"not valid JSON: {str(exc).split(';')[0]}") from None
+    if not isinstance(meta, dict):
+        raise _refuse(js, "<top>", f"expected a JSON object, got {type(meta).__name__}")
+    _check_json_tree(meta, js)
+    if meta.get("format") != _FORMAT:
+        raise _refuse(js, "format", f"is not a downhole DHP controller (format "
+                      f"{str(meta.get('format'))[:60]!r}, expected {_FORMAT!r})")
+    return meta
+
+
+def _read_dhp_npz(npz: Path) -> dict:
+    import io
+    import zipfile
+    import zlib
+
+    from downhole._reader import read_regular_file
+
+    raw = read_regular_file(npz, MAX_DHP_NPZ_BYTES, "a saved DHP controller's npz archive")
+    try:
+        with zipfile.ZipFile(io.BytesIO(raw)) as zf:
+            infos = zf.infolist()
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, ValueError) as exc:
+        raise _refuse(npz, "", f"not an npz archive ({exc})") from None
+    declared = sum(i.file_size for i in infos)
+    if len(infos) > 256 or declared > MAX_DHP_ARRAY_BYTES:
+        raise _refuse(npz, "", f"{len(infos)} arrays of {declared} bytes decompressed; at most "
+                      f"256 arrays and {MAX_DHP_ARRAY_BYTES} bytes are read")
+    arrays = {}
+    try:
+        data = np.load(io.BytesIO(raw), allow_pickle=False)
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise _refuse(npz, "", f"not an npz archive ({exc})") from None
+    with data:
+        for k in data.files:
+            try:
+                arrays[k] = data[k]
+            except ValueError as exc:  # an object array: pickled data, refused
+                raise _refuse(npz, k, f"{str(exc).split('.')[0]}; a controller holds numbers "
+                              "only") from None
+            except (OSError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+                raise _refuse(npz, k, f"cannot read the array ({exc})") from None
+    return arrays
+
+
+def _names(meta: dict, js: Path, field: str) -> tuple:
+    v = meta.get(field)
+    if not isinstance(v, list) or not 1 <= len(v) <= _MAX_SIGNALS:
+        raise _refuse(js, field, f"expected a list of 1 to {_MAX_SIGNALS} names")
+    for i, name in enumerate(v):
+        if not isinstance(name, str) or not 0 < len(name) <= _NAME_CHARS:
+            raise _refuse(js, f"{field}.{i}", f"expected a name of 1 to {_NAME_CHARS} "
+                          "characters")
+    return tuple(v)
+
+
+def _int_field(value, js: Path, field: str, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise _refuse(js, field, f"expected an integer in {lo}..{hi}, got {str(value)[:40]}")
+    return value
+
+
+def _array(arrays: dict, npz: Path, key: str, shape: tuple, *, positive: bool = False):
+    a = arrays.get(key)
+    if a is None:
+        raise _refuse(npz, key, "missing")
+    if a.dtype.kind != "f" or a.dtype.itemsize != 8:
+        raise _refuse(npz, key, f"dtype {a.dtype}; expected float64")
+    if a.shape != shape:
+        raise _refuse(npz, key, f"shape {a.shape}; expected {shape}")
+    if not np.isfinite(a).all():
+        raise _refuse(npz, key, "non-finite values (NaN or inf)")
+    if positive and not (a > 0).all():
+        raise _refuse(npz, key, "expected positive scales")
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _check_integral(meta: dict, js: Path, n: int) -> None:
+    """The integral-action description a DHP controller reads from its ``meta``."""
+    model = meta.get("model")
+    integ = None
+    if isinstance(model, dict):
+        md = model.get("metadata", {})
+        if not isinstance(md, dict):
+            raise _refuse(js, "meta.model.metadata", "expected an object")
+        integ = md.get("integral")
+        where = "meta.model.metadata.integral"
+    if integ is None:
+        integ, where = meta.get("integral"), "meta.integral"
+    if integ is None:
+        return
+    if not isinstance(integ, dict):
+        raise _refuse(js, where, "expected an object")
+    nb = _int_field(integ.get("n_base"), js, f"{where}.n_base", 1, n)
+    src = integ.get("source")
+    if not isinstance(src, list) or len(src) != 2:
+        raise _refuse(js, f"{where}.source", "expected two state indices")
+    for i, v in enumerate(src):
+        _int_field(v, js, f"{where}.source.{i}", 0, nb - 1)
+
+
 def load_controller(path: str | os.PathLike) -> DHPController:
-    """Load a controller written by :meth:`DHPController.save` (``path`` with or without suffix).
+    """Load a saved DHP controller (``path.json`` + ``path.npz`` of
+    :meth:`~downhole.control.dhp.DHPController.save`; ``path`` with or without the suffix),
+    checking every field before anything is built.
+
+    Both files must be regular files (a FIFO or a device such as ``/dev/zero`` is refused
+    before it is opened) of bounded size (:data:`MAX_DHP_JSON_BYTES`,
+    :data:`MAX_DHP_NPZ_BYTES`; the arrays at most :data:`MAX_DHP_ARRAY_BYTES` decompressed);
+    the JSON must parse (no NaN or Infinity, at most 32 levels deep) with ``dt`` a step in
+    [1e-6, 1] s, the signal names lists of names, ``past_horizon`` and ``stationary_step``
+    valid; the arrays float64, finite, of the shapes the gains imply (``kd`` (steps, inputs,
+    states), ``kc`` and ``u_ff`` (steps, inputs), ``reference_nd`` (steps + 1, states), scales
+    positive, ``input_limits`` (inputs, 2) ordered) and without pickled objects (read with
+    ``allow_pickle=False``); extra arrays real numbers.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The controller's path, with or without ``.json``/``.npz``.
+
+    Returns
+    -------
+    DHPController
+        The loaded controller.
 
     Raises
     ------
     DownholeInputError
-        Missing files or a file that is not a downhole DHP controller.
+        One line naming the file and the field (a :class:`~downhole.errors.ScenarioError`).
     """
     path = Path(path)
     stem = path.with_suffix("") if path.suffix in (".npz", ".json") else path
     npz, js = stem.with_suffix(".npz"), stem.with_suffix(".json")
-    for f in (npz, js):
-        if not f.exists():
-            raise DownholeInputError(f"DHP controller file {f} does not exist")
-    meta = json.loads(js.read_text())
-    if meta.get("format") != _FORMAT:
-        raise DownholeInputError(f"{js} is not a downhole DHP controller (format "
-                                 f"{meta.get('format')!r}, expected {_FORMAT!r})")
-    with np.load(npz, allow_pickle=False) as data:
-        arr = {k: data[k] for k in data.files}
-    extras = {k[len("extra_"):]: v for k, v in arr.items() if k.startswith("extra_")}
-    return DHPController(arr["kc"], arr["kd"], arr["reference_nd"], arr["u_ff"],
-                         arr["state_scale"], arr["input_scale"], meta["dt"], meta["state_names"],
-                         meta["state_kinds"], meta["input_names"],
-                         BitReference.from_dict(meta["reference"]),
-                         input_limits=arr.get("input_limits"),
-                         past_horizon=meta["past_horizon"],
-                         stationary_step=meta["stationary_step"], meta=meta.get("meta", {}),
-                         arrays=extras)
+    meta = _read_dhp_json(js)
+    dt = meta.get("dt")
+    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not 1e-6 <= dt <= 1.0:
+        raise _refuse(js, "dt", f"{str(dt)[:40]} is not a controller step in [1e-6, 1] s")
+    states = _names(meta, js, "state_names")
+    kinds = _names(meta, js, "state_kinds")
+    inputs = _names(meta, js, "input_names")
+    if len(kinds) != len(states):
+        raise _refuse(js, "state_kinds", f"{len(kinds)} kinds for {len(states)} states")
+    if meta.get("past_horizon") not in ("stationary", "error"):
+        raise _refuse(js, "past_horizon", "expected 'stationary' or 'error'")
+    inner = meta.get("meta", {})
+    if not isinstance(inner, dict):
+        raise _refuse(js, "meta", "expected an object")
+    ref = meta.get("reference")
+    if not isinstance(ref, dict):
+        raise _refuse(js, "reference", "expected an object")
+    try:
+        reference = BitReference.from_dict(ref)
+    except (DownholeInputError, TypeError, ValueError) as exc:
+        raise _refuse(js, "reference", str(exc).splitlines()[0][:200]) from None
+    n, m = len(states), len(inputs)
+    _check_integral(inner, js, n)
+    arrays = _read_dhp_npz(npz)
+    kd = arrays.get("kd")
+    if kd is None or kd.ndim != 3 or kd.shape[0] < 1:
+        raise _refuse(npz, "kd", "missing or not a (steps, inputs, states) array"
+                      if kd is None or kd.ndim != 3 else "no step")
+    ns = kd.shape[0]
+    a = {"kd": _array(arrays, npz, "kd", (ns, m, n)),
+         "kc": _array(arrays, npz, "kc", (ns, m)),
+         "u_ff": _array(arrays, npz, "u_ff", (ns, m)),
+         "reference_nd": _array(arrays, npz, "reference_nd", (ns + 1, n)),
+         "state_scale": _array(arrays, npz, "state_scale", (n,), positive=True),
+         "input_scale": _array(arrays, npz, "input_scale", (m,), positive=True)}
+    limits = None
+    if "input_limits" in arrays:
+        limits = _array(arrays, npz, "input_limits", (m, 2))
+        if not (limits[:, 0] <= limits[:, 1]).all():
+            raise _refuse(npz, "input_limits", "a lower limit above its upper limit")
+    step = meta.get("stationary_step")
+    if step is not None:
+        _int_field(step, js, "stationary_step", 0, ns - 1)
+    extras = {}
+    for k, v in arrays.items():
+        if not k.startswith("extra_"):
+            continue
+        if v.dtype.kind not in "biuf":
+            raise _refuse(npz, k, f"dtype {v.dtype}; expected real numbers")
+        if v.dtype.kind == "f" and not np.isfinite(v).all():
+            raise _refuse(npz, k, "non-finite values (NaN or inf)")
+        extras[k[len("extra_"):]] = v
+    try:
+        return DHPController(a["kc"], a["kd"], a["reference_nd"], a["u_ff"], a["state_scale"],
+                             a["input_scale"], float(dt), states, kinds, inputs, reference,
+                             input_limits=limits, past_horizon=meta["past_horizon"],
+                             stationary_step=step, meta=inner, arrays=extras)
+    except DownholeInputError as exc:
+        raise _refuse(js, "", str(exc)) from None
