@@ -407,8 +407,8 @@ class DrillingSystem:
         f_t = float(ref.natural_frequencies("torsional", 1, top="fixed")[0])
         m_a = k_a / (2 * math.pi * f_a) ** 2
         m_t = k_t / (2 * math.pi * f_t) ** 2
-        mass = sum(s.section.density * s.section.area * s.length for s in segs)
-        inertia = sum(s.section.density * s.section.polar_moment * s.length for s in segs)
+        mass = sum(s.section.linear_mass * s.length for s in segs)
+        inertia = sum(s.section.linear_inertia * s.length for s in segs)
         zeta = tuple(self.rayleigh_alpha / (2 * w) + self.rayleigh_beta * w / 2
                      for w in (2 * math.pi * f_a, 2 * math.pi * f_t))
         return LumpedDerivation((k_a, k_t), (f_a, f_t), (m_a, m_t), (mass, inertia), zeta)
@@ -423,7 +423,8 @@ class DrillingSystem:
                              self.string.segments):
             md = top + 0.5 * (a + b) + 0.5 * (b - a) * x
             cos_inc = np.cos(np.asarray(self.well.inclination(md), float))
-            w = self.string.g * seg.section.area * (seg.section.density - self.string.mud_density)
+            w = self.string.g * seg.section.weight_factor * seg.section.area * (
+                seg.section.density - self.string.mud_density)
             total += w * 0.5 * (b - a) * float(np.dot(wq, cos_inc))
         return total
 
@@ -516,8 +517,8 @@ class DrillingSystem:
                                          f"than the string ({pipe.length:g} m)")
             length = pipe.length - self.lump_length
             lumped = [StringSegment(self.lump_length, pipe.section, pipe.kind)]
-        m_b = sum(s.section.density * s.section.area * s.length for s in lumped)
-        i_b = sum(s.section.density * s.section.polar_moment * s.length for s in lumped)
+        m_b = sum(s.section.linear_mass * s.length for s in lumped)
+        i_b = sum(s.section.linear_inertia * s.length for s in lumped)
         return StringSegment(length, pipe.section, pipe.kind), m_b, i_b, length
 
     def _build_neutral(self):

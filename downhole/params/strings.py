@@ -27,6 +27,12 @@ class PipeSection(BaseModel):
         Shear modulus G, Pa (default 7.93e10).
     density : float
         Density rho of the material, kg/m^3 (default 7850).
+    weight_factor : float
+        Adjusted weight / plain-end weight (>= 1; default 1, plain pipe): tool joints and upsets
+        add mass and displaced volume per length, ``linear_mass = weight_factor * rho * A``,
+        but not stiffness (EA, GJ are the body's). From a catalogue entry
+        (:func:`downhole.string.catalogue.catalogue_section`: 1.31 for 5" 19.50 lb/ft S-135
+        with NC50 joints).
 
     Values may be given as quantity strings (``"5 in"``); they are stored in SI.
     """
@@ -38,6 +44,7 @@ class PipeSection(BaseModel):
     young_modulus: Q["pressure"] = Field(2.11e11, gt=0)
     shear_modulus: Q["pressure"] = Field(7.93e10, gt=0)
     density: Q["density"] = Field(7850.0, gt=0)
+    weight_factor: float = Field(1.0, ge=1.0, le=3.0)
 
     def model_post_init(self, __context) -> None:
         """Pydantic hook run after field validation: check the diameters.
@@ -68,24 +75,36 @@ class PipeSection(BaseModel):
         return math.pi / 32 * (self.outer_diameter**4 - self.inner_diameter**4)
 
     @property
+    def linear_mass(self) -> float:
+        """Mass per length, kg/m: ``weight_factor * rho * A`` (tool joints included)."""
+        return self.weight_factor * self.density * self.area
+
+    @property
+    def linear_inertia(self) -> float:
+        """Rotary inertia per length, kg m: ``weight_factor * rho * J`` (the tool joints' share
+        taken in proportion to their mass, an approximation documented in docs/torque-drag.md)."""
+        return self.weight_factor * self.density * self.polar_moment
+
+    @property
     def axial_wave_speed(self) -> float:
-        """c_a = sqrt(E/rho), m/s."""
-        return math.sqrt(self.young_modulus / self.density)
+        """c_a = sqrt(E A / linear_mass) = sqrt(E/rho) for plain pipe, m/s."""
+        return math.sqrt(self.young_modulus / (self.weight_factor * self.density))
 
     @property
     def torsional_wave_speed(self) -> float:
-        """c_t = sqrt(G/rho), m/s."""
-        return math.sqrt(self.shear_modulus / self.density)
+        """c_t = sqrt(G J / linear_inertia) = sqrt(G/rho) for plain pipe, m/s."""
+        return math.sqrt(self.shear_modulus / (self.weight_factor * self.density))
 
     @property
     def axial_impedance(self) -> float:
-        """Z_a = A sqrt(rho E), N s/m."""
-        return self.area * math.sqrt(self.density * self.young_modulus)
+        """Z_a = A sqrt(rho E) (rho times the weight factor), N s/m."""
+        return self.area * math.sqrt(self.weight_factor * self.density * self.young_modulus)
 
     @property
     def torsional_impedance(self) -> float:
-        """Z_t = J sqrt(rho G), N m s/rad."""
-        return self.polar_moment * math.sqrt(self.density * self.shear_modulus)
+        """Z_t = J sqrt(rho G) (rho times the weight factor), N m s/rad."""
+        return self.polar_moment * math.sqrt(self.weight_factor * self.density
+                                             * self.shear_modulus)
 
 
 class NeutralStringParams(BaseModel):

@@ -278,14 +278,28 @@ class SegmentSettings(_Strict):
 
     kind: Literal["pipe", "heavyweight", "collar", "bha"] = "pipe"
     length: Q["length"] | None = Field(None, gt=0)
-    outer_diameter: Q["length"] = Field(..., gt=0)
-    inner_diameter: Q["length"] = Field(..., ge=0)
+    catalogue: str | None = None
+    outer_diameter: Q["length"] | None = Field(None, gt=0)
+    inner_diameter: Q["length"] | None = Field(None, ge=0)
     young_modulus: Q["pressure"] = Field(2.1e11, gt=0)
     shear_modulus: Q["pressure"] = Field(8.08e10, gt=0)
     density: Q["density"] = Field(7850.0, gt=0)
 
     @model_validator(mode="after")
     def _diameters(self):
+        if self.catalogue is not None:
+            from downhole.string.catalogue import catalogue_section
+
+            if self.outer_diameter is not None or self.inner_diameter is not None:
+                raise ValueError("give either catalogue or outer_diameter/inner_diameter")
+            try:
+                catalogue_section(self.catalogue)
+            except Exception as exc:
+                raise ValueError(str(exc)) from None
+            return self
+        if self.outer_diameter is None or self.inner_diameter is None:
+            raise ValueError("give outer_diameter and inner_diameter, or a catalogue name "
+                             "(e.g. catalogue = \"5in 19.50 S135 NC50\")")
         if self.inner_diameter >= self.outer_diameter:
             raise ValueError(f"inner_diameter ({self.inner_diameter:g} m) must be smaller than "
                              f"outer_diameter ({self.outer_diameter:g} m)")
@@ -550,9 +564,15 @@ def _string(sc: DirectionalScenario, source: str, params, well):
                                             f"({used:g} m of {well.total_depth:g} m); "
                                             "give a length")
                 used += length
-                sec = pipe_section(s.outer_diameter, s.inner_diameter,
-                                   young_modulus=s.young_modulus, shear_modulus=s.shear_modulus,
-                                   density=s.density)
+                if s.catalogue is not None:
+                    from downhole.string.catalogue import catalogue_section
+
+                    sec = catalogue_section(s.catalogue, young_modulus=s.young_modulus,
+                                            shear_modulus=s.shear_modulus, density=s.density)
+                else:
+                    sec = pipe_section(s.outer_diameter, s.inner_diameter,
+                                       young_modulus=s.young_modulus,
+                                       shear_modulus=s.shear_modulus, density=s.density)
                 segs.append(StringSegment(float(length), sec, s.kind))
     with _wrap(source, "string"):
         stabs = tuple(Stabilizer(x.distance_from_bit, x.outer_diameter) for x in st.stabilizers)

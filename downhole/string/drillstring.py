@@ -282,7 +282,8 @@ class DrillString:
             Buoyed weight per unit length, N/m, shaped like ``s``.
         """
         idx = self.segment_at(s)
-        vals = np.array([self.g * seg.section.area * (seg.section.density - self.mud_density)
+        vals = np.array([self.g * seg.section.weight_factor * seg.section.area
+                         * (seg.section.density - self.mud_density)
                          for seg in self.segments])
         return vals[idx]
 

@@ -371,8 +371,8 @@ def _assemble_chain(well, string, md, top_md, mass="consistent"):
     s_mid = mid - top_md
     EA = string.property_at(s_mid, "area") * string.property_at(s_mid, "young_modulus")
     GJ = string.property_at(s_mid, "polar_moment") * string.property_at(s_mid, "shear_modulus")
-    rA = string.property_at(s_mid, "area") * string.property_at(s_mid, "density")
-    rJ = string.property_at(s_mid, "polar_moment") * string.property_at(s_mid, "density")
+    rA = string.property_at(s_mid, "linear_mass")
+    rJ = string.property_at(s_mid, "linear_inertia")
     wb = string.buoyed_weight_per_length(s_mid)
     Ma, Mt, Ka, Kt = (np.zeros((2, n)) for _ in range(4))
     for e in range(n - 1):

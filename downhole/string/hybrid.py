@@ -199,7 +199,7 @@ def hybrid_model(preset: str | None = None, *, n_ab: int | None = None,
     tau_a = L / pipe.axial_wave_speed
     tau_t = L / pipe.torsional_wave_speed
     if damping == "rayleigh":
-        for C, rho_x in ((Ca, pipe.density * pipe.area), (Ct, pipe.density * pipe.polar_moment)):
+        for C, rho_x in ((Ca, pipe.linear_mass), (Ct, pipe.linear_inertia)):
             dash = alpha * rho_x * L / 2.0
             if Cd is None:
                 C[0, iB] += dash

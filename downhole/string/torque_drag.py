@@ -262,7 +262,8 @@ def torque_drag(well: WellPath, string: DrillString, *, friction=(0.1, 0.2, 0.3)
     gperp = normal_weight(t_mid, np.ones(mid.size))
     dtvd = np.diff(np.asarray(well.tvd(md), float))
     g, rho_mud = string.g, string.mud_density
-    w_seg = [g * s.section.area * (s.section.density - rho_mud) for s in string.segments]
+    w_seg = [g * s.section.weight_factor * s.section.area * (s.section.density - rho_mud)
+             for s in string.segments]
     r_seg = [0.5 * s.section.outer_diameter for s in string.segments]
     xw, yw = _cumulative(string, w_seg)
     xr, yr = _cumulative(string, r_seg)
