@@ -567,7 +567,8 @@ def path_inputs(x2k, x4k, dt, times, lumped, p_nom):
 def discrete_replay(u1, u2, dt, lumped, p):
     """Eq. 2.12 (explicit Euler at the DP step, depth of cut approximated) driven by u1(k), u2(k)
     from the rest state; returns x1..x4 at k = 0..N."""
-    ka, kt = lumped.ka, lumped.kt
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     n = u1.size
     x = np.zeros((n + 1, 4))
     for k in range(n):
