@@ -92,7 +92,8 @@ def transition_lists(g2, g4, lumped, p, dt, bounds, use_rates):
     ``use_rates`` the mean top-drive speeds over the step must lie in ``bounds[4:6]`` and
     ``bounds[6:8]``. Returns ``(succ_ptr, succ, pred_ptr, pred)``.
     """
-    ka, kt = lumped.ka, lumped.kt
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     n2, n4 = g2.size, g4.size
     nn = n2 * n4
     wob, tob = node_bit_loads(g2, g4, p)
@@ -262,7 +263,8 @@ def project_table(g2, g4, fl, tl, lumped, p, dt, nsub, bounds):
 
     The top displacement is held over the step (Eq. 2.12's zero-order hold), so the string force
     relaxes by Ka * (x1 advance). Returns (x2', x4', admissible) arrays of shape (nn, nF*nT)."""
-    ka, kt = lumped.ka, lumped.kt
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     n4 = g4.size
     nn = g2.size * n4
     nq = fl.size * tl.size
@@ -347,7 +349,8 @@ def standard_choose(v, w, jnext, fl, tl, g2, g4, lumped, p, dt, nsub, bounds):
     """Standard-DP policy at an off-grid state: the input minimizing interpolated J_{k+1}.
 
     Returns (q, x2', x4', dx1, dx3) of the best admissible input (q = -1 if none)."""
-    ka, kt = lumped.ka, lumped.kt
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     h = dt / nsub
     h2 = g2[1] - g2[0]
     h4 = g4[1] - g4[0]
@@ -396,7 +399,8 @@ def _robust_forward_step(pred_ptr, pred, g2, g4, dt, nsub, lumped, p_nom, p_ens,
     """
     nn = cost.size
     ne = len(p_ens)
-    ka, kt = lumped.ka, lumped.kt
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     n4 = g4.size
     h = dt / nsub
     new_cost = np.full(nn, _INF)
@@ -503,7 +507,8 @@ def path_replay(x2k, x4k, dt, nsub, lumped, p_nom, p_model, out_every):
     (x2, x4) path and applied open loop to the model with bit parameters ``p_model`` (e.g. a
     perturbed epsilon). Returns time, x2, x4, e1 (= x1_path - x1), e3 sampled every
     ``out_every`` substeps."""
-    ka, kt = lumped.ka, lumped.kt
+    mass, inertia, ka, ca, kt, ct = (lumped.mass, lumped.inertia, lumped.ka, lumped.ca,
+                                     lumped.kt, lumped.ct)
     nsteps = x2k.size - 1
     h = dt / nsub
     total = nsteps * nsub
