@@ -375,6 +375,18 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                 den -= mats[6 * f + 5, i - 1] * cwc[f, i - 1]
             invc[f, i] = 1.0 / den
             cwc[f, i] = mats[6 * f + 5, i] * invc[f, i]
+    # explicit Euler: ground damping per node (row sums of C), element springs and dampers
+    Cg = np.zeros((2, n))
+    if euler:
+        for f in range(2):
+            rc = 12 + 2 * f
+            for i in range(n):
+                cg = mats[rc, i]
+                if i > 0:
+                    cg += mats[rc + 1, i - 1]
+                if i < n - 1:
+                    cg += mats[rc + 1, i]
+                Cg[f, i] = cg
     F = Fst.copy()
     cfr = np.zeros((2, n))
     rhs = np.empty(n)
@@ -512,13 +524,7 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                 ru = 3 * f
                 rc = 12 + 2 * f
                 for i in range(n):
-                    cg = mats[rc, i]
-                    if i > 0:
-                        cg += mats[rc + 1, i - 1]
-                    if i < n - 1:
-                        cg += mats[rc + 1, i]
-                    if n_ce > 0:
-                        cg += cfr[f, i]
+                    cg = Cg[f, i] + cfr[f, i] if n_ce > 0 else Cg[f, i]
                     fe[i] = Fst[f, i] - cg * state[ru + 1, i]
                 for i in range(n - 1):
                     fl = (-mats[6 * f + 3, i]) * (state[ru, i + 1] - state[ru, i]) \
