@@ -19,7 +19,8 @@ stable at dt = 1e-3 with any regularization width.
 Explicit Euler (the seed's Chapter 2 scheme, ``KernelParams.explicit_euler``) is the other
 integrator: it needs a diagonal mass and a stiffness matrix whose rows sum to zero (the string's
 supports are the hook and top-drive laws at node 0), and applies the bit force of the state at
-the start of the step. The lumped models of Chapter 2 drive node 0 towards a given, massless top
+the start of the step; it takes neither the dense (modal) damping nor the wave joint (only the
+lumped chains select it). The lumped models of Chapter 2 drive node 0 towards a given, massless top
 (``KernelParams.given_reference``): per step boundary the top positions and velocities (or the
 hook load and surface torque) come from the ``top_ref`` array instead of being integrated from
 ``cmd`` in the kernel.
@@ -27,7 +28,8 @@ hook load and surface torque) come from the ``top_ref`` array instead of being i
 The kernel takes its constant settings as one :class:`KernelParams` (a ``NamedTuple``, passed
 by value), the bit law's as one :class:`~downhole.params.bit.BitKernelParams`, its clocks and
 references as one :data:`RUN_STATE_DTYPE` record (updated in place) and the rest as plain arrays;
-:mod:`downhole.string.fem` and :mod:`downhole.string.hybrid` build them.
+:mod:`downhole.string.fem`, :mod:`downhole.string.hybrid` and
+:mod:`downhole.sim.lumped_model` build them.
 """
 
 from __future__ import annotations
@@ -69,7 +71,8 @@ CHANNELS = (
 
 class KernelParams(NamedTuple):
     """The constant settings of :func:`run_kernel` (SI units), built by name in
-    :class:`downhole.string.fem._Packed`.
+    :class:`downhole.string.fem._Packed` (directional models) and
+    :class:`downhole.sim.lumped_model.ChainPack` (lumped chains).
 
     Attributes
     ----------
