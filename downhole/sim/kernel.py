@@ -429,6 +429,9 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
     tc_line = 0.0
     row = rec_start
     countdown = rec_every
+    bit_known = False
+    wob_k = 0.0
+    tob_k = 0.0
     status = 0
     for k in range(n_steps):
         # runaway guard: a diverging run stops before the grid-indexed rock memory sees bit
@@ -465,15 +468,16 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
             th_ref += dt * omega_ref
             if vel_hook:
                 x_ref += dt * cax
-        # ---- top drive and hook (node 0)
-        if vel_hook:
-            F[0, 0] = Fst[0, 0] + hk * (x_ref - state[0, 0]) + hc * cax
-        else:
-            F[0, 0] = Fst[0, 0] + (w_pre - cax)
-        if torque_mode:
-            F[1, 0] = ctq
-        else:
-            F[1, 0] = kp * omega_ref + ki * (th_ref - state[3, 0])
+        # ---- top drive and hook (node 0; the Newmark end-of-step forces)
+        if not euler:
+            if vel_hook:
+                F[0, 0] = Fst[0, 0] + hk * (x_ref - state[0, 0]) + hc * cax
+            else:
+                F[0, 0] = Fst[0, 0] + (w_pre - cax)
+            if torque_mode:
+                F[1, 0] = ctq
+            else:
+                F[1, 0] = kp * omega_ref + ki * (th_ref - state[3, 0])
         # ---- wellbore contact (soft string, frozen-coefficient friction)
         if n_ce > 0:
             for j in range(n_cn):
@@ -518,11 +522,17 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                 wr0 = omega_ref
             vb0 = state[1, ib]
             wb0 = state[4, ib]
-            if approx:
-                d_e = approx_depth_of_cut(vb0, wb0, bt)
+            if bit_known:
+                # the record of the previous step evaluated the law at this state
+                wob_e, tob_e = wob_k, tob_k
             else:
-                d_e = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, ua_b0, th_b0)
-            wob_e, tob_e = bit_forces(d_e, vb0, wb0, bt)
+                if approx:
+                    d_e = approx_depth_of_cut(vb0, wb0, bt)
+                else:
+                    d_e = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, ua_b0,
+                                        th_b0)
+                wob_e, tob_e = bit_forces(d_e, vb0, wb0, bt)
+            bit_known = False
             for f in range(2):
                 ru = 3 * f
                 rc = 12 + 2 * f
@@ -742,6 +752,10 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                 dn = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, state[0, ib],
                                      state[3, ib])
             wn, tn = bit_forces(dn, vab, vtb, bt)
+            if euler:
+                bit_known = True
+                wob_k = wn
+                tob_k = tn
             rec[row, 0] = state[0, ib] - ubit0
             rec[row, 1] = vab
             rec[row, 2] = state[3, ib]
