@@ -351,23 +351,27 @@ class ChainPack:
         tmp = dict(st, state=st["state"].copy())
         return self._record_and_acceleration(tmp, top_row)
 
-    def step_reference(self, st, command) -> np.ndarray:
+    def step_reference(self, st, command, out: np.ndarray | None = None) -> np.ndarray:
         """The ``top_ref`` rows of one step holding ``command`` (velocities: the top moves on
-        from the run state's reference position; forces: held)."""
-        c = np.asarray(command, float)
-        ref = np.zeros((2, 4))
+        from the run state's reference position; forces: held), into ``out`` if given."""
+        ref = np.zeros((2, 4)) if out is None else out
+        c0, c1 = float(command[0]), float(command[1])
         if self.mode == "force":
-            ref[:, 0], ref[:, 1] = c[0], c[1]
+            ref[0, 0] = ref[1, 0] = c0
+            ref[0, 1] = ref[1, 1] = c1
             return ref
-        run = st["run"]
-        x0, th0 = float(run["x_ref"][0]), float(run["theta_ref"][0])
-        ref[0] = x0, th0, c[0], c[1]
-        ref[1] = x0 + self.dt * c[0], th0 + self.dt * c[1], c[0], c[1]
+        rs = st["run"][0]
+        x0, th0 = rs["x_ref"], rs["theta_ref"]
+        ref[0, 0], ref[0, 1], ref[0, 2], ref[0, 3] = x0, th0, c0, c1
+        ref[1, 0], ref[1, 1], ref[1, 2], ref[1, 3] = x0 + self.dt * c0, th0 + self.dt * c1, c0, c1
         return ref
 
     def step(self, st, command, rec):
         """One step holding ``command`` (the plant's); ``(status, rows)``."""
-        return self.run(st, self.step_reference(st, command), rec, 1, 0)
+        ref = st.get("step_ref")
+        if ref is None:
+            ref = st["step_ref"] = np.zeros((2, 4))
+        return self.run(st, self.step_reference(st, command, ref), rec, 1, 0)
 
     def run(self, st, top_ref, rec, rec_every, rec_start=0):
         """Advance ``len(top_ref) - 1`` steps from ``st`` (updated in place); ``(status,
