@@ -110,8 +110,8 @@ class KernelParams(NamedTuple):
         applies it minus the hook load, and the recorded hook load of a given reference adds
         it.
     explicit_euler : bool
-        Explicit Euler steps (diagonal mass, zero-row-sum stiffness; Chapter 2) instead of
-        Newmark's average acceleration.
+        Explicit Euler steps (diagonal mass, zero-row-sum stiffness, a given reference;
+        Chapter 2) instead of Newmark's average acceleration.
     given_reference : bool
         The top is a given, massless reference: the ``top_ref`` rows (axial position, angle,
         axial velocity, angular velocity; force mode: hook load, surface torque) at the step
@@ -440,8 +440,6 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                 and abs(state[3, ib]) < 1e12 and abs(state[4, ib]) < 1e12):
             status = 1
             break
-        x_old = x_ref
-        th_old = th_ref
         if given:
             # the top at t_{n+1} from the given reference
             if vel_hook:
@@ -502,24 +500,11 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
         th_b0 = state[3, ib]
         if euler:
             # ---- explicit Euler (seed Eq. 2.12): forces of the state and the top at t_n
-            if given:
-                if vel_hook:
-                    xr0 = top_ref[k, 0]
-                    vr0 = top_ref[k, 2]
-                else:
-                    xr0 = top_ref[k, 0]
-                    vr0 = 0.0
-                if torque_mode:
-                    tr0 = top_ref[k, 1]
-                    wr0 = 0.0
-                else:
-                    tr0 = top_ref[k, 1]
-                    wr0 = top_ref[k, 3]
-            else:
-                xr0 = x_old if vel_hook else cax
-                vr0 = cax
-                tr0 = th_old if not torque_mode else ctq
-                wr0 = omega_ref
+            # (the top at t_n: Euler runs with a given reference, the lumped chains')
+            xr0 = top_ref[k, 0]
+            tr0 = top_ref[k, 1]
+            vr0 = top_ref[k, 2] if vel_hook else 0.0
+            wr0 = top_ref[k, 3] if not torque_mode else 0.0
             vb0 = state[1, ib]
             wb0 = state[4, ib]
             if bit_known:
