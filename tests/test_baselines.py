@@ -26,7 +26,6 @@ from downhole.params.rig import Hook, TopDrive
 from downhole.signals import check_command_value, signal
 from downhole.sil import RealTimeRunner
 from downhole.sil.plants import SilPlant
-from downhole.sim import LumpedPlant
 from downhole.string.fem import DirectionalPlant
 from downhole.string.neutral import NeutralPlant
 from downhole.system import FIDELITIES, DrillingSystem
@@ -54,7 +53,7 @@ def _plant(system, fidelity, dt_lumped=5e-4):
         _MODELS[fidelity] = system.build(fidelity)
     model = _MODELS[fidelity]
     if fidelity.startswith("lumped"):
-        return LumpedPlant(model, dt=dt_lumped, integrator="newmark")
+        return DirectionalPlant(model, dt=dt_lumped, integrator="newmark")
     if fidelity == "neutral":
         return NeutralPlant(model, dt=1e-3)
     return DirectionalPlant(model, 1e-3, top_drive=TopDrive(speed=10.0),

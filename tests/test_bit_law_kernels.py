@@ -44,7 +44,7 @@ def _recorded_matches_law(res, bit, *, skip_first=False):
 @pytest.mark.parametrize("name", LAWS)
 @pytest.mark.parametrize("integrator,doc", [("euler", "delayed"), ("newmark", "delayed"),
                                             ("euler", "approximate")])
-def test_lumped_chain_kernel_uses_the_law(name, integrator, doc):
+def test_lumped_runs_of_the_kernel_use_the_law(name, integrator, doc):
     from downhole.sim import SurfaceInputs, simulate
     from downhole.sim.lumped_model import lumped_model
 
@@ -226,7 +226,7 @@ def test_sil_rig_model_uses_the_law():
         assert 10.0 - st1[3] == pytest.approx(1e-6 * tob / (50.0 + 1e-6 * sw), rel=1e-9)
 
 
-MODULES = ["downhole.sim.chain_kernel", "downhole.sim.fem_kernels", "downhole.string.neutral",
+MODULES = ["downhole.sim.kernel", "downhole.sim.lumped_model", "downhole.string.neutral",
            "downhole.string._reference_fd", "downhole.control.dp.kernels",
            "downhole.control.dhp.drilling", "downhole.control.dhp.directional", "downhole.sil.hil",
            "downhole.sim.reference_numpy"]

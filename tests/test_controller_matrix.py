@@ -30,7 +30,6 @@ from downhole.sil.controllers import SurfacePI
 from downhole.sil.link import ControllerClient
 from downhole.sil.plants import SilPlant
 from downhole.sil.testing import free_port
-from downhole.sim import LumpedPlant
 from downhole.string.fem import DirectionalPlant
 from downhole.string.neutral import NeutralPlant
 from downhole.system import FIDELITIES, DrillingSystem
@@ -91,7 +90,7 @@ def eid_design(system):
 def _plant(system, fidelity):
     model = system.build(fidelity)
     if fidelity.startswith("lumped"):
-        return LumpedPlant(model, dt=5e-4, integrator="newmark")
+        return DirectionalPlant(model, dt=5e-4, integrator="newmark")
     if fidelity == "neutral":
         return NeutralPlant(model, dt=1e-3)
     # a velocity-driven hook: the axial command is a block velocity at every fidelity
@@ -176,7 +175,7 @@ def test_controller_runs_at_every_fidelity_in_every_runner(system, eid_design, f
 
 
 def test_cells_that_cannot_work_say_why(system):
-    plant = LumpedPlant(system.build("lumped4"), mode="force")
+    plant = DirectionalPlant(system.build("lumped4"), mode="force")
     why = check_pair(ZTorque(480.0), plant)
     assert "takes" in why  # a force-driven top: no speed command to set
     for key in ("dhp", "dp", "dhp_fmu", "dp_fmu"):

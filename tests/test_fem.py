@@ -8,7 +8,7 @@ import pytest
 from downhole.control.affine import from_directional
 from downhole.control.topdrive import Hook, TopDrive
 from downhole.errors import DownholeInputError
-from downhole.sim.fem_kernels import CHANNELS
+from downhole.sim.kernel import CHANNELS
 from downhole.string.drillstring import DrillString, pipe_section
 from downhole.string.fem import _Packed, _static_axial, fem_model
 from downhole.well import Arc, Tangent, Vertical, WellPath

@@ -12,14 +12,14 @@ from downhole.control.base import run_closed_loop
 from downhole.errors import DownholeInputError
 from downhole.sil.controllers import SurfacePI
 from downhole.sil.fmu import export_plant_fmu, fmu_signals, run_fmu_closed_loop
-from downhole.sim import LumpedPlant
+from downhole.string.fem import DirectionalPlant
 from downhole.string.lumped import lumped_model
 
 REF = {"reference_axial_velocity": 0.005, "reference_angular_velocity": 10.0}
 
 
 def _lumped():
-    return LumpedPlant(lumped_model("table_2_1", order=4), dt=5e-4, integrator="newmark")
+    return DirectionalPlant(lumped_model("table_2_1", order=4), dt=5e-4, integrator="newmark")
 
 
 @pytest.fixture(scope="module")

@@ -19,10 +19,10 @@ BASE = {"N": {"kg": 1, "m": 1, "s": -2}, "N*m": {"kg": 1, "m": 2, "s": -2}, "m":
 @pytest.fixture(scope="module")
 def lumped_fmu(tmp_path_factory):
     from downhole.sil.fmu import export_plant_fmu
-    from downhole.sim import LumpedPlant
     from downhole.sim.lumped_model import lumped_model
+    from downhole.string.fem import DirectionalPlant
 
-    plant = LumpedPlant(lumped_model("table_2_1"), dt=5e-4)
+    plant = DirectionalPlant(lumped_model("table_2_1"), dt=5e-4)
     return export_plant_fmu(plant, tmp_path_factory.mktemp("fmu") / "lumped.fmu", stop_time=2.0,
                             command_start={"top_drive_axial_velocity": 0.01,
                                            "top_drive_angular_velocity": 10.0})

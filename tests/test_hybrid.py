@@ -56,7 +56,7 @@ def test_wave_segment_delays_a_torque_step_by_tau_with_impedance_z():
     assert arr_c - arr_b == pytest.approx(tau_t, abs=3e-3)
     # the incoming front at B sees the line as a dashpot: torque = Z * omega_B
     i = np.searchsorted(t, arr_b + 0.3 * tau_t)
-    from downhole.sim.fem_kernels import CHANNELS  # noqa: F401
+    from downhole.sim.kernel import CHANNELS  # noqa: F401
     pl = hybrid_model(None, n_ab=30, n_cd=30, rayleigh_alpha=0.0, rayleigh_beta=0.0, friction=0.0)
     from downhole.string.fem import DirectionalPlant
     plant = DirectionalPlant(pl, 1e-4, top_drive=TopDrive(mode="torque", speed=5000.0),

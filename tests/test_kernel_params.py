@@ -29,15 +29,26 @@ def golden():
         return dict(z)
 
 
+#: Relative tolerance per case. The lumped runs now go through the one kernel
+#: (:mod:`downhole.sim.kernel`): its explicit Euler steps are the old chain kernel's (1e-12);
+#: its Newmark steps solve the bit force exactly implicitly at the end of the step and carry the
+#: acceleration, where the old chain kernel linearized the bit force about the start of the step
+#: (a frozen-coefficient damper) and recomputed the start forces: the approximated-depth
+#: lumped12 case moves by 2e-4 of each channel's range (tests/test_lumped_kernel.py measures
+#: the difference on more cases).
+TOLERANCE = {"lumped12": 1e-3}
+
+
 @pytest.mark.parametrize("name", list(cases()))
 def test_kernel_reproduces_the_pre_refactor_numbers(golden, name):
     r = cases()[name]()
+    tol = TOLERANCE.get(name, 1e-12)
     for ch in CHANNELS:
         ref = golden[f"{name}/{ch}"]
         got = sample(r[ch])
         assert got.shape == ref.shape, (name, ch)
         scale = max(np.max(np.abs(ref)), 1e-300)
-        assert np.max(np.abs(got - ref)) <= 1e-12 * scale, (name, ch)
+        assert np.max(np.abs(got - ref)) <= tol * scale, (name, ch)
 
 
 def test_the_cases_are_not_trivial(golden):
@@ -92,7 +103,7 @@ def test_bit_wrappers_reject_an_unnamed_array():
 
 
 def test_run_state_is_a_named_record():
-    from downhole.sim.fem_kernels import RUN_STATE_DTYPE, new_run_state
+    from downhole.sim.kernel import RUN_STATE_DTYPE, new_run_state
 
     rs = new_run_state(x_ref=2.5, ubit0=-1.0)
     assert rs.shape == (1,) and rs.dtype == RUN_STATE_DTYPE

@@ -8,9 +8,10 @@ import pytest
 
 from downhole.bit import bit_forces_py
 from downhole.errors import DownholeInputError, SimulationDiverged
-from downhole.sim import LumpedPlant, SurfaceInputs, simulate
+from downhole.sim import SurfaceInputs, simulate
 from downhole.sim.lumped_model import lumped_model
 from downhole.sim.reference_numpy import simulate_lumped4_numpy
+from downhole.string.fem import DirectionalPlant
 
 M4 = lumped_model("table_2_1", order=4)
 P = M4.params
@@ -111,7 +112,7 @@ def test_matches_independent_numpy_stepping():
 
 
 def test_plant_steps_like_simulate():
-    plant = LumpedPlant(M4, dt=5e-4)
+    plant = DirectionalPlant(M4, dt=5e-4)
     obs = plant.reset()
     assert obs["bit_angular_velocity"] == 0.0
     for _ in range(2000):

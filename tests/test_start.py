@@ -8,9 +8,10 @@ import pytest
 
 from downhole.errors import DownholeInputError
 from downhole.params import get_preset
-from downhole.sim import LumpedPlant, SurfaceInputs, simulate
+from downhole.sim import SurfaceInputs, simulate
 from downhole.sim.lumped_model import lumped_model
 from downhole.sim.plant import START_MODES, Plant
+from downhole.string.fem import DirectionalPlant
 
 V0, W0 = 0.01, 20.0  # 10 mm/s, 20 rad/s: outside the stick-slip region of Table 2.1
 
@@ -48,14 +49,14 @@ def test_steady_start_stays_in_equilibrium_for_a_second(order, doc):
 def test_steady_deflection_of_the_4th_order_model_is_the_hand_value():
     m = lumped_model("table_2_1", order=4)
     p = get_preset("table_2_1").string
-    plant = LumpedPlant(m)
+    plant = DirectionalPlant(m)
     plant.reset(start="steady", set_point={"top_drive_axial_velocity": V0,
                                            "top_drive_angular_velocity": W0})
     wob, tob = _hand_bit_forces(2 * math.pi * V0 / W0, V0, W0)
     # spring to the top drive (at 0) carries the bit force and the absolute damping
-    assert plant._q[0, 0] == pytest.approx(-(wob + p.axial_damping * V0) / p.axial_stiffness,
+    assert plant.node_fields()["axial_position"][0] == pytest.approx(-(wob + p.axial_damping * V0) / p.axial_stiffness,
                                            rel=1e-12)
-    assert plant._q[1, 0] == pytest.approx(-(tob + p.torsional_damping * W0)
+    assert plant.node_fields()["angle"][0] == pytest.approx(-(tob + p.torsional_damping * W0)
                                            / p.torsional_stiffness, rel=1e-12)
     # the plant keeps it, step after step, under the same command
     for _ in range(2000):
@@ -83,8 +84,8 @@ def test_start_errors_are_precise():
     with pytest.raises(DownholeInputError, match="positive angular set-point"):
         simulate(m, SurfaceInputs.velocity(0.01, 0.0), duration=1.0, start="steady")
     with pytest.raises(DownholeInputError, match="velocity-driven"):
-        LumpedPlant(m, mode="force").reset(start="steady")
-    plant = LumpedPlant(m)
+        DirectionalPlant(m, mode="force").reset(start="steady")
+    plant = DirectionalPlant(m)
     with pytest.raises(DownholeInputError, match="not commands"):
         plant.reset(start="steady", set_point={"wob": 1.0})
     with pytest.raises(DownholeInputError, match="clearance"):
@@ -92,14 +93,15 @@ def test_start_errors_are_precise():
 
 
 def test_plant_refuses_bad_commands_without_applying_them():
-    plant = LumpedPlant(lumped_model("table_2_1", order=4))
+    plant = DirectionalPlant(lumped_model("table_2_1", order=4))
     plant.reset(start="steady", set_point={"top_drive_axial_velocity": V0,
                                            "top_drive_angular_velocity": W0})
-    before = plant._q.copy()
+    before = plant.node_fields()
     for bad in (math.nan, math.inf, 1e300):
         with pytest.raises(DownholeInputError, match="command refused"):
             plant.step({"top_drive_axial_velocity": V0, "top_drive_angular_velocity": bad})
     with pytest.raises(DownholeInputError, match="lacks"):
         plant.step({"top_drive_axial_velocity": V0})
-    assert np.array_equal(plant._q, before)
+    after = plant.node_fields()
+    assert all(np.array_equal(after[k], before[k]) for k in before)
     assert isinstance(plant, Plant) and START_MODES == ("rest", "off_bottom", "steady")

@@ -510,14 +510,14 @@ def test_plants_take_unit_strings_and_quantities_for_dt_set_points_and_commands(
     import pint
 
     from downhole.errors import DownholeInputError
-    from downhole.sim import LumpedPlant
     from downhole.sim.lumped_model import lumped_model
+    from downhole.string.fem import DirectionalPlant
     from downhole.string.neutral import NeutralPlant
 
     u = pint.UnitRegistry()
     v = u.Quantity(30.0, "ft/hour").to("m/s").magnitude
     w = u.Quantity(60.0, "rpm").to("rad/s").magnitude
-    for make, dt_text, dt in ((lambda d: LumpedPlant(lumped_model("table_2_1"), dt=d),
+    for make, dt_text, dt in ((lambda d: DirectionalPlant(lumped_model("table_2_1"), dt=d),
                                "0.5 ms", 5e-4),
                               (lambda d: NeutralPlant("table_3_1", dt=d), "0.1 ms", 1e-4)):
         a, b = make(dt), make(dt_text)

@@ -173,7 +173,7 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
     Parameters
     ----------
     plant : downhole.sim.plant.Plant
-        E.g. ``LumpedPlant(system.build("lumped4"), dt=5e-4)``, a
+        E.g. ``DirectionalPlant(system.build("lumped4"), dt=5e-4)``, a
         :class:`~downhole.string.neutral.NeutralPlant` or a
         :class:`~downhole.string.fem.DirectionalPlant`.
     out : path
@@ -249,7 +249,7 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
     """The velocity-driven plant of ``model`` that :func:`export_system_fmu` wraps.
 
     Commands ``top_drive_axial_velocity`` (m/s) and ``top_drive_angular_velocity`` (rad/s) at
-    every fidelity. ``lumped4`` / ``lumped12``: :class:`~downhole.sim.LumpedPlant`
+    every fidelity. ``lumped4`` / ``lumped12``: :class:`~downhole.string.fem.DirectionalPlant`
     (velocity-driven top, the given ``integrator``); ``neutral``:
     :class:`~downhole.string.neutral.NeutralPlant`; ``fem`` / ``hybrid``:
     :class:`~downhole.string.fem.DirectionalPlant` with the rig's PI top drive
@@ -280,9 +280,9 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
         A plant of the :class:`~downhole.sim.plant.Plant` contract.
     """
     if fidelity in ("lumped4", "lumped12"):
-        from downhole.sim import LumpedPlant
+        from downhole.string.fem import DirectionalPlant
 
-        return LumpedPlant(model, dt=dt, depth_of_cut=depth_of_cut, integrator=integrator)
+        return DirectionalPlant(model, dt=dt, depth_of_cut=depth_of_cut, integrator=integrator)
     if fidelity == "neutral":
         from downhole.string.neutral import NeutralPlant
 

@@ -4,8 +4,8 @@ The real-time runtime, the UDP link, the FMU and the Gymnasium environment all n
 whose observations and commands are a *fixed*, ordered list of named floats.
 :class:`SilPlant` wraps a plant of the :class:`~downhole.sim.plant.Plant` contract
 (``reset(start=..., set_point=...) -> obs``, ``step(command) -> obs``:
-:class:`~downhole.sim.LumpedPlant`, :class:`~downhole.string.neutral.NeutralPlant`,
-:class:`~downhole.string.fem.DirectionalPlant`,
+:class:`~downhole.string.fem.DirectionalPlant` (lumped and directional models),
+:class:`~downhole.string.neutral.NeutralPlant`,
 :class:`~downhole.control.dhp.directional.DirectionalStatePlant`; the HIL string takes the
 same two calls) and adds:
 
@@ -391,7 +391,7 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         Unknown model or interface.
     """
     if model == "lumped":
-        from downhole.sim import LumpedPlant
+        from downhole.string.fem import DirectionalPlant
         from downhole.string.lumped import lumped_model
 
         if bit is None:
@@ -400,7 +400,7 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
             from downhole.params import get_preset
 
             lm = lumped_model(get_preset(lumped_preset).string, bit, order=order)
-        p = LumpedPlant(lm, dt=dt, mode="velocity", depth_of_cut=depth_of_cut)
+        p = DirectionalPlant(lm, dt=dt, mode="velocity", depth_of_cut=depth_of_cut)
         names = p.command_names
         return SilPlant(p, names, {names[0]: axial_velocity, names[1]: top_drive_speed},
                         {names[0]: 0.0, names[1]: 0.0}, name=f"lumped {lumped_preset} order "

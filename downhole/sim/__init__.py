@@ -1,7 +1,7 @@
-"""Simulation: compiled fixed-step kernels, the simulate() entry point and the Result object."""
+"""Simulation: the one compiled mechanics kernel, the simulate() entry point and the Result object."""
 
 from downhole.sim.inputs import SurfaceInputs
 from downhole.sim.result import CHANNEL_UNITS, Result, load_result
-from downhole.sim.simulate import LumpedPlant, simulate
+from downhole.sim.simulate import simulate
 
-__all__ = ["CHANNEL_UNITS", "LumpedPlant", "Result", "SurfaceInputs", "load_result", "simulate"]
+__all__ = ["CHANNEL_UNITS", "Result", "SurfaceInputs", "load_result", "simulate"]

@@ -1,11 +1,14 @@
 """Lumped drill strings as chains: the 4th-order (Eq. 2.1) and 12th-order (Eqs. 2.26-2.31) models.
 
-A :class:`ChainModel` is the mechanics core's lumped configuration: per field (axial, torsional)
-a chain of DOFs with diagonal mass, springs and dampers between neighbours (tridiagonal K and C),
-absolute dampers to ground, and a coupling of DOF 0 to the top drive (a spring/damper to the
-commanded displacement, or an applied hook load/torque). The bit acts on the last DOF. Positions
-are deviations from the static hanging equilibrium (gravity pre-balanced), unless the parameters
-ask for the printed, unbalanced form.
+A :class:`ChainModel` is a configuration of the one mechanics kernel
+(:func:`downhole.sim.kernel.run_kernel`): per field (axial, torsional) a chain of DOFs with
+diagonal mass, springs and dampers between neighbours (tridiagonal K and C), absolute dampers to
+ground, and a coupling of DOF 0 to the top drive (a spring/damper to the commanded displacement,
+which is the kernel's hook servo and top-drive PI towards a given reference, or an applied hook
+load/torque). The bit acts on the last DOF. Positions are deviations from the static hanging
+equilibrium (gravity pre-balanced), unless the parameters ask for the printed, unbalanced form.
+:meth:`ChainModel.kernel_pack` builds the kernel's arrays; :func:`downhole.sim.simulate` and
+:class:`downhole.string.fem.DirectionalPlant` run them.
 """
 
 from __future__ import annotations
@@ -15,10 +18,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from downhole.bit.law import bit_forces
+from downhole.bit.rock_surface import RockSurfaceSpec, rock_depth, rock_init, rock_init_helix
 from downhole.errors import DownholeInputError
 from downhole.params import BitParams, LumpedParams, get_preset
+from downhole.sim.kernel import CHANNELS as KERNEL_CHANNELS
+from downhole.sim.kernel import KernelParams, new_run_state, run_kernel
+from downhole.sim.plant import check_start, steady_depth_of_cut
+from downhole.sim.wave import WaveParams
 
-__all__ = ["ChainField", "ChainModel", "lumped_model"]
+__all__ = ["CHAIN_CHANNELS", "ChainField", "ChainModel", "ChainPack", "lumped_model"]
+
+#: The channels a lumped run records (the first eleven kernel channels, after the time).
+CHAIN_CHANNELS = ("time", *KERNEL_CHANNELS[:11])
+DEPTH_OF_CUT_MODES = ("delayed", "approximate")
+INTEGRATORS = ("euler", "newmark")
 
 
 @dataclass(frozen=True)
@@ -112,21 +126,12 @@ class ChainModel:
             out[name] = np.sqrt(np.sort(np.linalg.eigvalsh(m @ k @ m)))
         return out
 
-    def packed(self):
-        """Arrays for the compiled kernel: (mass, k_link, c_link, c_abs, k_top, c_top, gravity),
-        each with a leading field axis of size 2 (links padded to n)."""
-        n = self.n
-        out = []
-        for attr in ("mass", "k_link", "c_link", "c_abs", "gravity"):
-            arr = np.zeros((2, n))
-            for i, f in enumerate((self.axial, self.torsional)):
-                vals = np.asarray(getattr(f, attr), float)
-                arr[i, : len(vals)] = vals
-            out.append(arr)
-        mass, k_link, c_link, c_abs, gravity = out
-        k_top = np.array([self.axial.k_top, self.torsional.k_top])
-        c_top = np.array([self.axial.c_top, self.torsional.c_top])
-        return mass, k_link, c_link, c_abs, k_top, c_top, gravity
+    def kernel_pack(self, dt: float, mode: str = "velocity", depth_of_cut: str = "delayed",
+                    integrator: str = "euler") -> ChainPack:
+        """The kernel arrays of this chain for one step ``dt`` (s), top ``mode`` (``velocity``:
+        driven towards a given top position and velocity; ``force``: hook load and surface
+        torque applied), depth of cut and integrator (``euler`` or ``newmark``)."""
+        return ChainPack(self, dt, mode, depth_of_cut, integrator)
 
 
 def lumped_model(string: str | LumpedParams = "table_2_1", bit: BitParams | None = None,
@@ -194,3 +199,223 @@ def lumped_model(string: str | LumpedParams = "table_2_1", bit: BitParams | None
     ax = field_of(params.mass, params.axial_stiffness, params.axial_damping, unbal * g)
     to = field_of(params.inertia, params.torsional_stiffness, params.torsional_damping, 0.0)
     return ChainModel("lumped12", ax, to, bit, weight, params)
+
+
+def _tridiagonal(diag_extra, links, n):
+    """(2, n) tridiagonal rows (diagonal, off-diagonal) of a chain of ``links`` plus
+    ``diag_extra`` on the diagonal (the last off-diagonal entry unused)."""
+    t = np.zeros((2, n))
+    t[0] = np.asarray(diag_extra, float)
+    for i, kl in enumerate(np.asarray(links, float)):
+        t[0, i] += kl
+        t[0, i + 1] += kl
+        t[1, i] = -kl
+    return t
+
+
+class ChainPack:
+    """Kernel arrays and start states of a :class:`ChainModel` for one (dt, top mode, depth of
+    cut, integrator): the chain as a configuration of :func:`~downhole.sim.kernel.run_kernel`.
+
+    The top is a given, massless reference (``KernelParams.given_reference``): in velocity mode
+    the axial field's top spring and damper are the kernel's hook servo (``hook_k``,
+    ``hook_c``) and the torsional ones its top-drive PI (``ki``, ``kp``), both towards the
+    reference position and velocity; in force mode the hook load (less the pre-balanced
+    weight) and the surface torque act on DOF 0.
+    """
+
+    observation_names = CHAIN_CHANNELS
+
+    def __init__(self, model: ChainModel, dt: float, mode: str, depth_of_cut: str,
+                 integrator: str):
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise DownholeInputError(f"dt must be a positive number of seconds, got {dt!r}")
+        if mode not in ("velocity", "force"):
+            raise DownholeInputError(f"mode must be 'velocity' or 'force', got {mode!r}")
+        if depth_of_cut not in DEPTH_OF_CUT_MODES:
+            raise DownholeInputError(f"depth_of_cut must be one of {DEPTH_OF_CUT_MODES}, got "
+                                     f"{depth_of_cut!r}")
+        if integrator not in INTEGRATORS:
+            raise DownholeInputError(f"integrator must be one of {INTEGRATORS}, got "
+                                     f"{integrator!r}")
+        self.model, self.dt, self.mode = model, float(dt), mode
+        self.depth_of_cut, self.integrator = depth_of_cut, integrator
+        self.approx = depth_of_cut == "approximate"
+        n = model.n
+        h = 0.5 * self.dt
+        rows = []
+        for f in (model.axial, model.torsional):
+            m = np.zeros((2, n))
+            m[0] = f.mass
+            k = _tridiagonal(np.zeros(n), f.k_link, n)
+            c = _tridiagonal(f.c_abs, f.c_link, n)
+            rows.append((m, k, m + h * c + h * h * k, c))
+        (ma, ka, la, ca), (mt, kt, lt, ct) = rows
+        self.mats = np.vstack([ma, ka, la, mt, kt, lt, ca, ct, np.zeros((2, n))])
+        self.Ldense = np.zeros((2, 1, 1))
+        self.elem = np.zeros((n, 8))
+        self.node = np.column_stack([np.asarray(model.axial.gravity, float), np.zeros(n)])
+        self.bitp = model.bit.kernel_params()
+        ax, to = model.axial, model.torsional
+        self.top = KernelParams(
+            velocity_hook=mode == "velocity", hook_k=float(ax.k_top), hook_c=float(ax.c_top),
+            hook_load0=0.0, torque_mode=mode == "force", kp=float(to.c_top),
+            ki=float(to.k_top), soft_gain=0.0, soft_tau=0.0, mu=0.0, v_eps=1e-3,
+            approx_doc=self.approx, node_b=0, node_c=n - 1, hybrid=False, dense=False,
+            n_lags_a=0, lag_tau_a=0.0, n_lags_t=0, lag_tau_t=0.0, fb0=0.0, fc0=0.0,
+            prebalanced_weight=float(model.weight), explicit_euler=integrator == "euler",
+            given_reference=True)
+        self._wave = (np.zeros((2, 4)), np.zeros(1, np.int64),
+                      WaveParams(impedance=0.0, delay_steps=1.0, cap=4, a_init=0.0,
+                                 b_init=0.0))
+        self._cmd = np.zeros((0, 2))
+        # Newmark with the delayed depth of cut predicts d(t + dt) = d + n dt v from the hole
+        # bottom of t (the one-step lag of its rise): the steady state and the start forces
+        # take the bit law there
+        self._lag = (model.bit.n_blades * self.dt
+                     if integrator == "newmark" and not self.approx else 0.0)
+
+    @property
+    def command_names(self) -> tuple[str, str]:
+        return (("top_drive_axial_velocity", "top_drive_angular_velocity")
+                if self.mode == "velocity" else ("hook_load", "surface_torque"))
+
+    def default_command(self) -> dict:
+        """Velocity mode: at rest; force mode: the hook carries the whole string, no torque."""
+        if self.mode == "force":
+            return {"hook_load": float(self.model.weight), "surface_torque": 0.0}
+        return {name: 0.0 for name in self.command_names}
+
+    def start(self, start: str, top_row: np.ndarray, spec: RockSurfaceSpec | None = None,
+              clearance: float = 0.05, input_mode: str | None = None):
+        """Kernel state for ``start`` with the top at ``top_row`` (the ``top_ref`` row of
+        t = 0: position, angle, velocity, angular velocity; force mode: hook load, torque).
+        Returns ``(state dict, record row of t = 0)``."""
+        spec = spec or RockSurfaceSpec(self.model.bit.n_blades)
+        top_row = np.asarray(top_row, float)
+        q, v, surf, istate, rp = _start_state(self.model, start, input_mode or self.mode,
+                                              float(top_row[2]), float(top_row[3]), spec,
+                                              clearance, self._lag)
+        n = self.model.n
+        state = np.zeros((6, n))
+        state[0], state[1], state[3], state[4] = q[0], v[0], q[1], v[1]
+        run = new_run_state(x_ref=float(top_row[0]), theta_ref=float(top_row[1]))
+        st = dict(state=state, run=run, surf=surf, istate=istate, rp=rp,
+                  lag=np.zeros((4, 1)))
+        rec0 = self._record_and_acceleration(st, top_row)
+        return st, rec0
+
+    def _record_and_acceleration(self, st, top_row) -> np.ndarray:
+        """The channels of the state ``st`` with the top at ``top_row``; also sets the
+        accelerations the Newmark steps start from (the forces of that state over the mass)."""
+        s = st["state"]
+        n = self.model.n
+        ib = n - 1
+        xb, vb, thb, wb = s[0, ib], s[1, ib], s[3, ib], s[4, ib]
+        if self.approx:
+            from downhole.bit.law import approx_depth_of_cut
+
+            d = approx_depth_of_cut(vb, wb, self.bitp)
+        else:
+            d = rock_depth(st["surf"], st["istate"], st["rp"], xb, thb)
+        wob, tob = bit_forces(d, vb, wb, self.bitp)
+        wob_a, tob_a = bit_forces(d + self._lag * vb, vb, wb, self.bitp) if self._lag else (
+            wob, tob)
+        top = self.top
+        rec = np.zeros(len(KERNEL_CHANNELS))
+        rec[0:7] = xb, vb, thb, wb, d, wob, tob
+        if self.mode == "velocity":
+            fa = top.hook_k * (top_row[0] - s[0, 0]) + top.hook_c * (top_row[2] - s[1, 0])
+            ft = top.ki * (top_row[1] - s[3, 0]) + top.kp * (top_row[3] - s[4, 0])
+            rec[7:11] = self.model.weight - fa, ft, top_row[2], top_row[3]
+            fa_top = fa
+        else:
+            ft = top_row[1]
+            rec[7:11] = top_row[0], ft, s[1, 0], s[4, 0]
+            fa_top = self.model.weight - top_row[0]
+        for f, (fld, ftop, fbit) in enumerate(((self.model.axial, fa_top, wob_a),
+                                                (self.model.torsional, ft, tob_a))):
+            u, vel = s[3 * f], s[3 * f + 1]
+            force = np.asarray(fld.gravity, float) - np.asarray(fld.c_abs, float) * vel
+            dq = np.diff(u)
+            fl = np.asarray(fld.k_link, float) * dq + np.asarray(fld.c_link, float) * np.diff(vel)
+            force[:-1] += fl
+            force[1:] -= fl
+            force[0] += ftop
+            force[ib] -= fbit
+            s[3 * f + 2] = force / np.asarray(fld.mass, float)
+        return rec
+
+    def record(self, st, top_row) -> np.ndarray:
+        """The channels of the state ``st`` (a copy is used) with the top at ``top_row``."""
+        tmp = dict(st, state=st["state"].copy())
+        return self._record_and_acceleration(tmp, top_row)
+
+    def step_reference(self, st, command, out: np.ndarray | None = None) -> np.ndarray:
+        """The ``top_ref`` rows of one step holding ``command`` (velocities: the top moves on
+        from the run state's reference position; forces: held), into ``out`` if given."""
+        ref = np.zeros((2, 4)) if out is None else out
+        c0, c1 = float(command[0]), float(command[1])
+        if self.mode == "force":
+            ref[0, 0] = ref[1, 0] = c0
+            ref[0, 1] = ref[1, 1] = c1
+            return ref
+        rs = st["run"][0]
+        x0, th0 = rs["x_ref"], rs["theta_ref"]
+        ref[0, 0], ref[0, 1], ref[0, 2], ref[0, 3] = x0, th0, c0, c1
+        ref[1, 0], ref[1, 1], ref[1, 2], ref[1, 3] = x0 + self.dt * c0, th0 + self.dt * c1, c0, c1
+        return ref
+
+    def step(self, st, command, rec):
+        """One step holding ``command`` (the plant's); ``(status, rows)``."""
+        ref = st.get("step_ref")
+        if ref is None:
+            ref = st["step_ref"] = np.zeros((2, 4))
+        return self.run(st, self.step_reference(st, command, ref), rec, 1, 0)
+
+    def run(self, st, top_ref, rec, rec_every, rec_start=0):
+        """Advance ``len(top_ref) - 1`` steps from ``st`` (updated in place); ``(status,
+        rows written)``."""
+        wa = self._wave
+        return run_kernel(self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
+                          st["state"], st["run"], st["surf"], st["istate"], st["rp"],
+                          wa[0], wa[1], wa[2], wa[0], wa[1], wa[2], st["lag"], self._cmd,
+                          top_ref, top_ref.shape[0] - 1, self.dt, rec, rec_every, rec_start)
+
+
+def _start_state(model: ChainModel, start: str, mode: str, v0: float, w0: float,
+                 spec: RockSurfaceSpec, clearance: float = 0.05, lag: float = 0.0):
+    """Chain state and rock surface for ``start`` at top velocities (v0, w0).
+
+    ``rest``: zeros, bit on a flat bottom. ``off_bottom``: every DOF moving at (v0, w0), the
+    chain deflected by its absolute damping only, the bit ``clearance`` m above a flat bottom.
+    ``steady``: the same plus the steady bit forces at depth of cut d = 2 pi v0 / w0 (string
+    compressed and wound up), on a helical bottom. Positions are deviations from the hanging
+    equilibrium with the top drive at 0 (as for ``rest``). The steady bit forces are taken at
+    the depth of cut d + ``lag`` v0 (the kernel's Newmark prediction with the delayed depth of
+    cut, ``lag`` = n dt; 0 otherwise). Returns ``(q, v, surf, istate, rp)``.
+    """
+    check_start(start)
+    n = model.n
+    q = np.zeros((2, n))
+    v = np.zeros((2, n))
+    if start == "rest":
+        return (q, v) + rock_init(spec, 0.0, 0.0)
+    if mode != "velocity":
+        raise DownholeInputError(f"start={start!r} needs a velocity-driven top (the set-point "
+                                 "is a velocity); a force-driven lumped plant starts from 'rest'")
+    if not (isinstance(clearance, (int, float)) and math.isfinite(clearance) and clearance > 0):
+        raise DownholeInputError(f"clearance must be a positive distance in m, got {clearance!r}")
+    wob = tob = 0.0
+    d0 = steady_depth_of_cut(v0, w0) if start == "steady" else 0.0
+    if start == "steady":
+        wob, tob = bit_forces(d0 + lag * v0, v0, w0, model.bit.kernel_params())
+    for f, (fld, vel, load) in enumerate(((model.axial, v0, wob), (model.torsional, w0, tob))):
+        rhs = np.asarray(fld.gravity, float) - np.asarray(fld.c_abs, float) * vel
+        rhs[-1] -= load
+        q[f] = np.linalg.solve(fld.stiffness_matrix(), rhs)
+        v[f] = vel
+    x_bit = q[0, -1]
+    if start == "steady":
+        return (q, v) + rock_init_helix(spec, x_bit, q[1, -1], d0)
+    return (q, v) + rock_init(spec, x_bit + clearance, q[1, -1])

@@ -48,7 +48,7 @@ the end nodes (with :func:`wave_source_forces` as known forces and ``Z`` as end 
 ``F_B, F_C = wave_step(hist, pos, wp, v_B, v_C, a_in, b_in)`` stores the outgoing waves of
 ``t_n`` (``v_B - b_in``, ``v_C - a_in``), advances to ``t_{n+1}`` and returns the end forces of
 ``t_n``. These compiled functions are the package's one wave-segment stepping: the neutral kernel
-(:mod:`downhole.string.neutral`) and the FEM/hybrid kernel (:mod:`downhole.sim.fem_kernels`)
+(:mod:`downhole.string.neutral`) and the FEM/hybrid kernel (:mod:`downhole.sim.kernel`)
 both call them.
 
 The read position ``t_n - delay`` is split once into an integer offset ``floor(-delay/dt)`` and

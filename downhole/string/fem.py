@@ -6,8 +6,9 @@ depth (axial displacement, twist angle). There is no cos-angle "rotation" (seed 
 docs/seed-errata.md): curvature enters only through gravity (rho A g cos(inclination), lumped
 exactly as w * delta-TVD per element) and soft-string wellbore contact. Damping is Rayleigh (alpha0
 M + beta0 K) or modal. The model is an immutable :class:`DirectionalModel`;
-:func:`simulate_directional` runs it (compiled implicit Newmark, :mod:`downhole.sim.fem_kernels`)
-from the static equilibrium and :class:`DirectionalPlant` steps it one dt at a time.
+:func:`simulate_directional` runs it (the one compiled kernel, :mod:`downhole.sim.kernel`, implicit
+Newmark) from the static equilibrium and :class:`DirectionalPlant` steps it one dt at a time
+(a lumped :class:`~downhole.sim.lumped_model.ChainModel` too).
 ``DirectionalModel.linear_model`` exports the discrete linear model (A_d, B_d); the non-dimensional
 control-affine form for the DHP design (Eqs. 4.13-4.19, 4.25) is built from it on the control side,
 :func:`downhole.control.affine.from_directional`.
@@ -29,7 +30,8 @@ from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, DirectionalWellParams
 from downhole.params.presets import get_preset
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA, Hook, TopDrive
-from downhole.sim.fem_kernels import CHANNELS, DirectionalParams, new_run_state, run_directional
+from downhole.sim.kernel import CHANNELS, KernelParams, new_run_state, run_kernel
+from downhole.sim.lumped_model import ChainModel
 from downhole.sim.plant import Plant
 from downhole.sim.result import Result
 from downhole.sim.wave import WaveParams
@@ -927,7 +929,7 @@ class _Packed:
             fb0, fc0, _ = _line_preload(model, hook.wob)
             for seg in wv["segments"]:
                 seg.delay_steps(dt)  # raises if the line is shorter than one step
-        top = DirectionalParams(
+        top = KernelParams(
             velocity_hook=hook.mode != "force", hook_k=float(hook.servo_stiffness),
             hook_c=float(hook.servo_damping), hook_load0=float(self.hook_load0),
             torque_mode=top_drive.mode == "torque", kp=float(top_drive.kp),
@@ -944,6 +946,28 @@ class _Packed:
         self.top = top
         self._template = None
         self.record0 = None
+        self._no_ref = np.zeros((1, 4))
+
+    observation_names = (*CHANNELS, "time", "last_node_axial_velocity",
+                         "last_node_angular_velocity")
+
+    @property
+    def command_names(self) -> tuple[str, str]:
+        ax = "hook_load" if self.hook.mode == "force" else "top_drive_axial_velocity"
+        tq = ("surface_torque" if self.top_drive.mode == "torque"
+              else "top_drive_angular_velocity")
+        return ax, tq
+
+    def default_command(self) -> dict:
+        """The hook's static hook load (buoyed weight - ``hook.wob``) or block velocity, and
+        the top drive's ``speed``."""
+        ax = self.hook_load0 if self.hook.mode == "force" else self.hook.velocity
+        return dict(zip(self.command_names, (float(ax), float(self.top_drive.speed))))
+
+    def start(self, start: str, command, clearance: float = 0.05):
+        """Kernel state and the record of t = 0 for ``start`` under ``command`` (see
+        :func:`_directional_start`)."""
+        return _directional_start(self, start, float(command[0]), float(command[1]), clearance)
 
     def initial_state(self):
         """Static equilibrium: bit on bottom carrying the hook's WOB, everything at rest
@@ -985,10 +1009,16 @@ class _Packed:
 
     def run(self, st, cmd, rec, rec_every, rec_start=0):
         wa, wt = st["wa"], st["wt"]
-        return run_directional(self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
-                               st["state"], st["run"], st["surf"], st["istate"], st["rp"],
-                               wa[0], wa[1], wa[2], wt[0], wt[1], wt[2], st["lag"], cmd,
-                               cmd.shape[0], self.dt, rec, rec_every, rec_start)
+        return run_kernel(self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
+                          st["state"], st["run"], st["surf"], st["istate"], st["rp"],
+                          wa[0], wa[1], wa[2], wt[0], wt[1], wt[2], st["lag"], cmd,
+                          self._no_ref, cmd.shape[0], self.dt, rec, rec_every, rec_start)
+
+    def step(self, st, command, rec):
+        """One step holding ``command``; ``(status, rows)``."""
+        cmd = st.setdefault("cmd", np.zeros((1, 2)))
+        cmd[0] = command
+        return self.run(st, cmd, rec, 1, 0)
 
 
 _PACKS: weakref.WeakKeyDictionary[DirectionalModel, dict] = weakref.WeakKeyDictionary()
@@ -1184,65 +1214,110 @@ def _initial_record_compute(pk: _Packed, st) -> np.ndarray:
 
 
 class DirectionalPlant(Plant):
-    """Step-by-step plant over a directional model (the :class:`~downhole.sim.plant.Plant`
-    contract).
+    """Step-by-step plant over the one kernel (the :class:`~downhole.sim.plant.Plant`
+    contract): a directional FEM or hybrid model, or a lumped chain model.
 
-    Commands (named, all held over the step): ``hook_load`` (N; or ``top_drive_axial_velocity``
-    m/s with a velocity hook) and ``top_drive_angular_velocity`` (speed set-point, rad/s;
-    PI/soft-torque top drive) or ``surface_torque`` (N m; ``TopDrive(mode="torque")``).
-    Observations: the standard channels (``bit_axial_velocity``, ``bit_angular_velocity``,
-    ``wob``, ``tob``, ``hook_load``, ``surface_torque``, ``top_drive_*_velocity``, ...), forces
-    at B and C, ``time`` and, for hardware-in-the-loop, ``last_node_axial_velocity`` and
-    ``last_node_angular_velocity`` (the string's last node, where a rig replaces the bit).
-    ``reset(start=...)``: ``"rest"`` (static equilibrium, bit carrying ``hook.wob``),
-    ``"off_bottom"`` or ``"steady"`` (see :func:`simulate_directional`).
+    Directional models. Commands (named, all held over the step): ``hook_load`` (N; or
+    ``top_drive_axial_velocity`` m/s with a velocity hook) and ``top_drive_angular_velocity``
+    (speed set-point, rad/s; PI/soft-torque top drive) or ``surface_torque`` (N m;
+    ``TopDrive(mode="torque")``). Observations: the standard channels (``bit_axial_velocity``,
+    ``bit_angular_velocity``, ``wob``, ``tob``, ``hook_load``, ``surface_torque``,
+    ``top_drive_*_velocity``, ...), forces at B and C, ``time`` and, for hardware-in-the-loop,
+    ``last_node_axial_velocity`` and ``last_node_angular_velocity`` (the string's last node,
+    where a rig replaces the bit). ``reset(start=...)``: ``"rest"`` (static equilibrium, bit
+    carrying ``hook.wob``), ``"off_bottom"`` or ``"steady"`` (see :func:`simulate_directional`).
+
+    Lumped models (:class:`~downhole.sim.lumped_model.ChainModel`). Commands:
+    ``top_drive_axial_velocity`` (m/s) and ``top_drive_angular_velocity`` (rad/s) for a
+    velocity-driven top (``mode="velocity"``), or ``hook_load`` (N) and ``surface_torque``
+    (N m) when ``mode="force"``. Observations: the standard Result channel names and ``time``.
+    ``integrator``: ``"euler"`` (the seed's Chapter 2 scheme) or ``"newmark"``.
 
     Parameters
     ----------
-    model : DirectionalModel
+    model : DirectionalModel or ChainModel
     dt : float
-        Step, s (1e-3 for the real-time testbed).
+        Step, s (default 1e-3 for a directional model, the real-time testbed's; 5e-4 for a
+        lumped one, the seed's).
     top_drive, hook : optional
-        As in :func:`simulate_directional`.
+        As in :func:`simulate_directional` (directional models).
     depth_of_cut : {"delayed", "approximate"}
+    mode : {"velocity", "force"}
+        Lumped models: how the top is driven.
+    integrator : {"euler", "newmark"}
+        Lumped models (directional ones always step with Newmark).
+
+    Examples
+    --------
+    >>> from downhole.sim.lumped_model import lumped_model
+    >>> plant = DirectionalPlant(lumped_model("table_2_1"), dt=5e-4)
+    >>> obs = plant.reset(start="steady", set_point={"top_drive_axial_velocity": 0.01,
+    ...                                              "top_drive_angular_velocity": 20.0})
+    >>> round(obs["bit_angular_velocity"], 6)
+    20.0
     """
 
-    observation_names = (*CHANNELS, "time", "last_node_axial_velocity",
-                         "last_node_angular_velocity")
-
-    def __init__(self, model: DirectionalModel, dt: float = 1e-3, *,
+    def __init__(self, model: DirectionalModel | ChainModel, dt: float | None = None, *,
                  top_drive: TopDrive | None = None, hook: Hook | None = None,
-                 depth_of_cut: str = "delayed"):
+                 depth_of_cut: str = "delayed", mode: str = "velocity",
+                 integrator: str | None = None):
+        lumped = isinstance(model, ChainModel)
+        if dt is None:
+            dt = 5e-4 if lumped else 1e-3
         dt = si_or_number(dt, "time", "dt")  # "0.5 ms" or a pint quantity
         self.model = model
-        self.top_drive = top_drive or TopDrive()
-        self.hook = hook or Hook()
-        self._pk = _Packed(model, dt, self.top_drive, self.hook, depth_of_cut)
+        if lumped:
+            if top_drive is not None or hook is not None:
+                raise DownholeInputError("a lumped model's top is its top spring and damper: "
+                                         "give mode='velocity' or 'force', no top_drive/hook")
+            self._pk = model.kernel_pack(dt, mode, depth_of_cut, integrator or "euler")
+            self.mode = mode
+        else:
+            if integrator not in (None, "newmark"):
+                raise DownholeInputError(f"a directional model steps with Newmark, got "
+                                         f"integrator={integrator!r}")
+            self.top_drive = top_drive or TopDrive()
+            self.hook = hook or Hook()
+            self._pk = _Packed(model, dt, self.top_drive, self.hook, depth_of_cut)
+        self.depth_of_cut = depth_of_cut
+        self.integrator = integrator or ("euler" if lumped else "newmark")
+        self._lumped = lumped
+        self.observation_names = self._pk.observation_names
         self.dt = float(dt)
         self._rec = np.zeros((1, len(CHANNELS)))
         self.reset()
 
     @property
     def command_names(self) -> tuple[str, str]:
-        ax = "hook_load" if self.hook.mode == "force" else "top_drive_axial_velocity"
-        tq = "surface_torque" if self.top_drive.mode == "torque" else "top_drive_angular_velocity"
-        return ax, tq
+        return self._pk.command_names
 
     def default_command(self) -> dict:
-        """The hook's static hook load (buoyed weight - ``hook.wob``) or block velocity, and
-        the top drive's ``speed``."""
-        ax = self._pk.hook_load0 if self.hook.mode == "force" else self.hook.velocity
-        return dict(zip(self.command_names, (float(ax), float(self.top_drive.speed))))
+        """Directional: the hook's static hook load (buoyed weight - ``hook.wob``) or block
+        velocity, and the top drive's ``speed``. Lumped: at rest (velocity mode) or the hook
+        carrying the whole string, no torque (force mode)."""
+        return self._pk.default_command()
+
+    def _observe(self, rec) -> dict:
+        if self._lumped:
+            obs = dict(zip(self.observation_names[1:], rec[:11].tolist()))
+            obs["time"] = self._k * self.dt
+            return obs
+        obs = dict(zip(CHANNELS, rec.tolist()))
+        obs["time"] = self.time
+        s = self._st["state"]
+        obs["last_node_axial_velocity"] = float(s[1, -1])
+        obs["last_node_angular_velocity"] = float(s[4, -1])
+        return obs
 
     def _reset(self, start: str, set_point: dict, clearance: float = 0.05) -> dict:
-        ax, tq = (float(set_point[k]) for k in self.command_names)
-        self._st, rec0 = _directional_start(self._pk, start, ax, tq, clearance)
-        self._cmd = np.array([[ax, tq]])
-        self._obs = dict(zip(CHANNELS, rec0.tolist()))
-        self._obs["time"] = 0.0
-        s = self._st["state"]
-        self._obs["last_node_axial_velocity"] = float(s[1, -1])
-        self._obs["last_node_angular_velocity"] = float(s[4, -1])
+        cmd = np.array([float(set_point[k]) for k in self.command_names])
+        self._k = 0
+        if self._lumped:
+            row = self._pk.step_reference({"run": new_run_state()}, cmd)[0]
+            self._st, rec0 = self._pk.start(start, row, clearance=clearance)
+        else:
+            self._st, rec0 = self._pk.start(start, cmd, clearance)
+        self._obs = self._observe(rec0)
         return dict(self._obs)
 
     @property
@@ -1250,10 +1325,11 @@ class DirectionalPlant(Plant):
         return float(self._st["run"]["time"][0])
 
     def node_fields(self) -> dict[str, np.ndarray]:
-        """The nodal state now (copies, one value per node of ``model.node_md``):
-        ``axial_position`` (m, along measured depth, downwards), ``axial_velocity`` (m/s),
-        ``axial_acceleration`` (m/s^2), ``angle`` (rad), ``angular_velocity`` (rad/s),
-        ``angular_acceleration`` (rad/s^2). State feedback and observers read these."""
+        """The nodal state now (copies, one value per node of ``model.node_md``, or per DOF of
+        a lumped chain): ``axial_position`` (m, along measured depth, downwards),
+        ``axial_velocity`` (m/s), ``axial_acceleration`` (m/s^2), ``angle`` (rad),
+        ``angular_velocity`` (rad/s), ``angular_acceleration`` (rad/s^2). State feedback and
+        observers read these."""
         s = self._st["state"]
         return {"axial_position": s[0].copy(), "axial_velocity": s[1].copy(),
                 "axial_acceleration": s[2].copy(), "angle": s[3].copy(),
@@ -1261,14 +1337,9 @@ class DirectionalPlant(Plant):
 
     def _step(self, command: np.ndarray) -> dict:
         """Hold ``command`` over one step and advance ``dt``; returns the new observation."""
-        self._cmd[0] = command
-        status, _ = self._pk.run(self._st, self._cmd, self._rec, 1, 0)
+        status, _ = self._pk.step(self._st, command, self._rec)
         if status != 0:
             raise SimulationDiverged(self.time, "bit_angular_velocity")
-        obs = dict(zip(CHANNELS, self._rec[0].tolist()))
-        obs["time"] = self.time
-        s = self._st["state"]
-        obs["last_node_axial_velocity"] = float(s[1, -1])
-        obs["last_node_angular_velocity"] = float(s[4, -1])
-        self._obs = obs
-        return dict(obs)
+        self._k += 1
+        self._obs = self._observe(self._rec[0])
+        return dict(self._obs)

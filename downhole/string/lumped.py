@@ -1,7 +1,7 @@
 """The lumped chain models of seed Ch. 2 (:func:`lumped_model`, :class:`ChainModel`).
 
-They are defined in :mod:`downhole.sim.lumped_model`, next to their compiled kernel
-(:mod:`downhole.sim.chain_kernel`) and runner (:func:`downhole.sim.simulate`), so that the
+They are defined in :mod:`downhole.sim.lumped_model`, next to the one kernel they configure
+(:mod:`downhole.sim.kernel`) and the runner (:func:`downhole.sim.simulate`), so that the
 simulation package does not import this one (no ``sim`` <-> ``string`` cycle); this module keeps
 the drill-string namespace for them.
 """

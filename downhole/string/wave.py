@@ -1,7 +1,7 @@
 """The wave segment (lossless delay line) of the neutral-type and hybrid models.
 
 Defined in :mod:`downhole.sim.wave`, beside the compiled kernels that step it
-(:mod:`downhole.sim.fem_kernels`), so that the simulation package does not import this one (no
+(:mod:`downhole.sim.kernel`), so that the simulation package does not import this one (no
 ``sim`` <-> ``string`` cycle); this module keeps the drill-string namespace for it.
 """
 

@@ -4,7 +4,7 @@
   depth of cut with the floor of Eq. 4.16) - the plant on which the seed's Ch. 4 claims are made.
 - :func:`run_on_plant`: the controller on any step-by-step plant with named signals
   (``reset() -> obs``, ``step(command) -> obs``), e.g. the lumped chain with the *delayed* depth of
-  cut (:class:`downhole.sim.LumpedPlant`) - the true plant.
+  cut (:class:`downhole.string.fem.DirectionalPlant`) - the true plant.
 
 Both add the reference channels ``reference_axial_velocity`` and ``reference_angular_velocity``
 and the controller's physical inputs under their names (``slack_off_force``, ``surface_torque``,
@@ -207,7 +207,7 @@ def run_on_plant(controller: DHPController, plant, duration: float, *, adapter=N
 class DisplacementToVelocity:
     """Adapter: top-drive displacement commands (m, rad) -> velocity commands over one step.
 
-    For plants driven by top-drive velocities (:class:`downhole.sim.LumpedPlant` in
+    For plants driven by top-drive velocities (:class:`downhole.string.fem.DirectionalPlant` in
     ``"velocity"`` mode): the commanded velocity moves the top to the commanded displacement by
     the end of the step, within the drive's admissible velocities
     (the ranges of :data:`downhole.signals.SIGNALS`): a displacement further than one step can reach
@@ -235,12 +235,12 @@ def lumped_true_plant(string="table_2_1", bit=None, *, dt: float = 1e-3,
 
     Returns ``(plant, adapter)`` for :func:`run_on_plant`; ``depth_of_cut="delayed"`` is the true
     plant (rock-surface memory), ``"approximate"`` the design-model bit law."""
-    from downhole.sim import LumpedPlant
     from downhole.sim.lumped_model import lumped_model
+    from downhole.string.fem import DirectionalPlant
 
     model = lumped_model(string, bit, order=4) if bit is not None else lumped_model(string,
                                                                                     order=4)
-    return (LumpedPlant(model, dt=dt, mode="velocity", depth_of_cut=depth_of_cut),
+    return (DirectionalPlant(model, dt=dt, mode="velocity", depth_of_cut=depth_of_cut),
             DisplacementToVelocity())
 
 

@@ -1,7 +1,7 @@
-"""Compiled implicit Newmark kernels for the directional FEM and hybrid FEM + wave-segment models.
+"""The one compiled mechanics kernel: lumped chains, the directional FEM and the hybrid model.
 
-One kernel, :func:`run_directional`, advances both models: nodes form one or two chains of 2-node
-axial-torsional bar elements (tridiagonal mass, stiffness and Rayleigh damping per field; a zero
+One kernel, :func:`run_kernel`, advances every chain model: nodes form one or two chains
+(lumped masses on springs and dampers, or 2-node axial-torsional bar elements (tridiagonal mass, stiffness and Rayleigh damping per field; a zero
 off-diagonal separates the top chain AB from the bottom chain CD of the hybrid model), optionally
 joined by a lossless wave segment between node B (last of AB) and node C (first of CD).
 
@@ -16,10 +16,20 @@ k = dWOB/dx from the depth of cut), the top-drive PI (c = Kp, k = Ki), the hook 
 wave segment's end impedances (c = Z). All of these are dissipative or linear, so the step is
 stable at dt = 1e-3 with any regularization width.
 
-The kernel takes its constant settings as one :class:`DirectionalParams` (a ``NamedTuple``, passed
+Explicit Euler (the seed's Chapter 2 scheme, ``KernelParams.explicit_euler``) is the other
+integrator: it needs a diagonal mass and a stiffness matrix whose rows sum to zero (the string's
+supports are the hook and top-drive laws at node 0), and applies the bit force of the state at
+the start of the step; it takes neither the dense (modal) damping nor the wave joint (only the
+lumped chains select it). The lumped models of Chapter 2 drive node 0 towards a given, massless top
+(``KernelParams.given_reference``): per step boundary the top positions and velocities (or the
+hook load and surface torque) come from the ``top_ref`` array instead of being integrated from
+``cmd`` in the kernel.
+
+The kernel takes its constant settings as one :class:`KernelParams` (a ``NamedTuple``, passed
 by value), the bit law's as one :class:`~downhole.params.bit.BitKernelParams`, its clocks and
 references as one :data:`RUN_STATE_DTYPE` record (updated in place) and the rest as plain arrays;
-:mod:`downhole.string.fem` and :mod:`downhole.string.hybrid` build them.
+:mod:`downhole.string.fem`, :mod:`downhole.string.hybrid` and
+:mod:`downhole.sim.lumped_model` build them.
 """
 
 from __future__ import annotations
@@ -44,9 +54,9 @@ from downhole.sim.wave import wave_read_at, wave_read_plan, wave_source_forces, 
 __all__ = [
     "CHANNELS",
     "RUN_STATE_DTYPE",
-    "DirectionalParams",
+    "KernelParams",
     "new_run_state",
-    "run_directional",
+    "run_kernel",
     "thomas_solve",
 ]
 
@@ -59,9 +69,10 @@ CHANNELS = (
 )
 
 
-class DirectionalParams(NamedTuple):
-    """The constant settings of :func:`run_directional` (SI units), built by name in
-    :class:`downhole.string.fem._Packed`.
+class KernelParams(NamedTuple):
+    """The constant settings of :func:`run_kernel` (SI units), built by name in
+    :class:`downhole.string.fem._Packed` (directional models) and
+    :class:`downhole.sim.lumped_model.ChainPack` (lumped chains).
 
     Attributes
     ----------
@@ -94,6 +105,19 @@ class DirectionalParams(NamedTuple):
         Time constant of each lag stage, s.
     fb0, fc0 : float
         Static preload forces of the wave segment on B and C, N.
+    prebalanced_weight : float
+        Weight pre-balanced out of the nodal forces (lumped models, N): the force-driven top
+        applies it minus the hook load, and the recorded hook load of a given reference adds
+        it.
+    explicit_euler : bool
+        Explicit Euler steps (diagonal mass, zero-row-sum stiffness, a given reference;
+        Chapter 2) instead of Newmark's average acceleration.
+    given_reference : bool
+        The top is a given, massless reference: the ``top_ref`` rows (axial position, angle,
+        axial velocity, angular velocity; force mode: hook load, surface torque) at the step
+        boundaries replace ``cmd`` and the in-kernel integration of the references; the
+        recorded top-drive velocities are the reference's and the surface torque is the
+        top coupling's.
     """
 
     velocity_hook: bool
@@ -118,9 +142,12 @@ class DirectionalParams(NamedTuple):
     lag_tau_t: float
     fb0: float
     fc0: float
+    prebalanced_weight: float = 0.0
+    explicit_euler: bool = False
+    given_reference: bool = False
 
 
-#: The clocks and references :func:`run_directional` carries from call to call, one record of
+#: The clocks and references :func:`run_kernel` carries from call to call, one record of
 #: shape (1,): simulated time (s), hook servo reference position (m), top-drive angle reference
 #: (rad), soft-torque low-pass state (N m), bit axial position of the start (m, subtracted from
 #: the recorded position) and the number of steps taken.
@@ -221,9 +248,9 @@ def _mid_torque(Ko, th, i):
 
 
 @njit(cache=True)
-def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
-                    wa_hist, wa_pos, wa_wp, wt_hist, wt_pos, wt_wp, lag, cmd, n_steps, dt,
-                    rec, rec_every, rec_start):
+def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
+               wa_hist, wa_pos, wa_wp, wt_hist, wt_pos, wt_wp, lag, cmd, top_ref, n_steps, dt,
+               rec, rec_every, rec_start):
     """Advance ``n_steps`` steps of ``dt``; record every ``rec_every`` steps into ``rec``.
 
     Parameters
@@ -237,7 +264,7 @@ def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
         Per element e (0..n-2): length, dt/ds (3), w g_perp (3), contact flag.
     node : (n, 2)
         Nodal gravity force (N, downward) and torque arm (m).
-    top : DirectionalParams
+    top : KernelParams
         Hook, top drive, friction, depth-of-cut and wave-segment settings.
     bt : BitKernelParams
         The bit law's parameters.
@@ -252,13 +279,17 @@ def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
     lag : (4, m) lag-cascade states (rows: axial b_in, axial a_in, torsional b_in, a_in).
     cmd : (n_steps, 2)
         Per step: axial command (hook load N, or top axial velocity m/s) and torsional command
-        (speed set-point rad/s, or top-drive torque N m).
+        (speed set-point rad/s, or top-drive torque N m). Ignored with ``top.given_reference``.
+    top_ref : (n_steps + 1, 4)
+        With ``top.given_reference``: the top at the step boundaries t_k (rows k = 0..n_steps):
+        axial position, angle, axial velocity, angular velocity (velocity hook), or hook load,
+        surface torque (force hook, columns 0 and 1). Else ignored (any shape).
     rec : (n_rec, len(CHANNELS)) output; ``rec_start`` is the first row written.
 
     Returns
     -------
     status : int
-        0 ok, 1 non-finite state.
+        0 ok, 1 non-finite or runaway state (bit beyond 1e9 m or m/s, 1e12 rad or rad/s).
     rows : int
         Number of rows written.
 
@@ -279,7 +310,10 @@ def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
     approx = top.approx_doc
     vel_hook = top.velocity_hook
     torque_mode = top.torque_mode
-    soft = (not torque_mode) and top.soft_gain > 0.0
+    given = top.given_reference
+    euler = top.explicit_euler
+    soft = (not torque_mode) and (not given) and top.soft_gain > 0.0
+    w_pre = top.prebalanced_weight
     hk, hc, h0 = top.hook_k, top.hook_c, top.hook_load0
     kp, ki, sg, stau = top.kp, top.ki, top.soft_gain, top.soft_tau
     mu = top.mu
@@ -344,6 +378,18 @@ def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
                 den -= mats[6 * f + 5, i - 1] * cwc[f, i - 1]
             invc[f, i] = 1.0 / den
             cwc[f, i] = mats[6 * f + 5, i] * invc[f, i]
+    # explicit Euler: ground damping per node (row sums of C), element springs and dampers
+    Cg = np.zeros((2, n))
+    if euler:
+        for f in range(2):
+            rc = 12 + 2 * f
+            for i in range(n):
+                cg = mats[rc, i]
+                if i > 0:
+                    cg += mats[rc + 1, i - 1]
+                if i < n - 1:
+                    cg += mats[rc + 1, i]
+                Cg[f, i] = cg
     F = Fst.copy()
     cfr = np.zeros((2, n))
     rhs = np.empty(n)
@@ -355,6 +401,7 @@ def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
     cw_t = np.empty(n)
     nrm = np.zeros(n)
     Aw = np.empty((n, n)) if dense else np.empty((1, 1))
+    fe = np.empty(n)
     # ---- wave segments (downhole.sim.wave): clocks, capacities and read plans in locals
     za = wa_wp.impedance
     zt = wt_wp.impedance
@@ -382,28 +429,53 @@ def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
     tc_line = 0.0
     row = rec_start
     countdown = rec_every
+    bit_known = False
+    wob_k = 0.0
+    tob_k = 0.0
     status = 0
     for k in range(n_steps):
-        cax = cmd[k, 0]
-        ctq = cmd[k, 1]
-        # ---- references at t_{n+1}
-        omega_ref = ctq
-        if soft:
-            tq0 = mats[9, 0] * (state[3, 1] - state[3, 0]) if n > 1 else 0.0
-            if stau > 0:
-                lowp += (dt / stau) * (tq0 - lowp)
-            omega_ref = ctq - sg * (tq0 - lowp)
-        th_ref += dt * omega_ref
-        # ---- top drive and hook (node 0)
-        if vel_hook:
-            x_ref += dt * cax
-            F[0, 0] = Fst[0, 0] + hk * (x_ref - state[0, 0]) + hc * cax
+        # runaway guard: a diverging run stops before the grid-indexed rock memory sees bit
+        # positions or angles it cannot index
+        if not (abs(state[0, ib]) < 1e9 and abs(state[1, ib]) < 1e9
+                and abs(state[3, ib]) < 1e12 and abs(state[4, ib]) < 1e12):
+            status = 1
+            break
+        if given:
+            # the top at t_{n+1} from the given reference
+            if vel_hook:
+                x_ref = top_ref[k + 1, 0]
+                cax = top_ref[k + 1, 2]
+            else:
+                cax = top_ref[k + 1, 0]
+            if torque_mode:
+                ctq = top_ref[k + 1, 1]
+            else:
+                th_ref = top_ref[k + 1, 1]
+                ctq = top_ref[k + 1, 3]
+            omega_ref = ctq
         else:
-            F[0, 0] = Fst[0, 0] - cax
-        if torque_mode:
-            F[1, 0] = ctq
-        else:
-            F[1, 0] = kp * omega_ref + ki * (th_ref - state[3, 0])
+            cax = cmd[k, 0]
+            ctq = cmd[k, 1]
+            # ---- references at t_{n+1}
+            omega_ref = ctq
+            if soft:
+                tq0 = mats[9, 0] * (state[3, 1] - state[3, 0]) if n > 1 else 0.0
+                if stau > 0:
+                    lowp += (dt / stau) * (tq0 - lowp)
+                omega_ref = ctq - sg * (tq0 - lowp)
+            th_ref += dt * omega_ref
+            if vel_hook:
+                x_ref += dt * cax
+        # ---- top drive and hook (node 0; the Newmark end-of-step forces)
+        if not euler:
+            if vel_hook:
+                F[0, 0] = Fst[0, 0] + hk * (x_ref - state[0, 0]) + hc * cax
+            else:
+                F[0, 0] = Fst[0, 0] + (w_pre - cax)
+            if torque_mode:
+                F[1, 0] = ctq
+            else:
+                F[1, 0] = kp * omega_ref + ki * (th_ref - state[3, 0])
         # ---- wellbore contact (soft string, frozen-coefficient friction)
         if n_ce > 0:
             for j in range(n_cn):
@@ -424,10 +496,60 @@ def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
                 else:
                     cfr[0, i] = 0.0
                     cfr[1, i] = 0.0
-        # ---- bit: depth of cut from the old state (axial: d(v1) = dax0 + drate v1)
         ua_b0 = state[0, ib]
         th_b0 = state[3, ib]
-        if approx:
+        if euler:
+            # ---- explicit Euler (seed Eq. 2.12): forces of the state and the top at t_n
+            # (the top at t_n: Euler runs with a given reference, the lumped chains')
+            xr0 = top_ref[k, 0]
+            tr0 = top_ref[k, 1]
+            vr0 = top_ref[k, 2] if vel_hook else 0.0
+            wr0 = top_ref[k, 3] if not torque_mode else 0.0
+            vb0 = state[1, ib]
+            wb0 = state[4, ib]
+            if bit_known:
+                # the record of the previous step evaluated the law at this state
+                wob_e, tob_e = wob_k, tob_k
+            else:
+                if approx:
+                    d_e = approx_depth_of_cut(vb0, wb0, bt)
+                else:
+                    d_e = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, ua_b0,
+                                        th_b0)
+                wob_e, tob_e = bit_forces(d_e, vb0, wb0, bt)
+            bit_known = False
+            for f in range(2):
+                ru = 3 * f
+                rc = 12 + 2 * f
+                for i in range(n):
+                    cg = Cg[f, i] + cfr[f, i] if n_ce > 0 else Cg[f, i]
+                    fe[i] = Fst[f, i] - cg * state[ru + 1, i]
+                for i in range(n - 1):
+                    fl = (-mats[6 * f + 3, i]) * (state[ru, i + 1] - state[ru, i]) \
+                        + (-mats[rc + 1, i]) * (state[ru + 1, i + 1] - state[ru + 1, i])
+                    fe[i] += fl
+                    fe[i + 1] -= fl
+                if f == 0:
+                    if vel_hook:
+                        fe[0] += hk * (xr0 - state[0, 0]) + hc * (vr0 - state[1, 0])
+                    else:
+                        fe[0] += w_pre - xr0
+                    fe[ib] -= wob_e
+                else:
+                    if torque_mode:
+                        fe[0] += tr0
+                    else:
+                        fe[0] += ki * (tr0 - state[3, 0]) + kp * (wr0 - state[4, 0])
+                    fe[ib] -= tob_e
+                for i in range(n):
+                    state[ru, i] += dt * state[ru + 1, i]
+                    state[ru + 1, i] += dt * fe[i] / mats[6 * f, i]
+                    state[ru + 2, i] = fe[i] / mats[6 * f, i]
+        # ---- bit: depth of cut from the old state (axial: d(v1) = dax0 + drate v1)
+        if euler:
+            dax0 = 0.0
+            drate = 0.0
+        elif approx:
             dax0 = 0.0
             drate = approx_depth_rate(state[4, ib], bt)
         else:
@@ -455,7 +577,9 @@ def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
             F[0, iC] = Fst[0, iC] + sc
             F[1, iB], F[1, iC] = wave_source_forces(zt, ta_in, tb_in)
         # ---- solve both fields: (M + h C + h^2 K + h C_x + h^2 K_x) v1 = rhs
-        if dense:
+        if euler:
+            pass
+        elif dense:
             for f in range(2):
                 ru = 3 * f
                 rm = 6 * f
@@ -613,6 +737,10 @@ def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
                 dn = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, state[0, ib],
                                      state[3, ib])
             wn, tn = bit_forces(dn, vab, vtb, bt)
+            if euler:
+                bit_known = True
+                wob_k = wn
+                tob_k = tn
             rec[row, 0] = state[0, ib] - ubit0
             rec[row, 1] = vab
             rec[row, 2] = state[3, ib]
@@ -620,13 +748,25 @@ def run_directional(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
             rec[row, 4] = dn
             rec[row, 5] = wn
             rec[row, 6] = tn
-            if vel_hook:
+            if given and vel_hook:
+                rec[row, 7] = (h0 + w_pre) - (hk * (x_ref - state[0, 0])
+                                              + hc * (cax - state[1, 0]))
+                rec[row, 9] = cax
+            elif vel_hook:
                 rec[row, 7] = h0 - hk * (x_ref - state[0, 0]) - hc * (cax - state[1, 0])
+                rec[row, 9] = state[1, 0]
             else:
                 rec[row, 7] = cax
-            rec[row, 8] = mats[9, 0] * (state[3, 1] - state[3, 0]) if n > 1 else 0.0
-            rec[row, 9] = state[1, 0]
-            rec[row, 10] = state[4, 0]
+                rec[row, 9] = state[1, 0]
+            if given and not torque_mode:
+                rec[row, 8] = ki * (th_ref - state[3, 0]) + kp * (ctq - state[4, 0])
+                rec[row, 10] = ctq
+            elif given:
+                rec[row, 8] = ctq
+                rec[row, 10] = state[4, 0]
+            else:
+                rec[row, 8] = mats[9, 0] * (state[3, 1] - state[3, 0]) if n > 1 else 0.0
+                rec[row, 10] = state[4, 0]
             if hybrid:
                 rec[row, 11] = fb_line
                 rec[row, 12] = tb_line
