@@ -53,42 +53,9 @@ def read_scenario_text(path: str | Path) -> tuple[str, str]:
     ScenarioError
         Naming the file and what is wrong with it.
     """
-    import os
-    import stat
-
     path = Path(path)
     source = str(path)
-    try:
-        st = os.stat(path)
-    except FileNotFoundError:
-        raise ScenarioError(source, "", "file not found") from None
-    except (OSError, ValueError) as exc:  # permission, a name too long, an embedded NUL
-        raise ScenarioError(source, "", f"cannot read the file ({exc})") from None
-    if not stat.S_ISREG(st.st_mode):
-        kind = ("a directory" if stat.S_ISDIR(st.st_mode) else
-                "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else
-                "a socket" if stat.S_ISSOCK(st.st_mode) else "a device or special file")
-        raise ScenarioError(source, "", f"is {kind}; expected a regular TOML file")
-    if st.st_size > MAX_FILE_BYTES:
-        raise ScenarioError(source, "", f"file of {st.st_size} bytes; a scenario is at most "
-                            f"{MAX_FILE_BYTES} bytes")
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
-    try:
-        fd = os.open(path, flags)
-    except OSError as exc:
-        raise ScenarioError(source, "", f"cannot read the file ({exc.strerror})") from None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):  # replaced between stat and open
-            raise ScenarioError(source, "", "is not a regular file")
-        with os.fdopen(fd, "rb", closefd=False) as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
-    except OSError as exc:
-        raise ScenarioError(source, "", f"cannot read the file ({exc.strerror})") from None
-    finally:
-        os.close(fd)
-    if len(raw) > MAX_FILE_BYTES:
-        raise ScenarioError(source, "", f"file larger than {MAX_FILE_BYTES} bytes; a scenario "
-                            "is a few kB")
+    raw = read_regular_file(path, MAX_FILE_BYTES, "a scenario (a regular TOML file of a few kB)")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -5,42 +5,7 @@ Defined in :mod:`downhole.sim.wave`, beside the compiled kernels that step it
 ``sim`` <-> ``string`` cycle); this module keeps the drill-string namespace for it.
 """
 
-from downhole.sim.wave import (
-                               WaveParams,
-                               WaveSegment,
-                               initial_waves,
-                               line_preload,
-                               segments_from_pipe,
-                               static_end_forces,
-                               wave_end_forces,
-                               wave_incoming,
-                               wave_outgoing,
-                               wave_push,
-                               wave_read,
-                               wave_read_at,
-                               wave_read_plan,
-                               wave_source_forces,
-                               wave_state,
-                               wave_step,
-                               wave_step_at,
-)
+from downhole.sim import wave as _wave
+from downhole.sim.wave import *  # noqa: F403 -- re-exported: the public names of downhole.sim.wave
 
-__all__ = [
-                               "WaveParams",
-                               "WaveSegment",
-                               "initial_waves",
-                               "line_preload",
-                               "segments_from_pipe",
-                               "static_end_forces",
-                               "wave_end_forces",
-                               "wave_incoming",
-                               "wave_outgoing",
-                               "wave_push",
-                               "wave_read",
-                               "wave_read_at",
-                               "wave_read_plan",
-                               "wave_source_forces",
-                               "wave_state",
-                               "wave_step",
-                               "wave_step_at",
-]
+__all__ = list(_wave.__all__)
