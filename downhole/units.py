@@ -22,6 +22,7 @@ import pint
 
 __all__ = [
     "MAX_QUANTITY_LENGTH",
+    "MAX_ROTARY_SPEED",
     "QUANTITY_GRAMMAR",
     "RANGES",
     "SI_UNITS",
@@ -31,6 +32,7 @@ __all__ = [
     "as_si",
     "as_si_array",
     "check_range",
+    "check_rotary_speed",
     "convert",
     "display_units",
     "parse_quantity_string",
@@ -215,6 +217,50 @@ def parse_quantity_string(value: str) -> tuple[float, str]:
         raise UnitError(f"cannot parse quantity {value!r}: expected a number and a unit")
     _check_unit_expression(unit, value)
     return number, unit
+
+
+#: The fastest rotary speed of a real top drive (400 rpm), rad/s: a rotary-speed set-point above it
+#: is a slip of the pen (most often rpm written as a bare number, which is rad/s).
+MAX_ROTARY_SPEED = 400.0 * 2.0 * math.pi / 60.0
+
+
+def check_rotary_speed(raw):
+    """Refuse a rotary-speed set-point no rig turns, naming the value in the user's units and
+    the likely fix; used by the scenario schemas as a pydantic ``mode="before"`` validator.
+
+    Parameters
+    ----------
+    raw : float, str or pint Quantity
+        The value as written: a bare number (SI, rad/s) or a quantity (``"120 rpm"``).
+
+    Returns
+    -------
+    object
+        ``raw``, unchanged, when it is plausible (or not a number: the field's own validation
+        then says what is wrong).
+
+    Raises
+    ------
+    ValueError
+        Above :data:`MAX_ROTARY_SPEED` (400 rpm); for a bare number the message suggests the
+        same number in rpm.
+    """
+    if isinstance(raw, bool):
+        return raw
+    if isinstance(raw, (int, float)):
+        if math.isfinite(raw) and raw > MAX_ROTARY_SPEED:
+            rpm = raw * 60.0 / (2.0 * math.pi)
+            raise ValueError(f"{raw:g} (a bare number is rad/s) = {rpm:,.0f} rpm is above 400 "
+                             f"rpm, the fastest top drives; did you mean \"{raw:g} rpm\"?")
+        return raw
+    try:
+        value = si_or_number(raw, "angular_velocity", "rotary speed")
+    except Exception:
+        return raw
+    if isinstance(value, (int, float)) and math.isfinite(value) and value > MAX_ROTARY_SPEED:
+        rpm = value * 60.0 / (2.0 * math.pi)
+        raise ValueError(f"{raw} = {rpm:,.0f} rpm is above 400 rpm, the fastest top drives")
+    return raw
 
 
 def check_range(value: float, dimension: str) -> float:

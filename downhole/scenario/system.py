@@ -236,6 +236,13 @@ class OperationSettings(_Strict):
     rop: Q["velocity"] | None = Field(None, gt=0, le=1.0)
     wob: Q["force"] | None = Field(None, gt=0)
 
+    @field_validator("surface_speed", mode="before")
+    @classmethod
+    def _plausible_speed(cls, v):
+        from downhole.units import check_rotary_speed
+
+        return check_rotary_speed(v)
+
     @model_validator(mode="after")
     def _one(self):
         if (self.rop is None) == (self.wob is None):

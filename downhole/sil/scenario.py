@@ -125,6 +125,13 @@ class OperationSection(_Strict):
     surface_torque: Q["torque"] = 0.0
     rop: Q["velocity"] = 0.01
 
+    @field_validator("surface_speed", mode="before")
+    @classmethod
+    def _plausible_speed(cls, v):
+        from downhole.units import check_rotary_speed
+
+        return check_rotary_speed(v)
+
 
 class SimulationSection(_Strict):
     """``[simulation]``: step, duration, output sampling, depth of cut, start."""
