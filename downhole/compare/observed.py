@@ -42,7 +42,22 @@ __all__ = ["DHP_SIGNALS", "RigActuators", "VelocityServo", "builtin_dhp", "desig
 RIG_SIGNALS = ("surface_torque", "top_drive_angular_velocity", "time")
 
 
-class RigActuators(Controller):
+class _Wrapper(Controller):
+    """A controller around ``inner``: its step ``dt`` is passed on to ``inner``."""
+
+    @property
+    def dt(self):
+        return self._dt
+
+    @dt.setter
+    def dt(self, value):
+        if value is not None:
+            self._dt = float(value)
+            if hasattr(self.inner, "dt"):
+                self.inner.dt = self._dt
+
+
+class RigActuators(_Wrapper):
     """A controller that sets ``slack_off_force`` and ``surface_torque`` on a rig that takes
     ``hook_load`` and ``top_drive_angular_velocity`` (see the module docstring).
 
@@ -100,17 +115,6 @@ class RigActuators(Controller):
         sig = signal("top_drive_axial_velocity")
         self._v_range = (float(sig.low), float(sig.high))
 
-    @property
-    def dt(self):
-        return self._dt
-
-    @dt.setter
-    def dt(self, value):
-        if value is not None:
-            self._dt = float(value)
-            if hasattr(self.inner, "dt"):
-                self.inner.dt = self._dt
-
     def reset(self) -> None:
         self.inner.reset()
         self._e = None
@@ -147,7 +151,7 @@ class RigActuators(Controller):
         return {"top_drive_axial_velocity": v_cmd, "top_drive_angular_velocity": w_sp}
 
 
-class VelocityServo(Controller):
+class VelocityServo(_Wrapper):
     """A controller that sets ``top_drive_axial_velocity`` on a rig that takes ``hook_load``:
     the block-velocity servo in software (see the module docstring); the other commands pass.
 
@@ -184,17 +188,6 @@ class VelocityServo(Controller):
 
         sig = signal("hook_load")
         self._h_range = (float(sig.low), float(sig.high))
-
-    @property
-    def dt(self):
-        return self._dt
-
-    @dt.setter
-    def dt(self, value):
-        if value is not None:
-            self._dt = float(value)
-            if hasattr(self.inner, "dt"):
-                self.inner.dt = self._dt
 
     def reset(self) -> None:
         self.inner.reset()
