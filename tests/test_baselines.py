@@ -27,7 +27,6 @@ from downhole.signals import check_command_value, signal
 from downhole.sil import RealTimeRunner
 from downhole.sil.plants import SilPlant
 from downhole.string.fem import DirectionalPlant
-from downhole.string.neutral import NeutralPlant
 from downhole.system import FIDELITIES, DrillingSystem
 
 DURATION = 0.3  # s simulated per matrix cell
@@ -55,7 +54,7 @@ def _plant(system, fidelity, dt_lumped=5e-4):
     if fidelity.startswith("lumped"):
         return DirectionalPlant(model, dt=dt_lumped, integrator="newmark")
     if fidelity == "neutral":
-        return NeutralPlant(model, dt=1e-3)
+        return DirectionalPlant(model, dt=1e-3)
     return DirectionalPlant(model, 1e-3, top_drive=TopDrive(speed=10.0),
                             hook=Hook(mode="velocity", velocity=0.0))
 

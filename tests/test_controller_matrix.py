@@ -31,7 +31,6 @@ from downhole.sil.link import ControllerClient
 from downhole.sil.plants import SilPlant
 from downhole.sil.testing import free_port
 from downhole.string.fem import DirectionalPlant
-from downhole.string.neutral import NeutralPlant
 from downhole.system import FIDELITIES, DrillingSystem
 
 DURATION = 0.3  # s simulated per cell
@@ -92,7 +91,7 @@ def _plant(system, fidelity):
     if fidelity.startswith("lumped"):
         return DirectionalPlant(model, dt=5e-4, integrator="newmark")
     if fidelity == "neutral":
-        return NeutralPlant(model, dt=1e-3)
+        return DirectionalPlant(model, dt=1e-3)
     # a velocity-driven hook: the axial command is a block velocity at every fidelity
     return DirectionalPlant(model, 1e-3, top_drive=TopDrive(speed=10.0),
                             hook=Hook(mode="velocity", velocity=0.0))

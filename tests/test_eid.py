@@ -89,7 +89,7 @@ def test_infeasible_lmi_names_the_family(model):
 
 
 def test_python_loop_eid_equals_compiled(model, ctrl):
-    # the controller stepped from Python over a NeutralPlant gives the compiled loop's numbers
+    # the controller stepped from Python over the neutral plant gives the compiled loop's numbers
     kw = dict(duration=2.0, dt=2e-4, controller=ctrl, noise={"axial": 1e-3, "angular": 1.0})
     a = simulate_neutral(model, **kw)
     b = simulate_neutral(model, python_loop=True, **kw)
@@ -102,10 +102,10 @@ def test_eid_runs_through_the_controller_contract_on_the_neutral_plant(model, ct
     # the generic runner (controller.dt set to the plant step, mapping references, the Plant
     # contract's relative axial command) reproduces the compiled closed loop
     from downhole.control.base import check_pair, run_closed_loop
-    from downhole.string.neutral import NeutralPlant
+    from downhole.string.fem import DirectionalPlant
 
     a = simulate_neutral(model, duration=1.0, dt=2e-4, controller=ctrl, record_dt=2e-4)
-    plant = NeutralPlant(model, 2e-4)
+    plant = DirectionalPlant(model, 2e-4)
     assert check_pair(ctrl, plant) is None
     r = run_closed_loop(plant, ctrl, 1.0, reference={"reference_axial_velocity": 0.01,
                                                      "reference_angular_velocity": 20.0})

@@ -38,6 +38,19 @@ def golden():
 #: the difference on more cases).
 TOLERANCE = {"lumped12": 1e-3}
 
+#: Runs whose discretization changed on purpose, compared in RMS over each channel's range (and
+#: the last sample) instead of sample by sample. The neutral model now runs on the one kernel
+#: (its top a massless node answering the command held over the step, the bit force linearly
+#: implicit at the end of the step, the wave joint shared with the hybrid models), where the
+#: deleted neutral kernel took the command of t_k at t_k and the bit force at the start of the
+#: step: an O(dt) change that moves the instant of a lift-off by one step, so a sample-by-sample
+#: bound would be the size of the jump. The FEM and hybrid runs predict the delayed depth of cut
+#: at the end of the step from the rock under the predicted bit (not d + n dt v, which biased the
+#: steady WOB by n dt v). Measured: RMS 1.0 % (neutral WOB), 0.15 % (neutral EID), 0.52 % (FEM),
+#: 0.55 % (hybrid). The independent check of these runs is tests/test_neutral.py (a fine finite-
+#: difference discretization of the same equations) and tests/test_fem.py.
+RMS_TOLERANCE = {"neutral": 0.015, "neutral_eid": 0.005, "fem": 0.01, "hybrid": 0.01}
+
 
 @pytest.mark.parametrize("name", list(cases()))
 def test_kernel_reproduces_the_pre_refactor_numbers(golden, name):
@@ -48,7 +61,11 @@ def test_kernel_reproduces_the_pre_refactor_numbers(golden, name):
         got = sample(r[ch])
         assert got.shape == ref.shape, (name, ch)
         scale = max(np.max(np.abs(ref)), 1e-300)
-        assert np.max(np.abs(got - ref)) <= tol * scale, (name, ch)
+        if name in RMS_TOLERANCE:
+            assert np.sqrt(np.mean((got - ref) ** 2)) <= RMS_TOLERANCE[name] * scale, (name, ch)
+            assert abs(got[-1] - ref[-1]) <= 5e-3 * scale, (name, ch)
+        else:
+            assert np.max(np.abs(got - ref)) <= tol * scale, (name, ch)
 
 
 def test_the_cases_are_not_trivial(golden):

@@ -13,10 +13,9 @@ import pytest
 from downhole.control.dhp.weight_sets import weight_set, weight_set_names
 from downhole.errors import DownholeInputError
 from downhole.string.neutral import (
-    NEUTRAL_KERNEL_ARGS,
     NOMINAL_U_A,
     NOMINAL_U_T,
-    _run_neutral,
+    NeutralPack,
     neutral_model,
     simulate_neutral,
 )
@@ -64,13 +63,17 @@ class _ConstantFastPath:
                 "top_drive_angular_velocity": NOMINAL_U_T}
 
     def neutral_runner(self, dt):
-        def runner(plant_args, ref, mnoise, fnoise, nsteps, dt_, every, out):
-            assert len(plant_args) == len(NEUTRAL_KERNEL_ARGS)
-            u = np.empty((2, nsteps + 1))
-            u[0], u[1] = NOMINAL_U_A, NOMINAL_U_T
-            status, k, c = _run_neutral(*plant_args, u, fnoise, nsteps, dt_, every, out,
-                                        np.zeros(4), 0.0)
-            return status, k, c, {"measured_axial_velocity": out[:, 2] + 0.0}
+        def runner(pack, st, ref, mnoise, cmd_noise, nsteps, every, rec):
+            # the one kernel, stepped by the controller's own code through the pack
+            assert isinstance(pack, NeutralPack)
+            cmd = np.empty((nsteps, 2))
+            cmd[:, 0] = NOMINAL_U_A - pack.model.hang_command
+            cmd[:, 1] = NOMINAL_U_T
+            n_main = (nsteps // every) * every
+            status, rows = pack.run(st, cmd[:n_main], rec, every, 1)
+            if status == 0 and n_main < nsteps:
+                status, _ = pack.run(st, cmd[n_main:], rec, nsteps - n_main, 1 + rows)
+            return status, nsteps, {"measured_axial_velocity": rec[:, 1] + 0.0}
 
         return runner
 

@@ -110,11 +110,11 @@ def test_bad_inputs_are_named():
 
 
 def test_plant_steps_like_the_compiled_run(model):
-    # NeutralPlant (reset/step over named signals) is the same kernel stepped from Python
-    from downhole.string.neutral import NeutralPlant
+    # the plant (reset/step over named signals) is the same kernel stepped from Python
+    from downhole.string.fem import DirectionalPlant
 
     ref = simulate_neutral(model, duration=0.5, dt=2e-4, record_dt=2e-4)
-    plant = NeutralPlant(model, dt=2e-4)
+    plant = DirectionalPlant(model, dt=2e-4)
     obs = plant.reset()
     assert obs["wob"] == 0.0 and obs["time"] == 0.0
     vs = [obs["bit_axial_velocity"]]

@@ -226,7 +226,7 @@ def test_neutral_observer_recovers_bit_velocities_and_forces_in_open_loop(neutra
 # ------------------------------------------------------------------------------ wrapper
 def test_wrapper_declares_surface_signals_only(neutral):
     from downhole.control.base import check_pair
-    from downhole.string.neutral import NeutralPlant
+    from downhole.string.fem import DirectionalPlant
 
     inner = _Recorder((0.0, 0.0))        # stands in for the EID (same contract)
     fb = eid_from_surface(inner, neutral, 1e-3)
@@ -235,7 +235,7 @@ def test_wrapper_declares_surface_signals_only(neutral):
     assert not set(fb.needs) & downhole_signals
     assert all(name in SIGNALS for name in fb.needs)
     assert all(name in SIGNALS for name in FEM_MEASUREMENTS)
-    assert check_pair(fb, NeutralPlant(neutral, dt=1e-4)) is None
+    assert check_pair(fb, DirectionalPlant(neutral, dt=1e-4)) is None
     assert fb.commands == ("top_drive_axial_velocity", "top_drive_angular_velocity")
 
 

@@ -39,11 +39,11 @@ def test_metric_units_parse():
 
 
 def test_every_kernel_channel_is_declared():
+    from downhole.control.eid.neutral_runner import EID_CHANNELS
     from downhole.sim.kernel import CHANNELS as kernel
     from downhole.sim.lumped_model import CHAIN_CHANNELS as chain
-    from downhole.string.neutral import NEUTRAL_CHANNELS
 
-    for name in set(chain) | set(kernel) | set(NEUTRAL_CHANNELS) | set(STANDARD_CHANNELS):
+    for name in set(chain) | set(kernel) | set(EID_CHANNELS) | set(STANDARD_CHANNELS):
         assert name in SIGNALS, name
 
 

@@ -8,10 +8,10 @@ import pytest
 
 from downhole.errors import DownholeInputError
 from downhole.sim.plant import Plant
+from downhole.string.fem import DirectionalPlant
 from downhole.string.neutral import (
     NOMINAL_U_A,
     NOMINAL_U_T,
-    NeutralPlant,
     neutral_model,
     simulate_neutral,
 )
@@ -72,7 +72,7 @@ def test_neutral_plant_steady_and_off_bottom(nmodel):
     m = nmodel
     sp = {"top_drive_axial_velocity": NOMINAL_U_A - m.hang_command,
           "top_drive_angular_velocity": NOMINAL_U_T}
-    plant = NeutralPlant(m, dt=2e-4)
+    plant = DirectionalPlant(m, dt=2e-4)
     assert isinstance(plant, Plant)
     assert plant.default_command() == {"top_drive_axial_velocity": 0.0,
                                        "top_drive_angular_velocity": 0.0}
@@ -103,7 +103,7 @@ def test_neutral_plant_steady_and_off_bottom(nmodel):
 
 
 def test_neutral_start_errors_are_precise(nmodel):
-    plant = NeutralPlant(nmodel, dt=2e-4)
+    plant = DirectionalPlant(nmodel, dt=2e-4)
     with pytest.raises(DownholeInputError, match="positive angular set-point"):
         plant.reset(start="steady", set_point={"top_drive_axial_velocity": 0.01})
     with pytest.raises(DownholeInputError, match="no steady drilling state"):

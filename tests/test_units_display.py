@@ -512,14 +512,14 @@ def test_plants_take_unit_strings_and_quantities_for_dt_set_points_and_commands(
     from downhole.errors import DownholeInputError
     from downhole.sim.lumped_model import lumped_model
     from downhole.string.fem import DirectionalPlant
-    from downhole.string.neutral import NeutralPlant
+    from downhole.string.neutral import neutral_model
 
     u = pint.UnitRegistry()
     v = u.Quantity(30.0, "ft/hour").to("m/s").magnitude
     w = u.Quantity(60.0, "rpm").to("rad/s").magnitude
     for make, dt_text, dt in ((lambda d: DirectionalPlant(lumped_model("table_2_1"), dt=d),
                                "0.5 ms", 5e-4),
-                              (lambda d: NeutralPlant("table_3_1", dt=d), "0.1 ms", 1e-4)):
+                              (lambda d: DirectionalPlant(neutral_model("table_3_1"), dt=d), "0.1 ms", 1e-4)):
         a, b = make(dt), make(dt_text)
         assert b.dt == pytest.approx(dt, rel=1e-15)
         oa = a.reset(start="steady", set_point={"top_drive_axial_velocity": v,

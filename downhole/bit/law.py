@@ -373,7 +373,7 @@ def bit_force_slopes(d, v, omega, p, approx):
 
 
 @njit(cache=True)
-def solve_bit_node(field, den, r, h, x, c0, c1, p):
+def solve_bit_node(field, den, r, h, x, c0, c1, p, max_iter=60):
     """Solve ``den x + h F(x) = r`` for the bit node's new velocity (safeguarded Newton).
 
     ``field`` 0: x is the axial velocity and F = WOB(d = c0 + c1 x, v = x); 1: x is the angular
@@ -401,16 +401,20 @@ def solve_bit_node(field, den, r, h, x, c0, c1, p):
     p : BitKernelParams
         Compiled bit parameters (law id ``p.law`` and the law's constants), from
         :meth:`downhole.params.BitParams.kernel_params`.
+    max_iter : int, optional
+        Newton iterations at most (default 60: solved to round-off). 1 gives the linearly
+        implicit step (the law linearized at the guess ``x``: one evaluation of the law).
 
     Returns
     -------
     float
-        The velocity x solving the equation, m/s or rad/s (the last iterate after 60 iterations).
+        The velocity x solving the equation, m/s or rad/s (the last iterate after ``max_iter``
+        iterations).
     """
     lo = -1e300
     hi = 1e300
     wf = bit_contact_force(c0, c1, p)[0] if field == 1 else 0.0
-    for _ in range(60):
+    for _ in range(max_iter):
         if field == 0:
             f, dwd, dwv = bit_wob(c0 + c1 * x, x, p)
             df = dwd * c1 + dwv

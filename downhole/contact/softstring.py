@@ -33,6 +33,7 @@ from downhole.errors import DownholeInputError
 __all__ = [
     "ELEM_LAYOUT",
     "contact_elements",
+    "contact_elements_into",
     "element_normal_half",
     "friction_damper",
     "friction_forces",
@@ -101,13 +102,40 @@ def element_normal_half(elem, e, tension):
 
 
 @njit(cache=True)
-def contact_elements(elem):
-    """Indices (int64) of the elements whose normal force can be non-zero.
+def contact_elements_into(elem, out):
+    """Write the indices of the elements whose normal force can be non-zero into ``out``.
 
     An element takes part when its contact flag is set and it is curved or not vertical; a
     straight vertical element has zero curvature and zero normal weight, so its soft-string
     normal force is exactly 0 whatever the tension, and the kernels skip it. The last row of
     ``elem`` (one per node) is never an element.
+
+    Parameters
+    ----------
+    elem : ndarray, shape (n, 8)
+        Element data, columns :data:`ELEM_LAYOUT`.
+    out : ndarray of int64, shape (>= n - 1,)
+        Receives the element indices, ascending.
+
+    Returns
+    -------
+    int
+        Number of indices written.
+    """
+    k = 0
+    for e in range(elem.shape[0] - 1):
+        if elem[e, 7] > 0.5 and (elem[e, 1] != 0.0 or elem[e, 2] != 0.0 or elem[e, 3] != 0.0
+                                 or elem[e, 4] != 0.0 or elem[e, 5] != 0.0
+                                 or elem[e, 6] != 0.0):
+            out[k] = e
+            k += 1
+    return k
+
+
+@njit(cache=True)
+def contact_elements(elem):
+    """Indices (int64) of the elements whose normal force can be non-zero (see
+    :func:`contact_elements_into`).
 
     Parameters
     ----------
@@ -120,14 +148,7 @@ def contact_elements(elem):
         Element indices, ascending.
     """
     out = np.empty(max(elem.shape[0] - 1, 0), np.int64)
-    k = 0
-    for e in range(elem.shape[0] - 1):
-        if elem[e, 7] > 0.5 and (elem[e, 1] != 0.0 or elem[e, 2] != 0.0 or elem[e, 3] != 0.0
-                                 or elem[e, 4] != 0.0 or elem[e, 5] != 0.0
-                                 or elem[e, 6] != 0.0):
-            out[k] = e
-            k += 1
-    return out[:k]
+    return out[:contact_elements_into(elem, out)]
 
 
 @njit(cache=True)

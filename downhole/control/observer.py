@@ -596,7 +596,7 @@ class NeutralSurfaceObserver:
         self.reset()
 
     def reset(self) -> None:
-        """Start from the hanging rest of :class:`~downhole.string.neutral.NeutralPlant`: bit
+        """Start from the hanging rest of the neutral plant (``start="rest"``): bit
         at rest touching the rock (zero WOB), the line carrying the bit weight (v_top = 0,
         b_in = M_B g / (2 Z), a_top = -b_in)."""
         p = self._p

@@ -173,9 +173,8 @@ def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
     Parameters
     ----------
     plant : downhole.sim.plant.Plant
-        E.g. ``DirectionalPlant(system.build("lumped4"), dt=5e-4)``, a
-        :class:`~downhole.string.neutral.NeutralPlant` or a
-        :class:`~downhole.string.fem.DirectionalPlant`.
+        E.g. ``DirectionalPlant(system.build("lumped4"), dt=5e-4)`` (any
+        :class:`~downhole.string.fem.DirectionalPlant`: lumped, neutral, FEM or hybrid).
     out : path
         The ``.fmu`` file to write (atomically).
     start : {"rest", "off_bottom", "steady"}
@@ -251,7 +250,7 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
     Commands ``top_drive_axial_velocity`` (m/s) and ``top_drive_angular_velocity`` (rad/s) at
     every fidelity. ``lumped4`` / ``lumped12``: :class:`~downhole.string.fem.DirectionalPlant`
     (velocity-driven top, the given ``integrator``); ``neutral``:
-    :class:`~downhole.string.neutral.NeutralPlant`; ``fem`` / ``hybrid``:
+    the same plant over the neutral model's kernel configuration; ``fem`` / ``hybrid``:
     :class:`~downhole.string.fem.DirectionalPlant` with the rig's PI top drive
     (``surface_speed`` its default set-point) and a velocity-servo hook (block velocity ``rop``).
 
@@ -284,9 +283,9 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
 
         return DirectionalPlant(model, dt=dt, depth_of_cut=depth_of_cut, integrator=integrator)
     if fidelity == "neutral":
-        from downhole.string.neutral import NeutralPlant
+        from downhole.string.fem import DirectionalPlant
 
-        return NeutralPlant(model, dt=dt, depth_of_cut=depth_of_cut)
+        return DirectionalPlant(model, dt=dt, depth_of_cut=depth_of_cut)
     import dataclasses
 
     from downhole.params.rig import Hook

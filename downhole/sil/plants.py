@@ -4,8 +4,7 @@ The real-time runtime, the UDP link, the FMU and the Gymnasium environment all n
 whose observations and commands are a *fixed*, ordered list of named floats.
 :class:`SilPlant` wraps a plant of the :class:`~downhole.sim.plant.Plant` contract
 (``reset(start=..., set_point=...) -> obs``, ``step(command) -> obs``:
-:class:`~downhole.string.fem.DirectionalPlant` (lumped and directional models),
-:class:`~downhole.string.neutral.NeutralPlant`,
+:class:`~downhole.string.fem.DirectionalPlant` (lumped, neutral and directional models),
 :class:`~downhole.control.dhp.directional.DirectionalStatePlant`; the HIL string takes the
 same two calls) and adds:
 
@@ -406,16 +405,16 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
                         {names[0]: 0.0, names[1]: 0.0}, name=f"lumped {lumped_preset} order "
                         f"{order}", info={"model": "lumped", "interface": "lumped"})
     if model == "neutral":
-        from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, NeutralPlant
+        from downhole.string.fem import DirectionalPlant
+        from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, neutral_model
 
         if bit is None:
-            p = NeutralPlant("table_3_1", dt=dt, depth_of_cut=depth_of_cut)
+            nm = neutral_model("table_3_1")
         else:
             from downhole.params import get_preset
-            from downhole.string.neutral import neutral_model
 
-            p = NeutralPlant(neutral_model(get_preset("table_3_1").string, bit), dt=dt,
-                             depth_of_cut=depth_of_cut)
+            nm = neutral_model(get_preset("table_3_1").string, bit)
+        p = DirectionalPlant(nm, dt=dt, depth_of_cut=depth_of_cut)
         names = p.command_names
         return SilPlant(p, names, {names[0]: NOMINAL_U_A - p.model.hang_command,
                                    names[1]: NOMINAL_U_T},

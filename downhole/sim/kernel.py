@@ -48,13 +48,18 @@ from downhole.bit.law import (
     solve_bit_node,
 )
 from downhole.bit.rock_surface import rock_advance_to, rock_depth_at
-from downhole.contact.softstring import contact_elements, element_normal_half, friction_damper
+from downhole.contact.softstring import (
+    contact_elements_into,
+    element_normal_half,
+    friction_damper,
+)
 from downhole.sim.wave import wave_read_at, wave_read_plan, wave_source_forces, wave_step_at
 
 __all__ = [
     "CHANNELS",
     "RUN_STATE_DTYPE",
     "KernelParams",
+    "new_kernel_work",
     "new_run_state",
     "run_kernel",
     "thomas_solve",
@@ -118,6 +123,13 @@ class KernelParams(NamedTuple):
         boundaries replace ``cmd`` and the in-kernel integration of the references; the
         recorded top-drive velocities are the reference's and the surface torque is the
         top coupling's.
+    bit_iterations : int
+        Newton iterations of the implicit bit force per step and field (default 60: the
+        exact implicit force, to round-off; 1: linearly implicit, the law linearized at the
+        velocity of the start of the step, one law evaluation per field).
+    bit_disturbance : bool
+        ``cmd`` has two more columns: a force (N) and a torque (N m) added to the bit's WOB
+        and TOB over the step (noise); not with a given reference.
     """
 
     velocity_hook: bool
@@ -145,6 +157,8 @@ class KernelParams(NamedTuple):
     prebalanced_weight: float = 0.0
     explicit_euler: bool = False
     given_reference: bool = False
+    bit_iterations: int = 60
+    bit_disturbance: bool = False
 
 
 #: The clocks and references :func:`run_kernel` carries from call to call, one record of
@@ -165,6 +179,29 @@ def new_run_state(**values) -> np.ndarray:
                            f"{RUN_STATE_DTYPE.names}")
         rs[name] = value
     return rs
+
+
+#: Rows of the float scratch buffer of :func:`run_kernel` (each row has one value per node).
+_WORK_ROWS = 27
+
+
+def new_kernel_work(n: int, dense: bool = False):
+    """Scratch buffers for :func:`run_kernel` on ``n`` nodes (reused from call to call).
+
+    Parameters
+    ----------
+    n : int
+        Number of nodes.
+    dense : bool, optional
+        The model has dense (modal) damping: an (n, n) solve buffer is needed.
+
+    Returns
+    -------
+    tuple
+        ``(float (27, n), int64 (3, n), float (n, n) or (1, 1))``.
+    """
+    return (np.zeros((_WORK_ROWS, n)), np.zeros((3, n), np.int64),
+            np.empty((n, n)) if dense else np.empty((1, 1)))
 
 
 @njit(cache=True)
@@ -250,7 +287,7 @@ def _mid_torque(Ko, th, i):
 @njit(cache=True)
 def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                wa_hist, wa_pos, wa_wp, wt_hist, wt_pos, wt_wp, lag, cmd, top_ref, n_steps, dt,
-               rec, rec_every, rec_start):
+               rec, rec_every, rec_start, work):
     """Advance ``n_steps`` steps of ``dt``; record every ``rec_every`` steps into ``rec``.
 
     Parameters
@@ -277,14 +314,18 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
     wa_*, wt_* : wave-segment states (axial, torsional): ring buffers, clocks and
         :class:`~downhole.sim.wave.WaveParams`; ignored unless hybrid.
     lag : (4, m) lag-cascade states (rows: axial b_in, axial a_in, torsional b_in, a_in).
-    cmd : (n_steps, 2)
+    cmd : (n_steps, 2) or (n_steps, 4)
         Per step: axial command (hook load N, or top axial velocity m/s) and torsional command
-        (speed set-point rad/s, or top-drive torque N m). Ignored with ``top.given_reference``.
+        (speed set-point rad/s, or top-drive torque N m); with ``top.bit_disturbance`` also the
+        WOB and TOB disturbances. Ignored with ``top.given_reference``.
     top_ref : (n_steps + 1, 4)
         With ``top.given_reference``: the top at the step boundaries t_k (rows k = 0..n_steps):
         axial position, angle, axial velocity, angular velocity (velocity hook), or hook load,
         surface torque (force hook, columns 0 and 1). Else ignored (any shape).
     rec : (n_rec, len(CHANNELS)) output; ``rec_start`` is the first row written.
+    work : tuple
+        Scratch buffers from :func:`new_kernel_work` (overwritten; the kernel allocates nothing,
+        so a caller that steps one step per call, a compiled closed loop, pays no allocation).
 
     Returns
     -------
@@ -312,6 +353,10 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
     torque_mode = top.torque_mode
     given = top.given_reference
     euler = top.explicit_euler
+    n_newton = top.bit_iterations
+    dist = top.bit_disturbance and not given
+    dwob = 0.0
+    dtob = 0.0
     soft = (not torque_mode) and (not given) and top.soft_gain > 0.0
     w_pre = top.prebalanced_weight
     hk, hc, h0 = top.hook_k, top.hook_c, top.hook_load0
@@ -325,19 +370,22 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
     r_ref, r_h, r_nb, r_cap, r_nbl = rp.theta_ref, rp.h, rp.nb, rp.cap, rp.n_blades
     r_mem = rp.memory
     j_next = istate[0]
-    drate_rock = rp.n_blades * h  # delayed depth of cut: d(v1) = d0 + n h (v0 + v1)
+    drate_rock = rp.n_blades * h  # delayed depth of cut: d(v1) = dax0 + n h v1
     # ---- contact elements / nodes (skip elements whose normal force is identically zero:
     # straight and vertical, no curvature and no lateral weight)
-    ce = contact_elements(elem) if mu > 0.0 else np.empty(0, np.int64)
-    n_ce = ce.shape[0]
-    incontact = np.zeros(n, np.bool_)
+    wk, wki, Aw = work
+    wk[:] = 0.0
+    n_ce = contact_elements_into(elem, wki[0]) if mu > 0.0 else 0
+    ce = wki[0]
+    incontact = wki[2]
+    incontact[:] = 0
     for j in range(n_ce):
-        incontact[ce[j]] = True
-        incontact[ce[j] + 1] = True
-    cn = np.empty(n, np.int64)
+        incontact[ce[j]] = 1
+        incontact[ce[j] + 1] = 1
+    cn = wki[1]
     n_cn = 0
     for i in range(n):
-        if incontact[i]:
+        if incontact[i] != 0:
             cn[n_cn] = i
             n_cn += 1
     # first node whose diagonal changes from step to step (contact), capped at the bit node
@@ -345,9 +393,10 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
     if n_cn > 0 and cn[0] < ib:
         p_var = cn[0]
     # ---- static forces, dampers and springs; the diagonal and Thomas factors they give
-    Fst = np.zeros((2, n))
-    Cst = np.zeros((2, n))
-    Kx = np.zeros((2, n))
+    # (every work row is a view of the caller's buffer: nothing is allocated per call)
+    Fst = wk[0:2]
+    Cst = wk[2:4]
+    Kx = wk[4:6]
     for i in range(n):
         Fst[0, i] = node[i, 0]
     if vel_hook:
@@ -366,9 +415,9 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
         Cst[0, iC] += za0
         Cst[1, iB] += zt0
         Cst[1, iC] += zt0
-    Dst = np.empty((2, n))
-    cwc = np.zeros((2, n))
-    invc = np.zeros((2, n))
+    Dst = wk[6:8]
+    cwc = wk[8:10]
+    invc = wk[10:12]
     for f in range(2):
         for i in range(n):
             Dst[f, i] = mats[6 * f + 4, i] + h * (Cst[f, i] + Kx[f, i] * h)
@@ -379,7 +428,7 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
             invc[f, i] = 1.0 / den
             cwc[f, i] = mats[6 * f + 5, i] * invc[f, i]
     # explicit Euler: ground damping per node (row sums of C), element springs and dampers
-    Cg = np.zeros((2, n))
+    Cg = wk[12:14]
     if euler:
         for f in range(2):
             rc = 12 + 2 * f
@@ -390,18 +439,18 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                 if i < n - 1:
                     cg += mats[rc + 1, i]
                 Cg[f, i] = cg
-    F = Fst.copy()
-    cfr = np.zeros((2, n))
-    rhs = np.empty(n)
-    rhs_t = np.empty(n)
-    dd = np.empty(n)
-    y = np.empty(n)
-    y_t = np.empty(n)
-    cw = np.empty(n)
-    cw_t = np.empty(n)
-    nrm = np.zeros(n)
-    Aw = np.empty((n, n)) if dense else np.empty((1, 1))
-    fe = np.empty(n)
+    F = wk[14:16]
+    F[:, :] = Fst
+    cfr = wk[16:18]
+    rhs = wk[18]
+    rhs_t = wk[19]
+    dd = wk[20]
+    y = wk[21]
+    y_t = wk[22]
+    cw = wk[23]
+    cw_t = wk[24]
+    nrm = wk[25]
+    fe = wk[26]
     # ---- wave segments (downhole.sim.wave): clocks, capacities and read plans in locals
     za = wa_wp.impedance
     zt = wt_wp.impedance
@@ -553,8 +602,11 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
             dax0 = 0.0
             drate = approx_depth_rate(state[4, ib], bt)
         else:
-            d0 = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl, ua_b0, th_b0)
-            dax0 = d0 + drate_rock * state[1, ib]
+            # d(t + dt) = n (x1 - s(theta1)): linear in x1 = x0 + h (v0 + v1); the surface
+            # under the blades read at the angle the bit reaches at its present speed (exact at
+            # steady rotation, so a steady state has the depth of cut 2 pi v / omega)
+            dax0 = rock_depth_at(surf, j_next, r_ref, r_h, r_nb, r_cap, r_nbl,
+                                 ua_b0 + h * state[1, ib], th_b0 + dt * state[4, ib])
             drate = drate_rock
         # ---- wave segment between B and C
         a_in = 0.0
@@ -573,9 +625,24 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                 tb_in = _lag_cascade(lag, 2, nlt, al_t, tb_in)
                 ta_in = _lag_cascade(lag, 3, nlt, al_t, ta_in)
             sb, sc = wave_source_forces(za, a_in, b_in)
-            F[0, iB] = Fst[0, iB] + sb
+            tsb, tsc = wave_source_forces(zt, ta_in, tb_in)
+            if iB == 0:
+                # the line starts at the top node (the neutral model): its forces add to the
+                # hook and top-drive forces set above
+                F[0, 0] += sb
+                F[1, 0] += tsb
+            else:
+                F[0, iB] = Fst[0, iB] + sb
+                F[1, iB] = tsb
             F[0, iC] = Fst[0, iC] + sc
-            F[1, iB], F[1, iC] = wave_source_forces(zt, ta_in, tb_in)
+            F[1, iC] = tsc
+        if dist:
+            # a force disturbance on the bit (noise on WOB and TOB), the command's columns 2, 3
+            base = hybrid and iC == ib
+            dwob = cmd[k, 2]
+            dtob = cmd[k, 3]
+            F[0, ib] = (F[0, ib] if base else Fst[0, ib]) - dwob
+            F[1, ib] = (F[1, ib] if base else Fst[1, ib]) - dtob
         # ---- solve both fields: (M + h C + h^2 K + h C_x + h^2 K_x) v1 = rhs
         if euler:
             pass
@@ -616,7 +683,8 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                 cw[ib] = 1.0
                 _spd_solve2(Aw, rhs, cw, y, dd, n)
                 den = 1.0 / dd[ib]
-                x = solve_bit_node(f, den, den * y[ib], h, state[ru + 1, ib], c0, c1, bt)
+                x = solve_bit_node(f, den, den * y[ib], h, state[ru + 1, ib], c0, c1, bt,
+                                   n_newton)
                 if f == 0:
                     fb, _, _ = bit_wob(c0 + c1 * x, x, bt)
                 else:
@@ -684,13 +752,13 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                     y[i] = ra * inva
                     cw_t[i] = mats[11, i] * invt
                     y_t[i] = rt * invt
-            va_new = solve_bit_node(0, dena, ra, h, state[1, ib], dax0, drate, bt)
+            va_new = solve_bit_node(0, dena, ra, h, state[1, ib], dax0, drate, bt, n_newton)
             if approx:
                 d1 = approx_depth_of_cut(va_new, state[4, ib], bt)
             else:
                 d1 = dax0 + drate * va_new
             y[ib] = va_new
-            y_t[ib] = solve_bit_node(1, dent, rt, h, state[4, ib], d1, va_new, bt)
+            y_t[ib] = solve_bit_node(1, dent, rt, h, state[4, ib], d1, va_new, bt, n_newton)
             for i in range(n - 2, -1, -1):
                 y[i] -= cw[i] * y[i + 1]
                 y_t[i] -= cw_t[i] * y_t[i + 1]
@@ -746,14 +814,15 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
             rec[row, 2] = state[3, ib]
             rec[row, 3] = vtb
             rec[row, 4] = dn
-            rec[row, 5] = wn
-            rec[row, 6] = tn
+            rec[row, 5] = wn + dwob
+            rec[row, 6] = tn + dtob
             if given and vel_hook:
                 rec[row, 7] = (h0 + w_pre) - (hk * (x_ref - state[0, 0])
                                               + hc * (cax - state[1, 0]))
                 rec[row, 9] = cax
             elif vel_hook:
-                rec[row, 7] = h0 - hk * (x_ref - state[0, 0]) - hc * (cax - state[1, 0])
+                rec[row, 7] = (h0 + w_pre) - hk * (x_ref - state[0, 0]) \
+                    - hc * (cax - state[1, 0])
                 rec[row, 9] = state[1, 0]
             else:
                 rec[row, 7] = cax
@@ -765,7 +834,10 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
                 rec[row, 8] = ctq
                 rec[row, 10] = state[4, 0]
             else:
-                rec[row, 8] = mats[9, 0] * (state[3, 1] - state[3, 0]) if n > 1 else 0.0
+                if hybrid and iB == 0:
+                    rec[row, 8] = tb_line  # the line's torque at the top node
+                else:
+                    rec[row, 8] = mats[9, 0] * (state[3, 1] - state[3, 0]) if n > 1 else 0.0
                 rec[row, 10] = state[4, 0]
             if hybrid:
                 rec[row, 11] = fb_line

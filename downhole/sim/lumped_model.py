@@ -23,7 +23,7 @@ from downhole.bit.rock_surface import RockSurfaceSpec, rock_depth, rock_init, ro
 from downhole.errors import DownholeInputError
 from downhole.params import BitParams, LumpedParams, get_preset
 from downhole.sim.kernel import CHANNELS as KERNEL_CHANNELS
-from downhole.sim.kernel import KernelParams, new_run_state, run_kernel
+from downhole.sim.kernel import KernelParams, new_kernel_work, new_run_state, run_kernel
 from downhole.sim.plant import check_start, steady_depth_of_cut
 from downhole.sim.wave import WaveParams
 
@@ -269,11 +269,6 @@ class ChainPack:
                       WaveParams(impedance=0.0, delay_steps=1.0, cap=4, a_init=0.0,
                                  b_init=0.0))
         self._cmd = np.zeros((0, 2))
-        # Newmark with the delayed depth of cut predicts d(t + dt) = d + n dt v from the hole
-        # bottom of t (the one-step lag of its rise): the steady state and the start forces
-        # take the bit law there
-        self._lag = (model.bit.n_blades * self.dt
-                     if integrator == "newmark" and not self.approx else 0.0)
 
     @property
     def command_names(self) -> tuple[str, str]:
@@ -295,7 +290,7 @@ class ChainPack:
         top_row = np.asarray(top_row, float)
         q, v, surf, istate, rp = _start_state(self.model, start, input_mode or self.mode,
                                               float(top_row[2]), float(top_row[3]), spec,
-                                              clearance, self._lag)
+                                              clearance)
         n = self.model.n
         state = np.zeros((6, n))
         state[0], state[1], state[3], state[4] = q[0], v[0], q[1], v[1]
@@ -319,8 +314,6 @@ class ChainPack:
         else:
             d = rock_depth(st["surf"], st["istate"], st["rp"], xb, thb)
         wob, tob = bit_forces(d, vb, wb, self.bitp)
-        wob_a, tob_a = bit_forces(d + self._lag * vb, vb, wb, self.bitp) if self._lag else (
-            wob, tob)
         top = self.top
         rec = np.zeros(len(KERNEL_CHANNELS))
         rec[0:7] = xb, vb, thb, wb, d, wob, tob
@@ -333,8 +326,8 @@ class ChainPack:
             ft = top_row[1]
             rec[7:11] = top_row[0], ft, s[1, 0], s[4, 0]
             fa_top = self.model.weight - top_row[0]
-        for f, (fld, ftop, fbit) in enumerate(((self.model.axial, fa_top, wob_a),
-                                                (self.model.torsional, ft, tob_a))):
+        for f, (fld, ftop, fbit) in enumerate(((self.model.axial, fa_top, wob),
+                                                (self.model.torsional, ft, tob))):
             u, vel = s[3 * f], s[3 * f + 1]
             force = np.asarray(fld.gravity, float) - np.asarray(fld.c_abs, float) * vel
             dq = np.diff(u)
@@ -377,23 +370,25 @@ class ChainPack:
         """Advance ``len(top_ref) - 1`` steps from ``st`` (updated in place); ``(status,
         rows written)``."""
         wa = self._wave
+        work = st.get("work")
+        if work is None:
+            work = st["work"] = new_kernel_work(self.model.n)
         return run_kernel(self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
                           st["state"], st["run"], st["surf"], st["istate"], st["rp"],
                           wa[0], wa[1], wa[2], wa[0], wa[1], wa[2], st["lag"], self._cmd,
-                          top_ref, top_ref.shape[0] - 1, self.dt, rec, rec_every, rec_start)
+                          top_ref, top_ref.shape[0] - 1, self.dt, rec, rec_every, rec_start,
+                          work)
 
 
 def _start_state(model: ChainModel, start: str, mode: str, v0: float, w0: float,
-                 spec: RockSurfaceSpec, clearance: float = 0.05, lag: float = 0.0):
+                 spec: RockSurfaceSpec, clearance: float = 0.05):
     """Chain state and rock surface for ``start`` at top velocities (v0, w0).
 
     ``rest``: zeros, bit on a flat bottom. ``off_bottom``: every DOF moving at (v0, w0), the
     chain deflected by its absolute damping only, the bit ``clearance`` m above a flat bottom.
     ``steady``: the same plus the steady bit forces at depth of cut d = 2 pi v0 / w0 (string
     compressed and wound up), on a helical bottom. Positions are deviations from the hanging
-    equilibrium with the top drive at 0 (as for ``rest``). The steady bit forces are taken at
-    the depth of cut d + ``lag`` v0 (the kernel's Newmark prediction with the delayed depth of
-    cut, ``lag`` = n dt; 0 otherwise). Returns ``(q, v, surf, istate, rp)``.
+    equilibrium with the top drive at 0 (as for ``rest``). Returns ``(q, v, surf, istate, rp)``.
     """
     check_start(start)
     n = model.n
@@ -409,7 +404,7 @@ def _start_state(model: ChainModel, start: str, mode: str, v0: float, w0: float,
     wob = tob = 0.0
     d0 = steady_depth_of_cut(v0, w0) if start == "steady" else 0.0
     if start == "steady":
-        wob, tob = bit_forces(d0 + lag * v0, v0, w0, model.bit.kernel_params())
+        wob, tob = bit_forces(d0, v0, w0, model.bit.kernel_params())
     for f, (fld, vel, load) in enumerate(((model.axial, v0, wob), (model.torsional, w0, tob))):
         rhs = np.asarray(fld.gravity, float) - np.asarray(fld.c_abs, float) * vel
         rhs[-1] -= load

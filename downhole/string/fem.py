@@ -30,12 +30,19 @@ from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, DirectionalWellParams
 from downhole.params.presets import get_preset
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA, Hook, TopDrive
-from downhole.sim.kernel import CHANNELS, KernelParams, new_run_state, run_kernel
+from downhole.sim.kernel import (
+    CHANNELS,
+    KernelParams,
+    new_kernel_work,
+    new_run_state,
+    run_kernel,
+)
 from downhole.sim.lumped_model import ChainModel
 from downhole.sim.plant import Plant
 from downhole.sim.result import Result
 from downhole.sim.wave import WaveParams
 from downhole.string.drillstring import DrillString
+from downhole.string.neutral import NeutralModel
 from downhole.string.zoh import StateSpace, zoh
 from downhole.units import si_or_number
 from downhole.well import WellPath
@@ -726,15 +733,10 @@ def _directional_start(pk: _Packed, start: str, ax_cmd: float, tq_cmd: float,
             return approx_depth_of_cut(v, w, bp)
         return 2.0 * math.pi * v / w
 
-    lag = 0.0 if pk.approx else m.bit.n_blades * pk.dt
-
     def bit(v, w):
-        # the forces the kernel applies: with the delayed depth of cut its implicit bit solve
-        # predicts d(t + dt) from the surface of t (d + n v dt at steady state, the one-step
-        # explicit lag of the hole bottom's rise); the recorded WOB/TOB are at d itself
         if not steady:
             return 0.0, 0.0
-        return bit_forces(depth(v, w) + lag * v, v, w, bp)
+        return bit_forces(depth(v, w), v, w, bp)
 
     def drags(nrm, v, w):
         c = m.mu * nrm / np.sqrt(v * v + (r * w) ** 2 + m.v_eps ** 2) if m.mu > 0 else 0.0 * nrm
@@ -1009,10 +1011,13 @@ class _Packed:
 
     def run(self, st, cmd, rec, rec_every, rec_start=0):
         wa, wt = st["wa"], st["wt"]
+        work = st.get("work")
+        if work is None:
+            work = st["work"] = new_kernel_work(self.model.n_nodes, self.top.dense)
         return run_kernel(self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
                           st["state"], st["run"], st["surf"], st["istate"], st["rp"],
                           wa[0], wa[1], wa[2], wt[0], wt[1], wt[2], st["lag"], cmd,
-                          self._no_ref, cmd.shape[0], self.dt, rec, rec_every, rec_start)
+                          self._no_ref, cmd.shape[0], self.dt, rec, rec_every, rec_start, work)
 
     def step(self, st, command, rec):
         """One step holding ``command``; ``(status, rows)``."""
@@ -1257,16 +1262,30 @@ class DirectionalPlant(Plant):
     20.0
     """
 
-    def __init__(self, model: DirectionalModel | ChainModel, dt: float | None = None, *,
+    def __init__(self, model: DirectionalModel | ChainModel | NeutralModel,
+                 dt: float | None = None, *,
                  top_drive: TopDrive | None = None, hook: Hook | None = None,
                  depth_of_cut: str = "delayed", mode: str = "velocity",
                  integrator: str | None = None):
-        lumped = isinstance(model, ChainModel)
+        neutral = isinstance(model, NeutralModel)
+        lumped = isinstance(model, ChainModel) or neutral
         if dt is None:
-            dt = 5e-4 if lumped else 1e-3
+            dt = 1e-4 if neutral else 5e-4 if lumped else 1e-3
         dt = si_or_number(dt, "time", "dt")  # "0.5 ms" or a pint quantity
         self.model = model
-        if lumped:
+        self._neutral = neutral
+        if neutral:
+            if top_drive is not None or hook is not None or mode != "velocity":
+                raise DownholeInputError("the neutral model's top is its damper pair (alpha_A, "
+                                         "alpha_T) driven by velocity commands: no top_drive, "
+                                         "hook or mode")
+            if integrator not in (None, "newmark"):
+                raise DownholeInputError(f"the neutral model steps its bit with Newmark, got "
+                                         f"integrator={integrator!r}")
+            self._pk = model.kernel_pack(dt, depth_of_cut)
+            self.mode = mode
+            integrator = "newmark"
+        elif lumped:
             if top_drive is not None or hook is not None:
                 raise DownholeInputError("a lumped model's top is its top spring and damper: "
                                          "give mode='velocity' or 'force', no top_drive/hook")
@@ -1312,7 +1331,9 @@ class DirectionalPlant(Plant):
     def _reset(self, start: str, set_point: dict, clearance: float = 0.05) -> dict:
         cmd = np.array([float(set_point[k]) for k in self.command_names])
         self._k = 0
-        if self._lumped:
+        if self._neutral:
+            self._st, rec0 = self._pk.start(start, cmd, clearance)
+        elif self._lumped:
             row = self._pk.step_reference({"run": new_run_state()}, cmd)[0]
             self._st, rec0 = self._pk.start(start, row, clearance=clearance)
         else:

@@ -4,9 +4,12 @@ one wave segment (surface to bit) per field, the bit mass and inertia at the bot
 
 Eliminating the waves gives the neutral delay-differential equations of Eq. 3.9 with the delays
 tau = L sqrt(rho/E), L sqrt(rho/G) (Eq. 3.10 prints them inverted); :meth:`NeutralModel.ndde`
-returns its matrices (Eq. 3.13) for control design. :func:`simulate_neutral` runs the wave form
-(compiled open loop, or closed loop through a controller's compiled runner built from this
-module's per-step functions, or any controller in a Python loop) and returns a Result.
+returns its matrices (Eq. 3.13) for control design. The wave form runs on the one mechanics
+kernel (:func:`downhole.sim.kernel.run_kernel`) as a two-node configuration (:class:`NeutralPack`:
+the massless top node with its dampers to the commands, the wave joint, the bit node);
+:func:`simulate_neutral` runs it open loop, or closed loop through a controller's compiled runner
+(which steps the same kernel) or any controller in a Python loop, and returns a Result;
+:class:`downhole.string.fem.DirectionalPlant` steps it.
 
 Conventions. Velocities positive downward / forward. The top boundary is the seed's
 ``N(0) = alpha_A (v_top - U_A) + (M_S + M_B) g`` (Eq. 3.5) with the string weight carried at the
@@ -23,39 +26,30 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
-from downhole.bit.law import approx_depth_of_cut, bit_force_slopes, bit_forces
-from downhole.bit.rock_surface import (
-    RockSurfaceSpec,
-    rock_advance,
-    rock_depth,
-    rock_init,
-    rock_init_helix,
-)
+from downhole.bit.law import approx_depth_of_cut, bit_forces
+from downhole.bit.rock_surface import RockSurfaceSpec, rock_depth, rock_init, rock_init_helix
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.params import BitParams, NeutralStringParams, get_preset
-from downhole.sim.plant import Plant, check_start, steady_depth_of_cut
+from downhole.sim.kernel import CHANNELS, KernelParams, new_kernel_work, new_run_state, run_kernel
+from downhole.sim.plant import check_start, steady_depth_of_cut
 from downhole.sim.references import as_reference
 from downhole.sim.result import Result
 from downhole.sim.wave import (
     WaveSegment,
     segments_from_pipe,
-    wave_read_at,
-    wave_read_plan,
-    wave_source_forces,
+    wave_incoming,
+    wave_push,
     wave_state,
-    wave_step_at,
 )
 from downhole.units import si_or_number
 
 __all__ = [
-    "NEUTRAL_CHANNELS",
     "NOMINAL_U_A",
     "NOMINAL_U_T",
     "NDDEMatrices",
     "NeutralModel",
-    "NeutralPlant",
+    "NeutralPack",
     "neutral_model",
     "simulate_neutral",
 ]
@@ -64,11 +58,6 @@ __all__ = [
 NOMINAL_U_A = 1.147224
 NOMINAL_U_T = 22.5196
 
-NEUTRAL_CHANNELS = (
-    "time", "bit_axial_position", "bit_axial_velocity", "bit_angle", "bit_angular_velocity",
-    "depth_of_cut", "wob", "tob", "hook_load", "surface_torque", "top_drive_axial_velocity",
-    "top_drive_angular_velocity", "command_axial", "command_angular",
-)
 _EXTRA_UNITS = {"command_axial": "m/s", "command_angular": "rad/s",
                 "measured_axial_velocity": "m/s", "measured_angular_velocity": "rad/s",
                 "eid_disturbance_axial": "m/s", "eid_disturbance_angular": "rad/s",
@@ -251,6 +240,27 @@ class NeutralModel:
             h1=2 * self.tau1, h2=2 * self.tau2, tau=(self.tau1, self.tau2),
             u_offset=(self.hang_command, 0.0))
 
+    def kernel_pack(self, dt: float, depth_of_cut: str = "delayed",
+                    rock_points_per_pitch: int = 512, bit_noise: bool = False) -> NeutralPack:
+        """The model as a configuration of the one kernel (see :class:`NeutralPack`).
+
+        Parameters
+        ----------
+        dt : float
+            Step, s (at most tau1).
+        depth_of_cut : {"delayed", "approximate"}
+            Depth-of-cut model.
+        rock_points_per_pitch : int
+            Resolution of the rock-surface memory.
+        bit_noise : bool
+            Commands carry WOB and TOB disturbances.
+
+        Returns
+        -------
+        NeutralPack
+        """
+        return NeutralPack(self, dt, depth_of_cut, rock_points_per_pitch, bit_noise)
+
     def with_bit(self, bit: BitParams) -> NeutralModel:
         """Same string, another bit (e.g. a perturbed epsilon).
 
@@ -311,158 +321,6 @@ def neutral_model(string: NeutralStringParams | str = "table_3_1",
             raise DownholeInputError(f"|{label}| = {abs(val):.6g} >= 1: the difference operator "
                                      "of the neutral model is unstable")
     return model
-
-
-# ----------------------------------------------------------------------------------------------
-# compiled kernel: per-step functions shared by the open-loop runner below and by the compiled
-# closed-loop runners that controllers offer through ``neutral_runner`` (see simulate_neutral)
-# ----------------------------------------------------------------------------------------------
-#: Names, in order, of the plant arguments (``plant_args``) that :func:`simulate_neutral` hands to
-#: a controller's compiled closed-loop runner; they are the first positional arguments of
-#: :func:`_run_neutral` and are passed on to :func:`neutral_wave_start`,
-#: :func:`neutral_top_and_bit`, :func:`neutral_record` and :func:`neutral_advance`.
-NEUTRAL_KERNEL_ARGS = ("za", "zt", "m_b", "i_b", "alpha_a", "alpha_t", "f_top", "m_s_g", "grav",
-                       "bitp", "approx", "ha", "pa", "wpa", "ht", "pt", "wpt", "surf", "istate",
-                       "rp")
-
-
-@njit(cache=True, inline="always")
-def neutral_wave_start(ha, pa, wpa, ht, pt, wpt):
-    """Wave clocks, the loop-invariant read plan ``(cap_a, cap_t, off_a, fr_a, off_t, fr_t)``
-    and the incoming waves at the current time: ``(na, nt, plan, a_in, b_in, a_in_t, b_in_t)``.
-    (The per-step functions group arguments in tuples: a call with more than 30 arguments is
-    not inlined by numba.)"""
-    na = pa[0]
-    nt = pt[0]
-    cap_a = wpa.cap
-    cap_t = wpt.cap
-    off_a, fr_a = wave_read_plan(wpa.delay_steps)
-    off_t, fr_t = wave_read_plan(wpt.delay_steps)
-    a_in, b_in = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa.a_init, wpa.b_init)
-    a_in_t, b_in_t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt.a_init, wpt.b_init)
-    return na, nt, (cap_a, cap_t, off_a, fr_a, off_t, fr_t), a_in, b_in, a_in_t, b_in_t
-
-
-@njit(cache=True, inline="always")
-def neutral_top_and_bit(za, zt, alpha_a, alpha_t, f_top, bitp, approx, surf, istate, rp,
-                        x, v, th, w, a_in, b_in, a_in_t, b_in_t, ua, ut, fwob, ftob):
-    """The algebraic part of one step at t_k: the massless top nodes under the surface commands
-    (``ua``, ``ut``; line force 2 Z b_in - Z v_top) and the bit forces (plus the force noise
-    ``fwob``, ``ftob``). Returns ``(vtop, wtop, d, wob, tob)``."""
-    sa_top, _ = wave_source_forces(za, a_in, b_in)
-    st_top, _ = wave_source_forces(zt, a_in_t, b_in_t)
-    vtop = (sa_top + alpha_a * ua - f_top) / (za + alpha_a)
-    wtop = (st_top + alpha_t * ut) / (zt + alpha_t)
-    if approx:
-        d = approx_depth_of_cut(v, w, bitp)
-    else:
-        d = rock_depth(surf, istate, rp, x, th)
-    wob, tob = bit_forces(d, v, w, bitp)
-    wob += fwob
-    tob += ftob
-    return vtop, wtop, d, wob, tob
-
-
-@njit(cache=True, inline="always")
-def neutral_record(out, rec, t, x, v, th, w, d, wob, tob, vtop, wtop, ua, ut, alpha_a, alpha_t,
-                   f_top, m_s_g):
-    """Write the row ``rec`` of :data:`NEUTRAL_CHANNELS` (hook load N(0) + M_S g, surface torque
-    alpha_T (U_T - omega_top)); returns the first non-finite channel index, 0 if none."""
-    out[rec, 0] = t
-    out[rec, 1] = x
-    out[rec, 2] = v
-    out[rec, 3] = th
-    out[rec, 4] = w
-    out[rec, 5] = d
-    out[rec, 6] = wob
-    out[rec, 7] = tob
-    out[rec, 8] = alpha_a * (vtop - ua) + f_top + m_s_g
-    out[rec, 9] = alpha_t * (ut - wtop)
-    out[rec, 10] = vtop
-    out[rec, 11] = wtop
-    out[rec, 12] = ua
-    out[rec, 13] = ut
-    for c in range(1, 14):
-        if not math.isfinite(out[rec, c]):
-            return c
-    return 0
-
-
-@njit(cache=True, inline="always")
-def neutral_advance(za, zt, m_b, i_b, grav, bitp, approx, ha, wpa, ht, wpt, surf, istate, rp,
-                    plan, na, nt, x, v, th, w, a_in, b_in, a_in_t, b_in_t, top_bit, dt):
-    """Advance from t_k to t_{k+1}: push the outgoing waves of t_k, read the incoming ones of
-    t_{k+1}, step the bit node (trapezoidal on the line force at the bit: F_C of t_k, 2 Z a_in of
-    t_{k+1} with the end damper implicit; bit forces with implicit frozen slopes) and the rock
-    surface. ``plan`` is from :func:`neutral_wave_start`, ``top_bit`` = ``(vtop, wtop, d, wob,
-    tob)`` from :func:`neutral_top_and_bit` at t_k. Returns ``(na, nt, x, v, th, w, a_in, b_in,
-    a_in_t, b_in_t)`` at t_{k+1}."""
-    cap_a, cap_t, off_a, fr_a, off_t, fr_t = plan
-    vtop, wtop, d, wob, tob = top_bit
-    _, fa_line = wave_step_at(ha, na, cap_a, za, vtop, v, a_in, b_in)
-    _, ft_line = wave_step_at(ht, nt, cap_t, zt, wtop, w, a_in_t, b_in_t)
-    na += 1
-    nt += 1
-    a1, b1 = wave_read_at(ha, na, off_a, fr_a, cap_a, wpa.a_init, wpa.b_init)
-    a1t, b1t = wave_read_at(ht, nt, off_t, fr_t, cap_t, wpt.a_init, wpt.b_init)
-    _, sa1 = wave_source_forces(za, a1, b1)
-    _, st1 = wave_source_forces(zt, a1t, b1t)
-    ca, ct = bit_force_slopes(d, v, w, bitp, approx)
-    v1 = (m_b * v / dt + 0.5 * fa_line + 0.5 * sa1 + grav - wob + ca * v) / (
-        m_b / dt + 0.5 * za + ca)
-    w1 = (i_b * w / dt + 0.5 * ft_line + 0.5 * st1 - tob + ct * w) / (
-        i_b / dt + 0.5 * zt + ct)
-    xprev = x
-    thprev = th
-    x += 0.5 * dt * (v + v1)
-    th += 0.5 * dt * (w + w1)
-    if not approx:
-        rock_advance(surf, istate, rp, thprev, xprev, th, x)
-    return na, nt, x, v1, th, w1, a1, b1, a1t, b1t
-
-
-@njit(cache=True)
-def _run_neutral(za, zt, m_b, i_b, alpha_a, alpha_t, f_top, m_s_g, grav, bitp, approx,
-                 ha, pa, wpa, ht, pt, wpt, surf, istate, rp,
-                 u_in, fnoise, nsteps, dt, every, out, bstate, t0):
-    """Open loop: advance the wave model ``nsteps`` steps under the commands ``u_in`` (2, nsteps
-    + 1) from the bit state ``bstate`` = [x, v, theta, omega] at time ``t0`` (updated in place;
-    the wave buffers and rock surface carry the rest of the state). Records t0 + k dt for k = 0,
-    every, ..., nsteps; returns (status, step, channel). The outgoing waves of the last time are
-    not pushed, so a later call continues the run."""
-    x = bstate[0]
-    v = bstate[1]
-    th = bstate[2]
-    w = bstate[3]
-    na, nt, plan, a_in, b_in, a_in_t, b_in_t = neutral_wave_start(ha, pa, wpa, ht, pt, wpt)
-    rec = 0
-    for k in range(nsteps + 1):
-        ua = u_in[0, k]
-        ut = u_in[1, k]
-        top_bit = neutral_top_and_bit(
-            za, zt, alpha_a, alpha_t, f_top, bitp, approx, surf, istate, rp,
-            x, v, th, w, a_in, b_in, a_in_t, b_in_t, ua, ut, fnoise[0, k], fnoise[1, k])
-        vtop, wtop, d, wob, tob = top_bit
-        if k % every == 0 or k == nsteps:
-            c = neutral_record(out, rec, t0 + k * dt, x, v, th, w, d, wob, tob, vtop, wtop,
-                               ua, ut, alpha_a, alpha_t, f_top, m_s_g)
-            if c != 0:
-                pa[0] = na
-                pt[0] = nt
-                return 1, k, c
-            rec += 1
-        if k == nsteps:
-            break
-        na, nt, x, v, th, w, a_in, b_in, a_in_t, b_in_t = neutral_advance(
-            za, zt, m_b, i_b, grav, bitp, approx, ha, wpa, ht, wpt, surf, istate, rp, plan,
-            na, nt, x, v, th, w, a_in, b_in, a_in_t, b_in_t, top_bit, dt)
-    bstate[0] = x
-    bstate[1] = v
-    bstate[2] = th
-    bstate[3] = w
-    pa[0] = na
-    pt[0] = nt
-    return 0, nsteps, 0
 
 
 def _check_positive(name, value):
@@ -555,121 +413,125 @@ def _neutral_start(model: NeutralModel, dt: float, start: str, u_rel: float, u_t
     return waves, rock, bstate
 
 
-class NeutralPlant(Plant):
-    """Step-by-step neutral-type plant (the :class:`~downhole.sim.plant.Plant` contract) over
-    the same compiled kernel as :func:`simulate_neutral`.
+class NeutralPack:
+    """The neutral model as a configuration of the one kernel
+    (:func:`~downhole.sim.kernel.run_kernel`) for one (dt, depth of cut, rock resolution).
 
-    Commands (named, held over the step), the same names as at every other fidelity:
-    ``top_drive_axial_velocity`` (m/s): the top velocity command relative to the hanging
-    equilibrium, U_A - M_S g / alpha_A, so that 0 holds the string still; and
-    ``top_drive_angular_velocity`` (U_T, rad/s). Observations: ``time`` and the channels of
-    :data:`NEUTRAL_CHANNELS` (``bit_axial_velocity``, ``bit_angular_velocity``, ``wob``,
-    ``tob``, ``hook_load``, ``surface_torque``, the top nodes' actual velocities
-    ``top_drive_*_velocity`` and the seed-convention commands ``command_axial`` (U_A) and
-    ``command_angular`` (U_T)).
-
-    ``reset(start=...)``: ``"rest"`` (hanging still, bit touching the rock), ``"off_bottom"``
-    (moving at the set-point, bit ``clearance`` m above a flat bottom) or ``"steady"`` (the
-    steady drilling state under the set-point commands; the bit velocities are the root of
-    v = u_A - W/alpha_A, omega = U_T - T/alpha_T with the bit law at d = 2 pi v/omega).
+    Two nodes: the massless top (node 0, with the damper alpha to the commanded velocity: the
+    kernel's velocity hook with no spring, and its top-drive PI with no integral gain) and the
+    bit (node 1, mass M_B, inertia I_B, weight M_B g), joined by the wave line (the kernel's wave
+    joint from B = node 0 to C = node 1). The string weight M_S g is carried at the top (the
+    recorded hook load adds it). Commands: ``top_drive_axial_velocity`` relative to the hanging
+    equilibrium (U_A - M_S g / alpha_A) and ``top_drive_angular_velocity`` (U_T), held over a
+    step; the top node answers at the end of the step (its mass is zero, so the Newmark step
+    gives the seed's algebraic top boundary, Eq. 3.5). The bit force is linearly implicit (the
+    law linearized at the start of each step, as the seed's scheme), at dt <= tau1.
 
     Parameters
     ----------
-    model : NeutralModel or str
-        The string (a preset name such as ``"table_3_1"`` works).
+    model : NeutralModel
+        The model.
     dt : float
-        Plant step, s (<= tau1).
+        Step, s (at most the axial delay tau1).
     depth_of_cut : {"delayed", "approximate"}
-        Depth of cut from the rock-surface memory (delayed, Eqs. 2.9-2.10) or the
-        approximation d = 2 pi v / omega.
+        Depth of cut from the rock-surface memory or d = 2 pi v / omega.
     rock_points_per_pitch : int
         Resolution of the rock-surface memory.
-
-    Examples
-    --------
-    >>> plant = NeutralPlant("table_3_1", dt=1e-4)
-    >>> obs = plant.reset()                       # hanging at rest, bit on bottom, zero WOB
-    >>> u = {"top_drive_axial_velocity": NOMINAL_U_A - plant.model.hang_command,
-    ...      "top_drive_angular_velocity": NOMINAL_U_T}
-    >>> obs = plant.reset(start="steady", set_point=u)
-    >>> round(obs["bit_angular_velocity"], 2)
-    20.0
+    bit_noise : bool
+        The commands carry two more columns, WOB and TOB disturbances (N, N m).
     """
 
+    observation_names = ("time", *CHANNELS[:11])
     command_names = ("top_drive_axial_velocity", "top_drive_angular_velocity")
-    observation_names = NEUTRAL_CHANNELS
 
-    def __init__(self, model: NeutralModel | str = "table_3_1", dt: float = 1e-4,
-                 depth_of_cut: str = "delayed", rock_points_per_pitch: int = 512):
-        dt = si_or_number(dt, "time", "dt")  # "0.5 ms" or a pint quantity
-        if not isinstance(model, NeutralModel):
-            model = neutral_model(model)
-        self.model = model
-        self.dt = _check_positive("dt", dt)
-        if self.dt > model.tau1:
+    def __init__(self, model: NeutralModel, dt: float, depth_of_cut: str = "delayed",
+                 rock_points_per_pitch: int = 512, bit_noise: bool = False):
+        dt = _check_positive("dt", dt)
+        if dt > model.tau1:
             raise DownholeInputError(f"dt = {dt} s exceeds the axial wave delay tau1 = "
                                      f"{model.tau1:.6g} s")
         if depth_of_cut not in ("delayed", "approximate"):
             raise DownholeInputError(f"depth_of_cut must be 'delayed' or 'approximate', got "
                                      f"{depth_of_cut!r}")
-        self.depth_of_cut = depth_of_cut
-        self._rpp = int(rock_points_per_pitch)
+        self.model, self.dt, self.depth_of_cut = model, dt, depth_of_cut
+        self.approx = depth_of_cut == "approximate"
+        self.rock_points_per_pitch = int(rock_points_per_pitch)
         p = model.params
-        self._consts = (model.axial.impedance, model.torsional.impedance, p.bit_mass,
-                        p.bit_inertia, p.alpha_axial, p.alpha_torsional,
-                        (p.string_mass + p.bit_mass) * p.g, p.string_mass * p.g,
-                        p.bit_mass * p.g, model.bit.kernel_params(), depth_of_cut == "approximate")
-        self._out = np.empty((2, len(NEUTRAL_CHANNELS)))
-        self.reset()
+        self.mats = np.zeros((18, 2))
+        self.mats[0, 1] = self.mats[4, 1] = p.bit_mass
+        self.mats[6, 1] = self.mats[10, 1] = p.bit_inertia
+        self.Ldense = np.zeros((2, 1, 1))
+        self.elem = np.zeros((2, 8))
+        self.node = np.array([[0.0, 0.0], [p.bit_mass * p.g, 0.0]])
+        self.bitp = model.bit.kernel_params()
+        self.top = KernelParams(
+            velocity_hook=True, hook_k=0.0, hook_c=float(p.alpha_axial),
+            hook_load0=float(p.bit_mass * p.g), torque_mode=False,
+            kp=float(p.alpha_torsional), ki=0.0, soft_gain=0.0, soft_tau=0.0, mu=0.0,
+            v_eps=1e-3, approx_doc=self.approx, node_b=0, node_c=1, hybrid=True, dense=False,
+            n_lags_a=0, lag_tau_a=1.0, n_lags_t=0, lag_tau_t=1.0, fb0=0.0, fc0=0.0,
+            prebalanced_weight=float(p.string_mass * p.g), bit_iterations=1,
+            bit_disturbance=bool(bit_noise))
+        self.n_cmd = 4 if bit_noise else 2
+        self._no_ref = np.zeros((1, 4))
 
-    @property
-    def time(self) -> float:
-        """Current time, s."""
-        return self._k * self.dt
+    def default_command(self) -> dict:
+        """Hanging still: both relative commands zero."""
+        return {name: 0.0 for name in self.command_names}
 
-    def _reset(self, start: str, set_point: dict, clearance: float = 0.05) -> dict:
-        m = self.model
-        u_rel = float(set_point["top_drive_axial_velocity"])
-        u_t = float(set_point["top_drive_angular_velocity"])
-        self._waves, self._rock, self._bstate = _neutral_start(
-            m, self.dt, start, u_rel, u_t, self._rpp, clearance)
-        self._k = 0
-        # rest: the commands before t = 0 held the string still whatever the set-point
-        self._u = (np.array([m.hang_command, 0.0]) if start == "rest"
-                   else np.array([u_rel + m.hang_command, u_t]))
-        return self._advance(self._u, 0, None)
+    def start(self, start: str, command, clearance: float = 0.05):
+        """Kernel state and the record of t = 0 for ``start`` (see :func:`_neutral_start`)
+        with the top under ``command`` (relative axial, angular; ``rest``: the commands before
+        t = 0 hold the string still whatever the set-point)."""
+        m, p = self.model, self.model.params
+        u_rel, u_t = float(command[0]), float(command[1])
+        (ha, pa, wpa, ht, pt, wpt), (surf, istate, rp), b = _neutral_start(
+            m, self.dt, start, u_rel, u_t, self.rock_points_per_pitch, clearance)
+        if start == "rest":
+            u_rel = u_t = 0.0
+        za, zt = wpa.impedance, wpt.impedance
+        a_in, b_in = wave_incoming(ha, pa, wpa)
+        ta_in, tb_in = wave_incoming(ht, pt, wpt)
+        vtop = (2 * za * b_in + p.alpha_axial * u_rel - p.bit_mass * p.g) / (za + p.alpha_axial)
+        wtop = (2 * zt * tb_in + p.alpha_torsional * u_t) / (zt + p.alpha_torsional)
+        wave_push(ha, pa, wpa, vtop - b_in, b[1] - a_in)  # the outgoing waves of t = 0
+        wave_push(ht, pt, wpt, wtop - tb_in, b[3] - ta_in)
+        d = (approx_depth_of_cut(b[1], b[3], self.bitp) if self.approx
+             else rock_depth(surf, istate, rp, b[0], b[2]))
+        wob, tob = bit_forces(d, b[1], b[3], self.bitp)
+        state = np.zeros((6, 2))
+        state[1, 0], state[4, 0] = vtop, wtop
+        state[0, 1], state[1, 1], state[3, 1], state[4, 1] = b
+        state[2, 1] = (p.bit_mass * p.g + 2 * za * a_in - za * b[1] - wob) / p.bit_mass
+        state[5, 1] = (2 * zt * ta_in - zt * b[3] - tob) / p.bit_inertia
+        rec0 = np.zeros(len(CHANNELS))
+        rec0[:11] = (b[0], b[1], b[2], b[3], d, wob, tob,
+                     (p.bit_mass + p.string_mass) * p.g - p.alpha_axial * (u_rel - vtop),
+                     p.alpha_torsional * (u_t - wtop), vtop, wtop)
+        st = dict(state=state, run=new_run_state(), surf=surf, istate=istate, rp=rp,
+                  wa=(ha, pa, wpa), wt=(ht, pt, wpt), lag=np.zeros((4, 1)),
+                  work=new_kernel_work(2), cmd=np.zeros((1, self.n_cmd)))
+        return st, rec0
 
-    def _advance(self, u, steps, fnoise):
-        n = max(steps, 1)
-        u_in = np.empty((2, n + 1))
-        u_in[0], u_in[1] = u[0], u[1]
-        fn = np.zeros((2, n + 1)) if fnoise is None else fnoise
-        bstate = self._bstate if steps > 0 else self._bstate.copy()
-        ha, pa, wpa, ht, pt, wpt = self._waves
-        if steps == 0:  # observe only: run on copies
-            ha, pa, ht, pt = ha.copy(), pa.copy(), ht.copy(), pt.copy()
-        surf, ist, rp = self._rock
-        if steps == 0:
-            surf, ist = surf.copy(), ist.copy()
-        status, kfail, cfail = _run_neutral(
-            *self._consts, ha, pa, wpa, ht, pt, wpt, surf, ist, rp, u_in, fn, steps, self.dt,
-            max(steps, 1), self._out, bstate, self._k * self.dt)
-        if status != 0:
-            raise SimulationDiverged((self._k + kfail) * self.dt, NEUTRAL_CHANNELS[cfail])
-        self._k += steps
-        row = self._out[1 if steps > 0 else 0]
-        return {name: float(row[i]) for i, name in enumerate(NEUTRAL_CHANNELS)}
+    def kernel_args(self, st) -> tuple:
+        """The arguments of :func:`~downhole.sim.kernel.run_kernel` before ``cmd``, in order,
+        for the state ``st`` (compiled closed loops call the kernel step by step with them)."""
+        wa, wt = st["wa"], st["wt"]
+        return (self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
+                st["state"], st["run"], st["surf"], st["istate"], st["rp"],
+                wa[0], wa[1], wa[2], wt[0], wt[1], wt[2], st["lag"])
 
-    def _step(self, command: np.ndarray) -> dict:
-        """Hold ``command`` (relative axial, angular) over one step of ``dt``."""
-        self._u = np.array([command[0] + self.model.hang_command, command[1]])
-        return self._advance(self._u, 1, None)
+    def run(self, st, cmd, rec, rec_every, rec_start=0):
+        """Advance ``len(cmd)`` steps under the commands ``cmd`` (relative axial, angular
+        [, WOB and TOB disturbances]); ``(status, rows written)``."""
+        return run_kernel(*self.kernel_args(st), cmd, self._no_ref, cmd.shape[0], self.dt,
+                          rec, rec_every, rec_start, st["work"])
 
-    def _step_noisy(self, u, steps, fnoise):
-        """``steps`` steps under the seed-convention commands ``u = (U_A, U_T)`` with bit-force
-        noise (the Python closed loop of :func:`simulate_neutral`)."""
-        self._u = u
-        return self._advance(u, steps, fnoise)
+    def step(self, st, command, rec):
+        """One step holding ``command``; ``(status, rows)``."""
+        cmd = st["cmd"]
+        cmd[0, 0], cmd[0, 1] = command[0], command[1]
+        return self.run(st, cmd, rec, 1, 0)
 
 
 def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_1",
@@ -680,7 +542,7 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
                      control_dt: float | None = None, python_loop: bool = False,
                      attrs: dict | None = None, start: str = "rest",
                      clearance: float = 0.05) -> Result:
-    """Simulate the neutral-type (wave) model, open loop or closed loop.
+    """Simulate the neutral-type (wave) model on the one kernel, open loop or closed loop.
 
     Parameters
     ----------
@@ -692,20 +554,19 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         Simulated time and step, s (dt <= tau1; default 1e-4).
     controller : object, optional
         Closed loop: any object with ``reset()`` and ``command(t, observation, reference) ->
-        {"command_axial": U_A, "command_angular": U_T}`` runs in a Python loop over a
-        :class:`NeutralPlant` (observation: the named channels, velocities with the measurement
-        noise; reference: array [axial m/s, angular rad/s]). Compiled fast path (the extension
-        point, duck-typed): if the controller has ``neutral_runner(dt)`` and it returns a
-        callable ``runner(plant_args, ref, mnoise, fnoise, nsteps, dt, every, out)``, the loop
-        runs there instead. ``plant_args`` are the kernel arguments named by
-        :data:`NEUTRAL_KERNEL_ARGS`, ``ref`` and ``mnoise`` (2, nsteps + 1) the sampled
-        reference and measurement noise, ``fnoise`` (2, nsteps + 1) the bit-force noise and
-        ``out`` the record (rows every ``every`` steps and the last, columns
-        :data:`NEUTRAL_CHANNELS`); it returns ``(status, step, channel, extra)`` (status 0 or 1
-        for a non-finite channel, ``extra`` a dict of further recorded channels). The runner is
-        built from this module's compiled per-step functions (:func:`neutral_top_and_bit`,
-        :func:`neutral_record`, :func:`neutral_advance`), so the physics is the open-loop
-        kernel's; :meth:`EIDController.neutral_runner
+        {"top_drive_axial_velocity": ..., "top_drive_angular_velocity": ...}`` (or the seed's
+        ``command_axial`` U_A and ``command_angular`` U_T) runs in a Python loop over the
+        plant (observation: the named channels, bit velocities with the measurement noise;
+        reference: the reference velocities). Compiled fast path (duck-typed): if the
+        controller has ``neutral_runner(dt)`` returning a callable ``runner(pack, st, ref,
+        mnoise, cmd_noise, nsteps, every, rec)``, the loop runs there: ``pack`` is the
+        :class:`NeutralPack`, ``st`` its state at rest, ``ref`` and ``mnoise`` (2, nsteps + 1)
+        the sampled reference and measurement noise, ``cmd_noise`` the bit-force noise
+        (nsteps, 2), ``rec`` the record (rows every ``every`` steps and the last, row 0 filled,
+        columns :data:`~downhole.sim.kernel.CHANNELS`); it steps the kernel through
+        ``pack.kernel_args(st)`` and returns ``(status, step, extra)`` (``extra`` a dict of
+        further channels per record row, with ``command_axial`` and ``command_angular``).
+        :meth:`EIDController.neutral_runner
         <downhole.control.eid.controller.EIDController.neutral_runner>` is one. Returning
         ``None`` falls back to the Python loop. The attribute ``label`` (default the class name)
         names the controller in the result's attributes.
@@ -716,8 +577,7 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         gives 10 mm/s and 20 rad/s. Ignored with a controller.
     reference : Reference or pair of signals, optional
         Closed-loop reference (bit axial velocity m/s, bit angular velocity rad/s); default the
-        controller's ``reference`` attribute if it has one, else 10 mm/s and 20 rad/s. See
-        :mod:`downhole.sim.references`.
+        controller's ``reference`` attribute if it has one, else 10 mm/s and 20 rad/s.
     noise : dict, optional
         White noise: ``{"axial": sigma_v, "angular": sigma_w}`` measurement noise (standard
         deviation per controller sample, m/s and rad/s) and optionally ``"wob"``, ``"tob"``
@@ -735,17 +595,13 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         Python-loop controllers only: controller sample time (a multiple of dt; default dt).
         The command is held between samples.
     python_loop : bool
-        Ignore a controller's compiled ``neutral_runner`` and step it through the Python loop
-        (the EID gives the same numbers either way; for checking controllers stepped from
-        Python, e.g. in the SIL loop).
+        Ignore a controller's compiled ``neutral_runner`` and step it through the Python loop.
     attrs : dict, optional
         Extra metadata merged into the result's attributes.
     start : {"rest", "off_bottom", "steady"}
         Initial state (:data:`downhole.sim.plant.START_MODES`), open loop only: hanging at
         rest; moving at the commands of t = 0 with the bit ``clearance`` m off a flat bottom; or
-        the steady drilling state under the commands of t = 0 (see :class:`NeutralPlant`). A
-        closed loop starts from rest (the controllers' states are not initialized at an
-        equilibrium).
+        the steady drilling state under the commands of t = 0.
     clearance : float
         Bit height above the hole bottom for ``start="off_bottom"``, m.
 
@@ -759,7 +615,7 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
     Raises
     ------
     DownholeInputError
-        Bad arguments (named). SimulationDiverged: a channel went non-finite.
+        Bad arguments (named). SimulationDiverged: the bit state ran away or went non-finite.
     """
     if not isinstance(model, NeutralModel):
         model = neutral_model(model, bit)
@@ -770,12 +626,6 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
     record_dt = si_or_number(record_dt, "time", "record_dt")
     control_dt = si_or_number(control_dt, "time", "control_dt")
     clearance = si_or_number(clearance, "length", "clearance")
-    if depth_of_cut not in ("delayed", "approximate"):
-        raise DownholeInputError(f"depth_of_cut must be 'delayed' or 'approximate', got "
-                                 f"{depth_of_cut!r}")
-    if dt > model.tau1:
-        raise DownholeInputError(f"dt = {dt} s exceeds the axial wave delay tau1 = "
-                                 f"{model.tau1:.6g} s")
     nsteps = int(round(duration / dt))
     if nsteps < 1:
         raise DownholeInputError(f"duration = {duration} s is shorter than one step dt = {dt} s")
@@ -784,44 +634,43 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
     else:
         every = max(1, int(round(_check_positive("record_dt", record_dt) / dt)))
     t = np.arange(nsteps + 1) * dt
-    p = model.params
-    g = p.g
-
     rng = np.random.default_rng(seed)
     noise = dict(noise or {})
     unknown = set(noise) - {"axial", "angular", "wob", "tob"}
     if unknown:
         raise DownholeInputError(f"noise: unknown keys {sorted(unknown)}; expected axial, "
                                  "angular, wob, tob")
+    sig = {}
+    for key in ("axial", "angular", "wob", "tob"):
+        s = float(noise.get(key, 0.0))
+        if not s >= 0:
+            raise DownholeInputError(f"noise.{key} must be >= 0, got {s}")
+        sig[key] = s
     mnoise = np.zeros((2, nsteps + 1))
-    fnoise = np.zeros((2, nsteps + 1))
     for i, key in enumerate(("axial", "angular")):
-        s = float(noise.get(key, 0.0))
-        if not s >= 0:
-            raise DownholeInputError(f"noise.{key} must be >= 0, got {s}")
-        if s > 0:
-            mnoise[i] = rng.normal(0.0, s, nsteps + 1)
+        if sig[key] > 0:
+            mnoise[i] = rng.normal(0.0, sig[key], nsteps + 1)
+    bit_noise = sig["wob"] > 0 or sig["tob"] > 0
+    pk = NeutralPack(model, dt, depth_of_cut, rock_points_per_pitch, bit_noise)
+    cmd = np.zeros((nsteps, pk.n_cmd))
     for i, key in enumerate(("wob", "tob")):
-        s = float(noise.get(key, 0.0))
-        if not s >= 0:
-            raise DownholeInputError(f"noise.{key} must be >= 0, got {s}")
-        if s > 0:
-            fnoise[i] = rng.normal(0.0, s, nsteps + 1)
+        if sig[key] > 0:
+            cmd[:, 2 + i] = rng.normal(0.0, sig[key], nsteps)
     meta = {"model": model.name, "dt": dt, "depth_of_cut": depth_of_cut,
             "bit_radius": model.bit.radius, "n_blades": model.bit.n_blades,
             "controller": "open-loop", "tau1": model.tau1, "tau2": model.tau2,
             "epsilon": model.bit.epsilon}
-
-    closed = controller is not None
     check_start(start)
+    closed = controller is not None
     if closed and start != "rest":
         raise DownholeInputError(f"start={start!r} needs an open-loop run: a closed loop "
                                  "starts from 'rest' (the controller's integrators and "
                                  "predictor have no equilibrium initialization)")
     meta["start"] = start
-    u_in = np.zeros((2, nsteps + 1))
-    ref = np.zeros((2, nsteps + 1))
-    runner = None
+    nrec = nsteps // every + 1 + (1 if nsteps % every else 0)
+    idx = np.minimum(np.arange(nrec) * every, nsteps)
+    rec = np.empty((nrec, len(CHANNELS)))
+    hang = model.hang_command
     if closed:
         if not (hasattr(controller, "command") and hasattr(controller, "reset")):
             raise DownholeInputError("controller must have reset() and command(t, observation, "
@@ -829,68 +678,68 @@ def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_
         if reference is None:
             reference = getattr(controller, "reference", None)
         reference = as_reference(reference)
-        ref[:] = reference.sample(t)
+        ref = reference.sample(t)
         meta["reference"] = reference.name
         meta["controller"] = getattr(controller, "label", type(controller).__name__)
         hook = getattr(controller, "neutral_runner", None)
-        if not python_loop and hook is not None:
-            runner = hook(dt)
-        if runner is None:
-            meta.update(attrs or {})
-            return _simulate_python_loop(model, controller, dt, nsteps, every, ref, mnoise,
-                                         fnoise, depth_of_cut, rock_points_per_pitch,
-                                         control_dt, meta)
-    else:
-        if inputs is None:
-            inputs = (NOMINAL_U_A, NOMINAL_U_T)
-        if hasattr(inputs, "mode"):
-            if inputs.mode != "velocity":
-                raise DownholeInputError("the neutral model takes velocity commands (U_A, U_T); "
-                                         f"got SurfaceInputs.{inputs.mode}")
-            sigs = (inputs.axial, inputs.angular)
+        runner = hook(dt) if (hook is not None and not python_loop) else None
+        st, rec[0] = pk.start("rest", (0.0, 0.0))
+        if runner is not None:
+            status, kfail, extra = runner(pk, st, ref, mnoise, cmd[:, 2:], nsteps, every, rec)
         else:
-            try:
-                sigs = tuple(inputs)
-            except TypeError:
-                raise DownholeInputError("inputs must be SurfaceInputs.velocity(U_A, U_T) or a "
-                                         f"pair of signals, got {inputs!r}") from None
-            if len(sigs) != 2:
-                raise DownholeInputError(f"inputs: expected (U_A, U_T), got {len(sigs)} items")
-        u_in[0] = _sample(sigs[0], t, "inputs axial (U_A)")
-        u_in[1] = _sample(sigs[1], t, "inputs angular (U_T)")
-
-    (ha, pa, wpa, ht, pt, wpt), (surf, istate, rp), bstate = _neutral_start(
-        model, dt, start, float(u_in[0, 0]) - model.hang_command, float(u_in[1, 0]),
-        rock_points_per_pitch, clearance)
-    nrec = nsteps // every + 1 + (1 if nsteps % every else 0)
-    out = np.empty((nrec, len(NEUTRAL_CHANNELS)))
-    plant_args = (model.axial.impedance, model.torsional.impedance, p.bit_mass, p.bit_inertia,
-                  p.alpha_axial, p.alpha_torsional, (p.string_mass + p.bit_mass) * g,
-                  p.string_mass * g, p.bit_mass * g, model.bit.kernel_params(),
-                  depth_of_cut == "approximate", ha, pa, wpa, ht, pt, wpt, surf, istate, rp)
-    if runner is None:
-        status, kfail, cfail = _run_neutral(*plant_args, u_in, fnoise, nsteps, dt, every, out,
-                                            bstate, 0.0)
-        extra = {}
-    else:
-        status, kfail, cfail, extra = runner(plant_args, ref, mnoise, fnoise, nsteps, dt, every,
-                                             out)
-    if status != 0:
-        raise SimulationDiverged(kfail * dt, NEUTRAL_CHANNELS[cfail])
-    channels = {name: out[:, i] for i, name in enumerate(NEUTRAL_CHANNELS) if name != "time"}
-    if closed:
-        tr = out[:, 0]
-        idx = np.minimum(np.round(tr / dt).astype(int), nsteps)
+            status, kfail, extra = _python_loop(pk, st, controller, ref, mnoise, cmd, nsteps,
+                                                every, rec, control_dt, meta)
+        if status != 0:
+            raise SimulationDiverged(kfail * dt, "bit_angular_velocity")
+        channels = {name: rec[:, i] for i, name in enumerate(CHANNELS[:11])}
         channels["reference_axial_velocity"] = ref[0, idx]
         channels["reference_angular_velocity"] = ref[1, idx]
         channels.update(extra)
+    else:
+        u = _open_loop_inputs(inputs, t)
+        cmd[:, 0] = u[0, 1:] - hang  # the command over step k is the input of t_{k+1}
+        cmd[:, 1] = u[1, 1:]
+        st, rec[0] = pk.start(start, (u[0, 0] - hang, u[1, 0]), clearance)
+        n_main = (nsteps // every) * every
+        status, rows = pk.run(st, cmd[:n_main], rec, every, 1)
+        if status == 0 and n_main < nsteps:
+            status, _ = pk.run(st, cmd[n_main:], rec, nsteps - n_main, 1 + rows)
+        if status != 0:
+            raise SimulationDiverged(float(st["run"]["time"][0]), "bit_angular_velocity")
+        channels = {name: rec[:, i] for i, name in enumerate(CHANNELS[:11])}
+        channels["command_axial"] = u[0, idx]
+        channels["command_angular"] = u[1, idx]
     meta.update(attrs or {})
-    return Result(out[:, 0], channels, units=_EXTRA_UNITS, attrs=meta)
+    return Result(t[idx], channels, units=_EXTRA_UNITS, attrs=meta)
 
 
-def _simulate_python_loop(model, controller, dt, nsteps, every, ref, mnoise, fnoise,
-                          depth_of_cut, rock_points_per_pitch, control_dt, meta) -> Result:
-    """Closed loop with a controller stepped from Python over a :class:`NeutralPlant`."""
+def _open_loop_inputs(inputs, t) -> np.ndarray:
+    """The open-loop commands (U_A, U_T) sampled at ``t``, shape (2, len(t))."""
+    if inputs is None:
+        inputs = (NOMINAL_U_A, NOMINAL_U_T)
+    if hasattr(inputs, "mode"):
+        if inputs.mode != "velocity":
+            raise DownholeInputError("the neutral model takes velocity commands (U_A, U_T); "
+                                     f"got SurfaceInputs.{inputs.mode}")
+        sigs = (inputs.axial, inputs.angular)
+    else:
+        try:
+            sigs = tuple(inputs)
+        except TypeError:
+            raise DownholeInputError("inputs must be SurfaceInputs.velocity(U_A, U_T) or a "
+                                     f"pair of signals, got {inputs!r}") from None
+        if len(sigs) != 2:
+            raise DownholeInputError(f"inputs: expected (U_A, U_T), got {len(sigs)} items")
+    return np.vstack([_sample(sigs[0], t, "inputs axial (U_A)"),
+                      _sample(sigs[1], t, "inputs angular (U_T)")])
+
+
+def _python_loop(pk: NeutralPack, st, controller, ref, mnoise, cmd, nsteps, every, rec,
+                 control_dt, meta):
+    """Closed loop with a controller stepped from Python: at t_k it sees the record of t_k
+    (bit velocities with the measurement noise) and its command is held over the next
+    ``control_dt``."""
+    dt = pk.dt
     if control_dt is None:
         sub = 1
     else:
@@ -900,40 +749,58 @@ def _simulate_python_loop(model, controller, dt, nsteps, every, ref, mnoise, fno
                                      f"{dt} s")
     if nsteps % sub:
         raise DownholeInputError(f"duration must be a multiple of control_dt = {sub * dt} s")
-    plant = NeutralPlant(model, dt, depth_of_cut, rock_points_per_pitch)
+    meta["control_dt"] = sub * dt
     if getattr(controller, "dt", None) is not None:
         controller.dt = sub * dt  # the contract's sample time (downhole.control.base)
     controller.reset()
-    rec_every = max(1, int(round(every / sub))) * sub
-    names = NEUTRAL_CHANNELS
-    rows, meas = [], []
-    obs = plant.reset()
-    for k in range(0, nsteps + 1, sub):
-        o = dict(obs)
-        o["bit_axial_velocity"] += mnoise[0, k]
-        o["bit_angular_velocity"] += mnoise[1, k]
-        cmd = controller.command(k * dt, o, {"reference_axial_velocity": float(ref[0, k]),
-                                             "reference_angular_velocity": float(ref[1, k])})
-        if not isinstance(cmd, dict):
-            raise DownholeInputError(f"{type(controller).__name__}.command must return a dict "
-                                     f"with {NeutralPlant.command_names}, got {cmd!r}")
-        u = plant.command_vector(cmd)
-        u[0] += model.hang_command
-        if k % rec_every == 0 or k == nsteps:
-            # the record at t_k shows the top nodes under the new command (as the compiled path)
-            rec = plant._advance(u, 0, fnoise[:, k:k + 1])
-            rows.append([rec[n] for n in names])
-            meas.append((o["bit_axial_velocity"], o["bit_angular_velocity"], k))
+    hang = pk.model.hang_command
+    names = pk.observation_names[1:]
+    nrec = rec.shape[0]
+    extra = {k: np.full(nrec, np.nan) for k in ("command_axial", "command_angular",
+                                                "measured_axial_velocity",
+                                                "measured_angular_velocity")}
+    row = np.zeros((1, len(CHANNELS)))
+    last = rec[0].copy()
+    u = (0.0, 0.0)
+    for k in range(nsteps + 1):
+        if k % sub == 0:
+            obs = dict(zip(names, last[:11].tolist()))
+            obs["time"] = k * dt
+            obs["bit_axial_velocity"] += mnoise[0, k]
+            obs["bit_angular_velocity"] += mnoise[1, k]
+            out = controller.command(k * dt, obs, {
+                "reference_axial_velocity": float(ref[0, k]),
+                "reference_angular_velocity": float(ref[1, k])})
+            u = _relative_command(out, hang, type(controller).__name__)
+        r = k // every if k % every == 0 else (nrec - 1 if k == nsteps else -1)
+        if r >= 0:
+            rec[r] = last
+            extra["command_axial"][r] = u[0] + hang
+            extra["command_angular"][r] = u[1]
+            extra["measured_axial_velocity"][r] = last[1] + mnoise[0, k]
+            extra["measured_angular_velocity"][r] = last[3] + mnoise[1, k]
         if k == nsteps:
             break
-        obs = plant._step_noisy(u, sub, fnoise[:, k:k + sub + 1])
-    out = np.array(rows)
-    mk = np.array(meas)
-    idx = mk[:, 2].astype(int)
-    channels = {name: out[:, i] for i, name in enumerate(names) if name != "time"}
-    channels["reference_axial_velocity"] = ref[0, idx]
-    channels["reference_angular_velocity"] = ref[1, idx]
-    channels["measured_axial_velocity"] = mk[:, 0]
-    channels["measured_angular_velocity"] = mk[:, 1]
-    meta["control_dt"] = sub * dt
-    return Result(out[:, 0], channels, units=_EXTRA_UNITS, attrs=meta)
+        c = st["cmd"]
+        c[0, 0], c[0, 1] = u
+        if c.shape[1] > 2:
+            c[0, 2:] = cmd[k, 2:]
+        status, _ = pk.run(st, c, row, 1, 0)
+        if status != 0:
+            return 1, k, extra
+        last = row[0].copy()
+    return 0, nsteps, extra
+
+
+def _relative_command(out, hang: float, who: str) -> tuple[float, float]:
+    """A controller's command as (relative axial, angular): the plant's names, or the seed's
+    ``command_axial`` (U_A, including M_S g / alpha_A) and ``command_angular``."""
+    if not isinstance(out, dict):
+        raise DownholeInputError(f"{who}.command must return a dict with "
+                                 f"{NeutralPack.command_names}, got {out!r}")
+    if "top_drive_axial_velocity" in out and "top_drive_angular_velocity" in out:
+        return float(out["top_drive_axial_velocity"]), float(out["top_drive_angular_velocity"])
+    if "command_axial" in out and "command_angular" in out:
+        return float(out["command_axial"]) - hang, float(out["command_angular"])
+    raise DownholeInputError(f"{who}.command must return {NeutralPack.command_names} (or "
+                             f"command_axial, command_angular), got {sorted(out)}")
