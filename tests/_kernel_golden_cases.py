@@ -26,12 +26,12 @@ def cases():
     from downhole.control.eid import design_eid
     from downhole.params import BitParams
     from downhole.params.rig import Hook, TopDrive
+    from downhole.sim import simulate
     from downhole.sim.inputs import SurfaceInputs
     from downhole.sim.lumped_model import lumped_model
-    from downhole.sim.simulate import simulate
-    from downhole.string.fem import fem_model, simulate_directional
+    from downhole.string.fem import fem_model
     from downhole.string.hybrid import hybrid_model
-    from downhole.string.neutral import neutral_model, simulate_neutral
+    from downhole.string.neutral import neutral_model
 
     def lumped4():
         return simulate(lumped_model("table_2_1"), SurfaceInputs.velocity(0.01, 10.0),
@@ -43,25 +43,26 @@ def cases():
                         depth_of_cut="approximate")
 
     def neutral():
-        return simulate_neutral(neutral_model("table_3_1"), duration=1.0, dt=1e-4)
+        return simulate(neutral_model("table_3_1"), duration=1.0, dt=1e-4)
 
     def neutral_eid():
         m = neutral_model("table_3_1")
-        return simulate_neutral(m, duration=1.0, dt=2e-4, controller=design_eid(m))
+        return simulate(m, duration=1.0, dt=2e-4, controller=design_eid(m))
 
     def fem():
-        return simulate_directional(fem_model(n_elements=60), duration=3.0, dt=1e-3,
-                                    start="steady", speed=_STEP)
+        return simulate(fem_model(n_elements=60), {"top_drive_angular_velocity": _STEP},
+                        duration=3.0, dt=1e-3, start="steady", record_dt=0.01)
 
     def fem_soft():
-        return simulate_directional(fem_model(n_elements=40), duration=3.0, dt=1e-3,
+        return simulate(fem_model(n_elements=40), duration=3.0, dt=1e-3,
                                     top_drive=TopDrive(mode="soft_torque"),
                                     hook=Hook(mode="velocity", velocity=0.005),
-                                    depth_of_cut="approximate")
+                                    depth_of_cut="approximate", record_dt=0.01)
 
     def hybrid():
         m = dataclasses.replace(hybrid_model("hybrid24"), bit=BitParams(law="aarsnes", gamma=0.5))
-        return simulate_directional(m, duration=3.0, dt=1e-3, start="steady", speed=_STEP)
+        return simulate(m, {"top_drive_angular_velocity": _STEP}, duration=3.0, dt=1e-3,
+                        start="steady", record_dt=0.01)
 
     return {"lumped4": lumped4, "lumped12": lumped12, "neutral": neutral,
             "neutral_eid": neutral_eid, "fem": fem, "fem_soft": fem_soft, "hybrid": hybrid}

@@ -56,24 +56,26 @@ def test_lumped_runs_of_the_kernel_use_the_law(name, integrator, doc):
 
 
 def test_neutral_kernel_uses_the_law():
-    from downhole.string.neutral import neutral_model, simulate_neutral
+    from downhole.sim import simulate
+    from downhole.string.neutral import neutral_model
 
     for name in LAWS:
         m = neutral_model("table_3_1")
         bit = _with_law(m.bit, name)
-        res = simulate_neutral(m, bit=bit, duration=1.0, record_dt=0.01)
+        res = simulate(m.with_bit(bit), duration=1.0, record_dt=0.01)
         _recorded_matches_law(res, bit)
 
 
 @pytest.mark.parametrize("name", LAWS)
 def test_fem_kernel_uses_the_law(name):
-    from downhole.string.fem import fem_model, simulate_directional
+    from downhole.sim import simulate
+    from downhole.string.fem import fem_model
 
     m0 = fem_model(n_elements=20)
     bit = _with_law(m0.bit, name)
     m = fem_model(bit=bit, n_elements=20)
     for doc in ("delayed", "approximate"):
-        res = simulate_directional(m, 1.0, depth_of_cut=doc)
+        res = simulate(m, duration=1.0, depth_of_cut=doc)
         _recorded_matches_law(res, bit)
 
 

@@ -188,7 +188,8 @@ def test_kernel_torque_loss_of_a_rotating_string_equals_the_soft_string_integral
     from scipy.integrate import quad
 
     from downhole.control.topdrive import Hook, TopDrive
-    from downhole.string.fem import fem_model, simulate_directional
+    from downhole.sim import simulate
+    from downhole.string.fem import fem_model
 
     well = WellPath.from_sections([Vertical(500.0), Arc(600.0, math.pi / 3), Tangent(300.0)])
     pipe = pipe_section(0.127, 0.1086)
@@ -196,7 +197,7 @@ def test_kernel_torque_loss_of_a_rotating_string_equals_the_soft_string_integral
     mu = 0.25
     m = fem_model(well, ds, n_elements=80, friction=mu, rayleigh_alpha=0.0,
                   rayleigh_beta=0.02, md_b=200.0, md_c=400.0)
-    r = simulate_directional(m, 30.0, 1e-3, top_drive=TopDrive(speed=10.0, ramp_time=3.0),
+    r = simulate(m, duration=30.0, dt=1e-3, top_drive=TopDrive(speed=10.0, ramp_time=3.0),
                              hook=Hook(mode="force", wob=0.0), depth_of_cut="approximate",
                              record_dt=0.01)
     steady = r.time > 25.0

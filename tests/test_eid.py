@@ -8,7 +8,8 @@ import pytest
 from downhole.control.eid import ChannelGains, LMIInfeasible, design_eid, load_eid
 from downhole.control.eid.design import synthesize_channel
 from downhole.control.eid.stability import closed_loop_stability
-from downhole.string.neutral import neutral_model, simulate_neutral
+from downhole.sim import simulate
+from downhole.string.neutral import neutral_model
 
 warnings.filterwarnings("ignore", category=UserWarning)
 
@@ -59,7 +60,7 @@ def test_true_plant_regulation_and_saved_gains(model, ctrl, tmp_path):
     ctrl.save(tmp_path)
     c2 = load_eid(tmp_path)
     assert c2.gains == ctrl.gains
-    res = simulate_neutral(model, duration=60.0, dt=2e-4, controller=c2)
+    res = simulate(model, duration=60.0, dt=2e-4, controller=c2)
     t = res.time
     v, w = res["bit_axial_velocity"], res["bit_angular_velocity"]
     assert np.max(np.abs(v[t >= 10] - 0.01)) < 0.01 * 0.01
@@ -91,8 +92,8 @@ def test_infeasible_lmi_names_the_family(model):
 def test_python_loop_eid_equals_compiled(model, ctrl):
     # the controller stepped from Python over the neutral plant gives the compiled loop's numbers
     kw = dict(duration=2.0, dt=2e-4, controller=ctrl, noise={"axial": 1e-3, "angular": 1.0})
-    a = simulate_neutral(model, **kw)
-    b = simulate_neutral(model, python_loop=True, **kw)
+    a = simulate(model, **kw)
+    b = simulate(model, python_loop=True, **kw)
     for ch in ("bit_axial_velocity", "bit_angular_velocity", "command_axial", "hook_load"):
         # equal up to the rounding of U_A - M_S g/alpha_A + M_S g/alpha_A in the Python path
         assert np.allclose(a[ch], b[ch], rtol=1e-9, atol=1e-9 * np.abs(a[ch]).max()), ch
@@ -104,7 +105,7 @@ def test_eid_runs_through_the_controller_contract_on_the_neutral_plant(model, ct
     from downhole.control.base import check_pair, run_closed_loop
     from downhole.string.fem import DirectionalPlant
 
-    a = simulate_neutral(model, duration=1.0, dt=2e-4, controller=ctrl, record_dt=2e-4)
+    a = simulate(model, duration=1.0, dt=2e-4, controller=ctrl, record_dt=2e-4)
     plant = DirectionalPlant(model, 2e-4)
     assert check_pair(ctrl, plant) is None
     r = run_closed_loop(plant, ctrl, 1.0, reference={"reference_axial_velocity": 0.01,

@@ -36,7 +36,8 @@ from downhole.experiments.ch3_envelope import (
     envelope_schedule,
     settle_metrics,
 )
-from downhole.string.neutral import neutral_model, simulate_neutral
+from downhole.sim import simulate
+from downhole.string.neutral import neutral_model
 
 
 @pytest.fixture(scope="module")
@@ -164,7 +165,7 @@ def test_operating_point_reachability(model):
     assert op.hook_load == pytest.approx((p.string_mass + p.bit_mass) * p.g - op.wob)
     # the commands hold that steady state in the open-loop plant (approximated depth of cut, which
     # equals the delayed one at steady drilling): started there, it stays there
-    res = simulate_neutral(model, duration=2.0, dt=2e-4, inputs=op.commands,
+    res = simulate(model, duration=2.0, dt=2e-4, inputs=op.commands,
                            depth_of_cut="approximate", start="steady")
     assert res["bit_axial_velocity"][-1] == pytest.approx(0.015, rel=1e-4)
     assert res["bit_angular_velocity"][-1] == pytest.approx(12.0, rel=1e-5)
@@ -234,7 +235,7 @@ def test_issue_points(model, schedule):
         assert p["rms_axial"] < 0.02 and p["min_axial_velocity"] > 0
         assert (p["open_loop_abscissa"] > 0) == open_loop_unstable
         assert p["closed_loop_abscissa"] < -0.2 and p["default_abscissa"] > 0.3
-        res = simulate_neutral(model, duration=60.0, dt=2e-4,
+        res = simulate(model, duration=60.0, dt=2e-4,
                                controller=schedule.controllers[0],
                                reference=startup_reference(0.015, omega))
         assert not settle_metrics(res, 0.015, omega)["settled"]
@@ -255,14 +256,14 @@ def test_predictive_damper_settles_where_the_open_loop_is_unstable(model):
     lin = predictive_closed_loop(eid, model, 0.015, 12.0, 2.0)
     assert lin["stable"] and lin["spectral_abscissa"] < -0.2
     c = PredictiveEID(eid, model, 2.0)
-    res = simulate_neutral(model, duration=40.0, dt=2e-4, controller=c,
+    res = simulate(model, duration=40.0, dt=2e-4, controller=c,
                            reference=startup_reference(0.015, 12.0))
     s = settle_metrics(res, 0.015, 12.0)
     assert s["settled"] and s["rms_axial"] < 1e-3, s
-    short = simulate_neutral(model, duration=3.0, dt=2e-4, controller=c,
+    short = simulate(model, duration=3.0, dt=2e-4, controller=c,
                              reference=startup_reference(0.015, 12.0, spin_up=1.0,
                                                          ramp_time=1.0))
-    py = simulate_neutral(model, duration=3.0, dt=2e-4, controller=c, python_loop=True,
+    py = simulate(model, duration=3.0, dt=2e-4, controller=c, python_loop=True,
                           reference=startup_reference(0.015, 12.0, spin_up=1.0, ramp_time=1.0))
     np.testing.assert_allclose(py["bit_axial_velocity"], short["bit_axial_velocity"],
                                rtol=0, atol=1e-12)
@@ -360,14 +361,14 @@ def test_coupled_angle_based_damper_compiled_equals_python(model):
     ref = startup_reference(0.015, 8.0, spin_up=1.0, ramp_time=1.0)
     eid = EIDSchedule(model, candidates=(ENVELOPE_CANDIDATES[5],)).controllers[0].eid
     c = PredictiveEID(eid, model, 2.0, depth_of_cut_gain=1.0, angle_doc=True, axial_filter=200.0)
-    short = simulate_neutral(model, duration=3.0, dt=2e-4, controller=c, reference=ref)
-    py = simulate_neutral(model, duration=3.0, dt=2e-4, controller=c, python_loop=True,
+    short = simulate(model, duration=3.0, dt=2e-4, controller=c, reference=ref)
+    py = simulate(model, duration=3.0, dt=2e-4, controller=c, python_loop=True,
                           reference=ref)
     for ch in ("bit_axial_velocity", "bit_angular_velocity", "command_axial"):
         np.testing.assert_allclose(py[ch], short[ch], rtol=0, atol=1e-12)
     for kw in ({"depth_of_cut_gain": 0.0}, {"angle_doc": False}, {"axial_filter": 0.0}):
         args = {"depth_of_cut_gain": 1.0, "angle_doc": True, "axial_filter": 200.0, **kw}
-        other = simulate_neutral(model, duration=3.0, dt=2e-4, reference=ref,
+        other = simulate(model, duration=3.0, dt=2e-4, reference=ref,
                                  controller=PredictiveEID(eid, model, 2.0, **args))
         assert np.abs(other["command_axial"] - short["command_axial"]).max() > 1e-7, kw
     for bad in ({"depth_of_cut_gain": 2.5}, {"depth_of_cut_gain": -0.1},
@@ -386,11 +387,11 @@ def test_low_speed_high_rop_settles_with_the_angle_based_coupled_damper(model):
     not pick it; docs/neutral-eid.md.)"""
     ref = startup_reference(0.020, 5.0, 10.0, 2.0, approach_omega=20.0)
     c9 = EIDSchedule(model, candidates=(ENVELOPE_CANDIDATES[9],)).controllers[0]
-    res = simulate_neutral(model, duration=60.0, dt=2e-4, controller=c9, reference=ref)
+    res = simulate(model, duration=60.0, dt=2e-4, controller=c9, reference=ref)
     s = settle_metrics(res, 0.020, 5.0)
     assert s["settled"] and s["rms_axial"] < 0.005 and s["min_axial_velocity"] > 0, s
     c = PredictiveEID(c9.eid, model, 2.0, angle_doc=False, depth_of_cut_gain=1.0)
-    r = simulate_neutral(model, duration=60.0, dt=2e-4, controller=c, reference=ref)
+    r = simulate(model, duration=60.0, dt=2e-4, controller=c, reference=ref)
     assert not settle_metrics(r, 0.020, 5.0)["settled"]
 
 
@@ -401,10 +402,10 @@ def test_low_rop_point_below_d_star_settles_with_the_filtered_damper(model):
     loop chatters near the Nyquist frequency and the bit stalls axially."""
     ref = startup_reference(0.002, 12.0, 10.0, 2.0, approach_omega=20.0)
     c8 = EIDSchedule(model, candidates=(ENVELOPE_CANDIDATES[8],)).controllers[0]
-    s = settle_metrics(simulate_neutral(model, duration=60.0, dt=2e-4, controller=c8,
+    s = settle_metrics(simulate(model, duration=60.0, dt=2e-4, controller=c8,
                                         reference=ref), 0.002, 12.0)
     assert s["settled"] and s["rms_axial"] < 0.005, s
     raw = PredictiveEID(c8.eid, model, 4.0, angle_doc=True)
-    s = settle_metrics(simulate_neutral(model, duration=60.0, dt=2e-4, controller=raw,
+    s = settle_metrics(simulate(model, duration=60.0, dt=2e-4, controller=raw,
                                         reference=ref), 0.002, 12.0)
     assert not s["settled"], s

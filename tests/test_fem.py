@@ -86,7 +86,7 @@ def test_undamped_run_conserves_energy():
 
     e0 = energy(st["state"])
     rec = np.zeros((10, len(CHANNELS)))
-    cmd = np.tile([H, 3000.0], (500, 1))
+    cmd = np.tile([H, 3000.0], (501, 1))
     drift, kin = [], []
     for k in range(10):
         pk.run(st, cmd, rec, 500, k)
@@ -114,7 +114,7 @@ def test_linear_model_matches_the_newmark_kernel():
     pk = _Packed(m, dt, TopDrive(mode="torque", speed=2000.0), Hook(wob=0.0), "delayed")
     st = pk.initial_state()
     rec = np.zeros((15, len(CHANNELS)))
-    pk.run(st, np.tile([m.buoyed_weight + 20e3, 2000.0], (15000, 1)), rec, 1000, 0)
+    pk.run(st, np.tile([m.buoyed_weight + 20e3, 2000.0], (15001, 1)), rec, 1000, 0)
     kern = rec[:, CHANNELS.index("bit_angular_velocity")]
     ref = np.array(traj)[99::100]
     assert np.max(np.abs(kern - ref)) < 0.01 * np.max(np.abs(ref))
@@ -180,20 +180,20 @@ def test_modal_damping_kernel_matches_exact_zoh():
     pk = _Packed(m, 1e-4, TopDrive(mode="torque", speed=2000.0), Hook(wob=0.0), "delayed")
     st = pk.initial_state()
     rec = np.zeros((15, len(CHANNELS)))
-    pk.run(st, np.tile([m.buoyed_weight + 20e3, 2000.0], (15000, 1)), rec, 1000, 0)
+    pk.run(st, np.tile([m.buoyed_weight + 20e3, 2000.0], (15001, 1)), rec, 1000, 0)
     kern = rec[:, CHANNELS.index("bit_angular_velocity")]
     ref = np.array(traj)[99::100]
     assert np.max(np.abs(kern - ref)) < 0.01 * np.max(np.abs(ref))
 
 
 def test_velocity_hook_servo_drives_the_block_and_balances_the_string():
-    from downhole.string.fem import simulate_directional
+    from downhole.sim import simulate
 
     L = 1000.0
     well, ds = _vertical(L)
     m = fem_model(well, ds, n_elements=40, friction=0.0, md_b=300, md_c=600)
     v = 0.005
-    r = simulate_directional(m, 30.0, 1e-3, hook=Hook(mode="velocity", velocity=v, wob=50e3),
+    r = simulate(m, duration=30.0, dt=1e-3, hook=Hook(mode="velocity", velocity=v, wob=50e3),
                              record_dt=1e-3)
     t = r.time
     sel = t >= 15.0
@@ -208,5 +208,5 @@ def test_velocity_hook_servo_drives_the_block_and_balances_the_string():
     e = r["bit_axial_position"] - x_top
     expected = (50e3 - r["wob"][sel].mean()) * L / (PIPE.area * PIPE.young_modulus)
     assert e[sel].mean() - e[0] == pytest.approx(expected, rel=0.1)
-    with pytest.raises(DownholeInputError, match="velocity-mode hook"):
-        simulate_directional(m, 0.1, 1e-3, hook_velocity=0.01)
+    with pytest.raises(DownholeInputError, match="force hook"):
+        simulate(m, {"top_drive_axial_velocity": 0.01}, duration=0.1, dt=1e-3)

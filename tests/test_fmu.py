@@ -8,10 +8,10 @@ import pytest
 from downhole.cli import main
 
 
-def test_exported_fmu_matches_simulate_directional(tmp_path):
+def test_exported_fmu_matches_simulate(tmp_path):
     from downhole.control.topdrive import Hook, TopDrive
     from downhole.sil.fmu import simulate_fmu
-    from downhole.string.fem import simulate_directional
+    from downhole.sim import simulate
     from downhole.string.hybrid import hybrid_model
 
     fmu = tmp_path / "plant.fmu"
@@ -24,9 +24,9 @@ def test_exported_fmu_matches_simulate_directional(tmp_path):
     hm = hybrid_model("hybrid68")
     res = simulate_fmu(fmu, 3.0, 0.01, {"command_top_drive_angular_velocity": 12.0,
                                        "command_hook_load": hm.buoyed_weight - 150e3})
-    ref = simulate_directional(hm, 3.0, 1e-3, top_drive=TopDrive(speed=12.0),
-                               hook=Hook(wob=120e3), record_dt=0.01,
-                               hook_load=lambda t: hm.buoyed_weight - 150e3 if t > 0 else 0)
+    ref = simulate(hm, {"hook_load": lambda t: hm.buoyed_weight - 150e3 if t > 0 else 0},
+                   duration=3.0, dt=1e-3, top_drive=TopDrive(speed=12.0),
+                   hook=Hook(wob=120e3), record_dt=0.01)
     assert res.time.size == ref.time.size
     for ch in ("bit_axial_velocity", "bit_angular_velocity"):
         a, b = res[ch], ref[ch]

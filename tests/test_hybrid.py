@@ -5,7 +5,8 @@ import pytest
 
 from downhole.control.topdrive import Hook, TopDrive
 from downhole.errors import DownholeInputError
-from downhole.string.fem import fem_model, simulate_directional
+from downhole.sim import simulate
+from downhole.string.fem import fem_model
 from downhole.string.hybrid import hybrid_model
 from downhole.well import Arc, Vertical, WellPath
 
@@ -13,8 +14,8 @@ from downhole.well import Arc, Vertical, WellPath
 @pytest.fixture(scope="module")
 def runs():
     # 20 s of stick-slip (PI top drive at 10 rad/s, 120 kN WOB, Table 5.1 damping)
-    dense = simulate_directional(fem_model(n_elements=1000), duration=20.0, dt=1e-3)
-    h68 = simulate_directional(hybrid_model("hybrid68"), duration=20.0, dt=1e-3)
+    dense = simulate(fem_model(n_elements=1000), duration=20.0, dt=1e-3)
+    h68 = simulate(hybrid_model("hybrid68"), duration=20.0, dt=1e-3)
     return dense, h68
 
 
@@ -47,7 +48,7 @@ def test_wave_segment_delays_a_torque_step_by_tau_with_impedance_z():
                      friction=0.0)
     tau_t = m.wave["tau"][1]
     Z = m.wave["impedance"][1]
-    r = simulate_directional(m, 1.2, 1e-4, top_drive=TopDrive(mode="torque", speed=5000.0),
+    r = simulate(m, duration=1.2, dt=1e-4, top_drive=TopDrive(mode="torque", speed=5000.0),
                              hook=Hook(wob=0.0), record_dt=1e-4)
     t = r.time
     tb, tc = r["torque_b"], r["torque_c"]
@@ -87,8 +88,8 @@ def test_hybrid_bad_input():
 def test_soft_torque_top_drive_reduces_stick_slip_on_the_fig_5_7_case():
     m = hybrid_model("hybrid68")
     win = (15.0, 40.0)
-    pi = simulate_directional(m, 40.0, 1e-3, top_drive=TopDrive(mode="pi")).summary(win)
-    soft = simulate_directional(m, 40.0, 1e-3,
+    pi = simulate(m, duration=40.0, dt=1e-3, top_drive=TopDrive(mode="pi")).summary(win)
+    soft = simulate(m, duration=40.0, dt=1e-3,
                                 top_drive=TopDrive(mode="soft_torque")).summary(win)
     assert pi["stuck_fraction"] > 0.2                        # the PI case stick-slips
     assert soft["stuck_fraction"] < 0.5 * pi["stuck_fraction"]

@@ -135,7 +135,7 @@ def test_directional_kernel_advances_its_named_clock():
 
     pk = _packed(fem_model(n_elements=10), 1e-3, TopDrive(), Hook(), "approximate")
     st = pk.initial_state()
-    cmd = np.tile([pk.hook_load0, 10.0], (50, 1))
+    cmd = np.tile([pk.hook_load0, 10.0], (51, 1))  # the commands at t_0 .. t_50
     rec = np.zeros((50, 17))
     status, rows = pk.run(st, cmd, rec, 1)
     assert status == 0 and rows == 50

@@ -12,12 +12,12 @@ import pytest
 
 from downhole.control.dhp.weight_sets import weight_set, weight_set_names
 from downhole.errors import DownholeInputError
+from downhole.sim import simulate
 from downhole.string.neutral import (
     NOMINAL_U_A,
     NOMINAL_U_T,
     NeutralPack,
     neutral_model,
-    simulate_neutral,
 )
 
 UPPER = ("control", "sil", "cli", "experiments", "report", "bench", "sweep", "gym")
@@ -27,10 +27,11 @@ def test_core_imports_and_runs_without_upper_layers():
     # import-linter checks the static imports; this checks what a run actually loads
     code = (
         "import sys\n"
-        "from downhole.string.neutral import simulate_neutral\n"
-        "from downhole.string.fem import fem_model, simulate_directional\n"
+        "from downhole.sim import simulate\n"
+        "from downhole.string.neutral import neutral_model\n"
+        "from downhole.string.fem import fem_model\n"
         "import downhole.string.hybrid, downhole.sim, downhole.well, downhole.contact\n"
-        "simulate_neutral('table_3_1', duration=0.05, dt=1e-4)\n"
+        "simulate(neutral_model('table_3_1'), duration=0.05, dt=1e-4)\n"
         "m = fem_model(n_elements=5)\n"
         "m.linear_model(1e-3)\n"
         f"bad = sorted(m for m in sys.modules if m.startswith('downhole.') and "
@@ -62,15 +63,15 @@ class _ConstantFastPath:
         return {"top_drive_axial_velocity": NOMINAL_U_A - hang,
                 "top_drive_angular_velocity": NOMINAL_U_T}
 
-    def neutral_runner(self, dt):
+    def kernel_runner(self, pack):
         def runner(pack, st, ref, mnoise, cmd_noise, nsteps, every, rec):
             # the one kernel, stepped by the controller's own code through the pack
             assert isinstance(pack, NeutralPack)
-            cmd = np.empty((nsteps, 2))
+            cmd = np.empty((nsteps + 1, 2))
             cmd[:, 0] = NOMINAL_U_A - pack.model.hang_command
             cmd[:, 1] = NOMINAL_U_T
             n_main = (nsteps // every) * every
-            status, rows = pack.run(st, cmd[:n_main], rec, every, 1)
+            status, rows = pack.run(st, cmd[:n_main + 1], rec, every, 1)
             if status == 0 and n_main < nsteps:
                 status, _ = pack.run(st, cmd[n_main:], rec, nsteps - n_main, 1 + rows)
             return status, nsteps, {"measured_axial_velocity": rec[:, 1] + 0.0}
@@ -79,16 +80,16 @@ class _ConstantFastPath:
 
 
 class _NoFastPath(_ConstantFastPath):
-    def neutral_runner(self, dt):
+    def kernel_runner(self, pack):
         return None
 
 
 def test_controller_fast_path_hook_is_used_and_falls_back():
     model = neutral_model("table_3_1")
     kw = dict(duration=0.5, dt=2e-4, depth_of_cut="approximate")
-    ol = simulate_neutral(model, **kw)
+    ol = simulate(model, **kw)
     fast = _ConstantFastPath()
-    res = simulate_neutral(model, controller=fast, reference=(0.01, 20.0), **kw)
+    res = simulate(model, controller=fast, reference=(0.01, 20.0), **kw)
     assert fast.calls == 0  # the compiled runner ran the loop
     assert res.attrs["controller"] == "constant-fast-path"
     for ch in ("bit_axial_velocity", "bit_angular_velocity", "hook_load", "surface_torque"):
@@ -97,17 +98,17 @@ def test_controller_fast_path_hook_is_used_and_falls_back():
     assert np.all(res["reference_angular_velocity"] == 20.0)
     # no runner (None) or python_loop=True: the same controller through the Python loop
     slow = _NoFastPath()
-    res2 = simulate_neutral(model, controller=slow, reference=(0.01, 20.0), **kw)
+    res2 = simulate(model, controller=slow, reference=(0.01, 20.0), **kw)
     assert slow.calls == 2501  # one command per step, t_0 .. t_2500
     assert np.allclose(res2["bit_angular_velocity"], ol["bit_angular_velocity"], atol=1e-9)
     forced = _ConstantFastPath()
-    simulate_neutral(model, controller=forced, reference=(0.01, 20.0), python_loop=True, **kw)
+    simulate(model, controller=forced, reference=(0.01, 20.0), python_loop=True, **kw)
     assert forced.calls > 0
 
 
 def test_controller_without_contract_is_rejected():
     with pytest.raises(DownholeInputError, match="reset"):
-        simulate_neutral("table_3_1", duration=0.01, dt=1e-4, controller=object())
+        simulate(neutral_model("table_3_1"), duration=0.01, dt=1e-4, controller=object())
 
 
 def test_weight_presets_and_the_experiments_names_for_them():

@@ -7,8 +7,9 @@ import pytest
 
 from downhole.errors import DownholeInputError
 from downhole.params import NeutralStringParams, PipeSection
+from downhole.sim import simulate
 from downhole.string._reference_fd import simulate_fd
-from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, neutral_model, simulate_neutral
+from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, neutral_model
 
 
 def _rel_rms(ref, val):
@@ -22,7 +23,7 @@ def model():
 
 @pytest.fixture(scope="module")
 def wave_run(model):
-    return simulate_neutral(model, duration=10.0, dt=1e-4, record_dt=1e-3)
+    return simulate(model, duration=10.0, dt=1e-4, record_dt=1e-3)
 
 
 def test_agrees_with_fine_finite_differences_and_converges(model, wave_run):
@@ -89,20 +90,20 @@ def test_ndde_matrices_steady_gain(model):
 
 
 def test_hanging_at_rest_stays_at_rest(model):
-    r = simulate_neutral(model, duration=1.0, dt=1e-4, inputs=(model.hang_command, 0.0))
+    r = simulate(model, duration=1.0, dt=1e-4, inputs=(model.hang_command, 0.0))
     assert np.max(np.abs(r["bit_axial_velocity"])) < 1e-12
     assert np.max(np.abs(r["wob"])) == 0.0
 
 
 def test_bad_inputs_are_named():
     with pytest.raises(DownholeInputError, match="dt"):
-        simulate_neutral("table_3_1", duration=1.0, dt=0.5)
+        simulate(neutral_model("table_3_1"), duration=1.0, dt=0.5)
     with pytest.raises(DownholeInputError, match="depth_of_cut"):
-        simulate_neutral("table_3_1", duration=1.0, depth_of_cut="exact")
+        simulate(neutral_model("table_3_1"), duration=1.0, depth_of_cut="exact")
     with pytest.raises(DownholeInputError, match="neutral"):
         neutral_model("table_2_1")
     with pytest.raises(DownholeInputError, match="noise"):
-        simulate_neutral("table_3_1", duration=0.01, noise={"rop": 1.0})
+        simulate(neutral_model("table_3_1"), duration=0.01, noise={"rop": 1.0})
     with pytest.raises(ValueError):
         NeutralStringParams(length=-5.0)
     with pytest.raises(ValueError):
@@ -113,7 +114,7 @@ def test_plant_steps_like_the_compiled_run(model):
     # the plant (reset/step over named signals) is the same kernel stepped from Python
     from downhole.string.fem import DirectionalPlant
 
-    ref = simulate_neutral(model, duration=0.5, dt=2e-4, record_dt=2e-4)
+    ref = simulate(model, duration=0.5, dt=2e-4, record_dt=2e-4)
     plant = DirectionalPlant(model, dt=2e-4)
     obs = plant.reset()
     assert obs["wob"] == 0.0 and obs["time"] == 0.0
@@ -152,14 +153,14 @@ class _PI:
 
 
 def test_python_loop_runs_any_controller(model):
-    res = simulate_neutral(model, duration=40.0, dt=2e-4, controller=_PI(model),
+    res = simulate(model, duration=40.0, dt=2e-4, controller=_PI(model),
                            reference=(0.01, 20.0), control_dt=1e-3, depth_of_cut="approximate")
     t = res.time
     assert res.attrs["controller"] == "_PI" and res.attrs["control_dt"] == pytest.approx(1e-3)
     assert np.abs(res["bit_axial_velocity"][t > 35] - 0.01).max() < 1e-4
     assert np.abs(res["bit_angular_velocity"][t > 35] - 20.0).max() < 0.02
     # the command the controller returned is what drove the plant (open-loop check)
-    ol = simulate_neutral(model, duration=40.0, dt=2e-4, depth_of_cut="approximate",
+    ol = simulate(model, duration=40.0, dt=2e-4, depth_of_cut="approximate",
                           inputs=((t, res["command_axial"]), (t, res["command_angular"])),
                           record_dt=float(t[1] - t[0]))
     assert np.abs(ol["bit_angular_velocity"] - res["bit_angular_velocity"]).max() < 0.05

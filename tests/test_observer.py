@@ -206,11 +206,12 @@ def test_neutral_observer_recovers_bit_velocities_and_forces_in_open_loop(neutra
     """Constant commands on the true plant (delayed depth of cut): from rest the bit settles
     at 10 mm/s, 20 rad/s; the observer, seeing the surface only, converges to the bit's
     velocities and its (constant) WOB and TOB."""
-    from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, simulate_neutral
+    from downhole.sim import simulate
+    from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T
 
     inner = _Recorder((NOMINAL_U_A - neutral.hang_command, NOMINAL_U_T))
     fb = SurfaceFeedback(inner, NeutralSurfaceObserver(neutral, 1e-3), NEUTRAL_MEASUREMENTS)
-    res = simulate_neutral(neutral, duration=14.0, dt=2e-4, controller=fb, control_dt=1e-3,
+    res = simulate(neutral, duration=14.0, dt=2e-4, controller=fb, control_dt=1e-3,
                            record_dt=1e-3)
     est = np.array(inner.seen)
     t = res.time

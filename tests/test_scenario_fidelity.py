@@ -207,18 +207,6 @@ def test_several_pipe_sections_at_neutral_exit_2(tmp_path, capsys):
               "heavyweight")
 
 
-def test_unsupported_start_is_one_line(tmp_path, capsys):
-    import inspect
-
-    from downhole.string.fem import simulate_directional
-
-    path = _short_copy(tmp_path, "table_5_1", simulation={"start": "off_bottom"})
-    if "start" in inspect.signature(simulate_directional).parameters:
-        pytest.skip("the FEM supports start modes now")
-    _rejected(tmp_path, capsys, [str(path), "--fidelity", "fem"], "simulation.start",
-              "not supported at fidelity 'fem'")
-
-
 def test_preset_file_refuses_fidelity_override(tmp_path, capsys):
     # a lumped preset (Table 2.1) is not a described system: --fidelity cannot re-derive it
     _rejected(tmp_path, capsys, [str(EXAMPLES / "nominal_table_2_1.toml"), "--fidelity", "fem"],

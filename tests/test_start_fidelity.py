@@ -7,14 +7,10 @@ import numpy as np
 import pytest
 
 from downhole.errors import DownholeInputError
+from downhole.sim import simulate
 from downhole.sim.plant import Plant
 from downhole.string.fem import DirectionalPlant
-from downhole.string.neutral import (
-    NOMINAL_U_A,
-    NOMINAL_U_T,
-    neutral_model,
-    simulate_neutral,
-)
+from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, neutral_model
 
 
 def _hand_bit_forces(bit, d, v, omega):
@@ -41,7 +37,7 @@ def nmodel():
 @pytest.mark.parametrize("doc", ["delayed", "approximate"])
 def test_neutral_steady_start_is_an_equilibrium(nmodel, doc):
     m, p = nmodel, nmodel.params
-    r = simulate_neutral(m, duration=1.0, dt=1e-4, inputs=(NOMINAL_U_A, NOMINAL_U_T),
+    r = simulate(m, duration=1.0, dt=1e-4, inputs=(NOMINAL_U_A, NOMINAL_U_T),
                          depth_of_cut=doc, start="steady")
     v, w = r["bit_axial_velocity"], r["bit_angular_velocity"]
     # SPEC: the nominal commands give 10 mm/s and 20 rad/s; the bit stays there
@@ -63,7 +59,7 @@ def test_neutral_steady_start_is_an_equilibrium(nmodel, doc):
                                               rel=1e-9)
     assert np.max(np.abs(r["surface_torque"] / tob - 1)) < 0.01
     # from rest the same commands are far from the steady state at first
-    r0 = simulate_neutral(m, duration=1.0, dt=1e-4, inputs=(NOMINAL_U_A, NOMINAL_U_T),
+    r0 = simulate(m, duration=1.0, dt=1e-4, inputs=(NOMINAL_U_A, NOMINAL_U_T),
                           depth_of_cut=doc)
     assert np.max(np.abs(r0["bit_angular_velocity"] / 20.0 - 1)) > 0.5
 
@@ -118,7 +114,7 @@ def test_neutral_start_errors_are_precise(nmodel):
     from downhole.control.eid.controller import EIDController
 
     with pytest.raises(DownholeInputError, match="open-loop"):
-        simulate_neutral(nmodel, duration=0.01, controller=EIDController((), ()),
+        simulate(nmodel, duration=0.01, controller=EIDController((), ()),
                          start="steady")
 
 
@@ -156,11 +152,11 @@ def _hand_drags(m, u, v, w):
 @pytest.mark.parametrize("doc", ["delayed", "approximate"])
 def test_directional_steady_start_stays_for_a_second(kind, doc):
     from downhole.params.rig import Hook, TopDrive
-    from downhole.string.fem import simulate_directional
+    from downhole.sim import simulate
 
     m = _directional(kind)
     for hook in (Hook(), Hook(mode="velocity", velocity=0.01)):
-        r = simulate_directional(m, duration=1.0, dt=1e-3, top_drive=TopDrive(speed=20.0),
+        r = simulate(m, duration=1.0, dt=1e-3, top_drive=TopDrive(speed=20.0),
                                  hook=hook, depth_of_cut=doc, start="steady", record_dt=None)
         v, w = r["bit_axial_velocity"], r["bit_angular_velocity"]
         assert w[0] == pytest.approx(20.0, rel=1e-9)

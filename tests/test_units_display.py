@@ -480,13 +480,14 @@ def test_optimize_dp_prints_the_final_velocity_in_display_units(tmp_path, capsys
 
 
 def test_neutral_simulation_takes_quantity_strings():
-    from downhole.string.neutral import simulate_neutral
+    from downhole.sim import simulate
+    from downhole.string.neutral import neutral_model
 
-    res = simulate_neutral("table_3_1", duration="20 ms", dt=U.Quantity(0.1, "ms"),
+    res = simulate(neutral_model("table_3_1"), duration="20 ms", dt=U.Quantity(0.1, "ms"),
                            record_dt="1 ms")
     assert res.time[-1] == pytest.approx(0.02) and np.diff(res.time)[0] == pytest.approx(1e-3)
     with pytest.raises(DownholeInputError, match="dt: quantity '1 m' has unit"):
-        simulate_neutral("table_3_1", duration=0.02, dt="1 m")
+        simulate(neutral_model("table_3_1"), duration=0.02, dt="1 m")
 
 
 def test_overview_of_a_result_without_depth_or_surface_channels():

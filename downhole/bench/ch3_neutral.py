@@ -95,18 +95,19 @@ def _compare(quick):
     """Time the wave model at dt = 1e-4 and the SciPy method of steps at the loosest tolerance
     that is at least as accurate (RMS over peak against a dt = 5e-6 wave run, worse of the two
     fields); also report the next looser SciPy run, which brackets equal accuracy from below."""
-    from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, neutral_model, simulate_neutral
+    from downhole.sim import simulate
+    from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, neutral_model
 
     m = neutral_model()
     duration = 10.0 if quick else 60.0
-    simulate_neutral(m, duration=0.01, dt=1e-4, depth_of_cut="approximate")  # compile
+    simulate(m, duration=0.01, dt=1e-4, depth_of_cut="approximate")  # compile
     t_fast = math.inf
     for _ in range(3):  # best of 3 (shared machine)
         t0 = time.perf_counter()
-        fast = simulate_neutral(m, duration=duration, dt=1e-4, depth_of_cut="approximate",
+        fast = simulate(m, duration=duration, dt=1e-4, depth_of_cut="approximate",
                                 record_dt=1e-3)
         t_fast = min(t_fast, time.perf_counter() - t0)
-    ref = simulate_neutral(m, duration=duration, dt=5e-6, depth_of_cut="approximate",
+    ref = simulate(m, duration=duration, dt=5e-6, depth_of_cut="approximate",
                            record_dt=1e-3)
     tr = ref.time
 

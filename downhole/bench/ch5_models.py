@@ -83,14 +83,15 @@ def lsoda_seconds(model, horizon: float) -> float:
 
 
 def _row(make, dt, quick, horizon):
-    from downhole.string.fem import simulate_directional
+    from downhole.sim import simulate
 
     m = make()
     # warm-up: compile (or load the cache) and touch every code path of both depth-of-cut laws
-    simulate_directional(m, duration=0.01, dt=dt, depth_of_cut="approximate")
-    simulate_directional(m, duration=0.01, dt=dt)
-    sec, cpu = best_time(simulate_directional, m, 10.0, dt, depth_of_cut="approximate")
-    sec_delayed, cpu_delayed = best_time(simulate_directional, m, 10.0, dt)
+    simulate(m, duration=0.01, dt=dt, depth_of_cut="approximate")
+    simulate(m, duration=0.01, dt=dt)
+    sec, cpu = best_time(simulate, m, duration=10.0, dt=dt, depth_of_cut="approximate",
+                         record_dt=0.01)
+    sec_delayed, cpu_delayed = best_time(simulate, m, duration=10.0, dt=dt, record_dt=0.01)
     base = lsoda_seconds(m, horizon) * (10.0 / horizon)
     return BenchOutcome(sec, f"scipy solve_ivp LSODA, same ODE ({horizon:g} s scaled to 10 s)",
                         base, extra={"states": m.n_states, "dt": dt, "cpu_seconds": cpu,
@@ -118,12 +119,13 @@ _register()
 @bench_case("hybrid 68 states real-time factor (dt=1e-3, 10 s)", seed_seconds=None, quick=True,
             group="ch5")
 def _realtime(quick):
-    from downhole.string.fem import DirectionalPlant, simulate_directional
+    from downhole.sim import simulate
+    from downhole.string.fem import DirectionalPlant
     from downhole.string.hybrid import hybrid_model
 
     m = hybrid_model("hybrid68")
-    simulate_directional(m, duration=0.01, dt=1e-3)
-    sec, cpu = best_time(simulate_directional, m, 10.0, 1e-3)
+    simulate(m, duration=0.01, dt=1e-3)
+    sec, cpu = best_time(simulate, m, duration=10.0, dt=1e-3, record_dt=0.01)
     plant = DirectionalPlant(m, 1e-3)
     hold = plant.default_command()
     plant.step(hold)

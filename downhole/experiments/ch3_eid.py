@@ -72,11 +72,11 @@ def _errors(res, t_rop=10.0, t_omega=40.0):
 
 
 def _regulation(out_dir, quick, noise, name, title):
-    from downhole.string.neutral import simulate_neutral
+    from downhole.sim import simulate
 
     m, c = _setup()
     dt = 2e-4 if quick else 1e-4
-    res = simulate_neutral(m, duration=60.0, dt=dt, controller=c, noise=_density(noise, dt))
+    res = simulate(m, duration=60.0, dt=dt, controller=c, noise=_density(noise, dt))
     e_rop, e_w = _errors(res)
     _plot(res, out_dir / f"{name}.png", title)
     if not quick:
@@ -113,12 +113,12 @@ TRACKING_RAMP = 2.0
 
 def _tracking(quick):
     from downhole.control.eid.references import envelope_tracking_reference
-    from downhole.string.neutral import simulate_neutral
+    from downhole.sim import simulate
 
     m, c = _setup()
     dt = 2e-4 if quick else 1e-4
     duration = 200.0
-    return simulate_neutral(m, duration=duration, dt=dt, controller=c,
+    return simulate(m, duration=duration, dt=dt, controller=c,
                             reference=envelope_tracking_reference(TRACKING_OMEGA_ON,
                                                                   TRACKING_RAMP),
                             noise=_density({"axial": 1e-3, "angular": 1.0}, dt)), dt
@@ -198,7 +198,7 @@ def fig3_7(out_dir, quick):
             caption="Robustness of EID controller with different epsilon")
 def fig3_8(out_dir, quick):
     from downhole.control.eid.stability import bit_rock_open_loop_roots, regenerative_closed_loop
-    from downhole.string.neutral import simulate_neutral
+    from downhole.sim import simulate
 
     m, c = _setup()
     dt = 2e-4 if quick else 1e-4
@@ -214,7 +214,7 @@ def fig3_8(out_dir, quick):
     for f in factors:
         bit = m.bit.model_copy(update={"epsilon": m.bit.epsilon * f})
         mf = m.with_bit(bit)
-        res = simulate_neutral(mf, duration=60.0, dt=dt, controller=c)
+        res = simulate(mf, duration=60.0, dt=dt, controller=c)
         e_rop, e_w = _errors(res, 50.0, 50.0)
         e10, e40 = _errors(res)
         ol = next(r for r in bit_rock_open_loop_roots(mf) if abs(r) > 1e-6)
@@ -249,12 +249,13 @@ def fig3_8(out_dir, quick):
                   "and bit bounce over the last 20 s of 40 s; at U_T = 22.52 rad/s steady "
                   "drilling (severity < 0.01)")
 def stickslip_neutral(out_dir, quick):
-    from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T, simulate_neutral
+    from downhole.sim import simulate
+    from downhole.string.neutral import NOMINAL_U_A, NOMINAL_U_T
 
     m, _ = _setup()
     dt = 2e-4 if quick else 1e-4
-    low = simulate_neutral(m, duration=40.0, dt=dt, inputs=(NOMINAL_U_A, 6.0))
-    nom = simulate_neutral(m, duration=40.0, dt=dt, inputs=(NOMINAL_U_A, NOMINAL_U_T))
+    low = simulate(m, duration=40.0, dt=dt, inputs=(NOMINAL_U_A, 6.0))
+    nom = simulate(m, duration=40.0, dt=dt, inputs=(NOMINAL_U_A, NOMINAL_U_T))
     s_low = low.summary((20.0, 40.0))
     s_nom = nom.summary((20.0, 40.0))
     _plot(low, out_dir / "stickslip-neutral.png", "Open loop, U_T = 6 rad/s", ref=False,

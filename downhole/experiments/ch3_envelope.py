@@ -101,7 +101,7 @@ def envelope_point(model, schedule, rop: float, omega: float, *, dt: float = 2e-
     """
     from downhole.control.eid.references import startup_reference
     from downhole.control.eid.schedule import open_loop_abscissa, operating_point
-    from downhole.string.neutral import simulate_neutral
+    from downhole.sim import simulate
 
     op = operating_point(model, rop, omega, max_depth_of_cut=max_depth_of_cut)
     out = {"rop": float(rop), "omega": float(omega), "depth_of_cut": op.depth_of_cut,
@@ -125,7 +125,7 @@ def envelope_point(model, schedule, rop: float, omega: float, *, dt: float = 2e-
     ctrl, cl = schedule.controllers[k], margins[k]
     ref = startup_reference(rop, omega, spin_up, ramp_time, approach_omega=approach,
                             descent_rate=descent_rate)
-    res = simulate_neutral(model, duration=duration, dt=dt, controller=ctrl, reference=ref)
+    res = simulate(model, duration=duration, dt=dt, controller=ctrl, reference=ref)
     s = settle_metrics(res, rop, omega)
     sa = cl["spectral_abscissa"]
     osc = cl["rightmost_oscillatory_root"]

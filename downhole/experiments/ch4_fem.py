@@ -17,11 +17,12 @@ def fig4_4(out_dir, quick):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from downhole.string.fem import fem_model, simulate_directional
+    from downhole.sim import simulate
+    from downhole.string.fem import fem_model
 
     duration = 30.0 if quick else 60.0
     m = fem_model(n_elements=107)
-    r = simulate_directional(m, duration=duration, dt=1e-3)
+    r = simulate(m, duration=duration, dt=1e-3)
     win = (10.0, duration)
     s = r.summary(window=win)
     sel = r.time >= win[0]

@@ -33,14 +33,15 @@ def _rms_over_peak(a, b, t):
 
 
 def _bc_runs(quick):
-    from downhole.string.fem import fem_model, simulate_directional
+    from downhole.sim import simulate
+    from downhole.string.fem import fem_model
     from downhole.string.hybrid import hybrid_model
 
     dur = 20.0
-    fem180 = simulate_directional(fem_model(n_elements=180), duration=dur, dt=1e-3)
-    dense = simulate_directional(fem_model(n_elements=400 if quick else 1000), duration=dur,
+    fem180 = simulate(fem_model(n_elements=180), duration=dur, dt=1e-3)
+    dense = simulate(fem_model(n_elements=400 if quick else 1000), duration=dur,
                                  dt=1e-3)
-    hyb = simulate_directional(hybrid_model("hybrid68"), duration=dur, dt=1e-3)
+    hyb = simulate(hybrid_model("hybrid68"), duration=dur, dt=1e-3)
     return fem180, dense, hyb
 
 
@@ -91,15 +92,16 @@ def fig5_5(out_dir, quick):
                   "of the dense FEM at the same depths",
             caption="Predicted velocity profiles at arbitrary point")
 def fig5_6(out_dir, quick):
-    from downhole.string.fem import fem_model, simulate_directional
+    from downhole.sim import simulate
+    from downhole.string.fem import fem_model
     from downhole.string.hybrid import hybrid_model
 
     plt = _plt()
     dur = 20.0
     hm = hybrid_model("hybrid68")
     fm = fem_model(n_elements=400 if quick else 1000)
-    h = simulate_directional(hm, duration=dur, dt=1e-3, record_nodes=True, record_dt=0.01)
-    f = simulate_directional(fm, duration=dur, dt=1e-3, record_nodes=True, record_dt=0.01)
+    h = simulate(hm, duration=dur, dt=1e-3, record_nodes=True, record_dt=0.01)
+    f = simulate(fm, duration=dur, dt=1e-3, record_nodes=True, record_dt=0.01)
     picks = [0, hm.node_b, hm.node_c, hm.node_c + 6, hm.n_nodes - 1]
     fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     errs = {}
@@ -131,13 +133,13 @@ def fig5_6(out_dir, quick):
             caption="Bit-bounce and stick-slip vibration simulation using hybrid model (drill "
                     "bit velocity profile when top drive torsional speed is 10 rad/s)")
 def fig5_7(out_dir, quick):
-    from downhole.string.fem import simulate_directional
+    from downhole.sim import simulate
     from downhole.string.hybrid import hybrid_model
 
     plt = _plt()
     duration = 30.0 if quick else 60.0
     m = hybrid_model("hybrid68")
-    r = simulate_directional(m, duration=duration, dt=1e-3)
+    r = simulate(m, duration=duration, dt=1e-3)
     s = r.summary(window=(10.0, duration))
     sel = r.time >= 10.0
     ratio = float(r["bit_angular_velocity"][sel].max() / 10.0)
@@ -180,18 +182,19 @@ def fig5_7(out_dir, quick):
                   "against a dense FEM is smallest for 68 states",
             caption="Comparison of the hybrid models with different system order")
 def fig5_8(out_dir, quick):
-    from downhole.string.fem import fem_model, simulate_directional
+    from downhole.sim import simulate
+    from downhole.string.fem import fem_model
     from downhole.string.hybrid import hybrid_model
 
     plt = _plt()
     dur = 20.0
     splits = {24: (2, 4), 32: (3, 5), 40: (4, 6), 48: (4, 8), 68: (4, 13)}
-    dense = simulate_directional(fem_model(n_elements=400 if quick else 1000), duration=dur,
+    dense = simulate(fem_model(n_elements=400 if quick else 1000), duration=dur,
                                  dt=1e-3)
     wf = dense["bit_angular_velocity"]
     runs, measured = {}, {}
     for ns, (a, c) in splits.items():
-        r = simulate_directional(hybrid_model(None, n_ab=a, n_cd=c), duration=dur, dt=1e-3)
+        r = simulate(hybrid_model(None, n_ab=a, n_cd=c), duration=dur, dt=1e-3)
         runs[ns] = r
         w = r["bit_angular_velocity"]
         measured[f"states_{ns}_rms_error_vs_dense"] = float(
@@ -230,8 +233,9 @@ def fig5_8(out_dir, quick):
             caption="Comparison of computation time of FEM and hybrid method")
 def fig5_9(out_dir, quick):
     from downhole.params import DirectionalWellParams
+    from downhole.sim import simulate
     from downhole.string.drillstring import DrillString
-    from downhole.string.fem import fem_model, simulate_directional
+    from downhole.string.fem import fem_model
     from downhole.string.hybrid import hybrid_model
     from downhole.well import WellPath
 
@@ -247,7 +251,7 @@ def fig5_9(out_dir, quick):
         best = np.inf
         for _ in range(repeats):
             t0 = time.perf_counter()
-            simulate_directional(model, duration=dur, dt=1e-3)
+            simulate(model, duration=dur, dt=1e-3)
             best = min(best, time.perf_counter() - t0)
         return best
 
@@ -261,8 +265,8 @@ def fig5_9(out_dir, quick):
                           friction=p.wellbore_friction)
         fm = fem_model(well, ds, n_elements=int(round(well.total_depth / elem_len)),
                        md_b=2000.0, md_c=2000.0 + L, friction=p.wellbore_friction)
-        simulate_directional(hm, duration=0.01, dt=1e-3)  # warm
-        simulate_directional(fm, duration=0.01, dt=1e-3)
+        simulate(hm, duration=0.01, dt=1e-3)  # warm
+        simulate(fm, duration=0.01, dt=1e-3)
         t_h.append(best_of(hm, repeats))
         t_f.append(best_of(fm, repeats))
         n_h.append(hm.n_states)
@@ -309,13 +313,13 @@ def table_rows():
                     "model with different degrees of freedom and sampling time")
 def table5_2(out_dir, quick):
     from downhole._timing import best_time
-    from downhole.string.fem import simulate_directional
+    from downhole.sim import simulate
 
     out = []
     for label, make, dt, seed in table_rows():
         m = make()
-        simulate_directional(m, duration=0.01, dt=dt)  # warm-up (compile / load the cache)
-        sec, cpu = best_time(simulate_directional, m, 10.0, dt, record_dt=0.01,
+        simulate(m, duration=0.01, dt=dt)  # warm-up (compile / load the cache)
+        sec, cpu = best_time(simulate, m, duration=10.0, dt=dt, record_dt=0.01,
                              repeat=3 if quick else 5, budget=0.5 if quick else 1.0)
         out.append({"row": label, "states": m.n_states, "dt": dt, "seconds": sec,
                     "cpu_seconds": cpu, "seed_seconds": seed, "speedup": seed / sec})

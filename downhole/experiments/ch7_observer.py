@@ -34,14 +34,14 @@ def run_eid_surface(quick: bool, noisy: bool = True, duration: float = 60.0,
     """fig3.4's closed loop with EID on the neutral-string observer; returns the Result."""
     from downhole.control.observer import NEUTRAL_MEASUREMENTS, MeasurementNoise, eid_from_surface
     from downhole.experiments.ch3_eid import _setup
-    from downhole.string.neutral import simulate_neutral
+    from downhole.sim import simulate
 
     m, c = _setup()
     ctrl = eid_from_surface(c, m, 1e-3, **observer_options)
     if noisy:
         ctrl = MeasurementNoise(ctrl, _noise(NEUTRAL_MEASUREMENTS), seed=SEED)
     dt = 2e-4 if quick else 1e-4
-    return simulate_neutral(m, duration=duration, dt=dt, controller=ctrl, control_dt=1e-3)
+    return simulate(m, duration=duration, dt=dt, controller=ctrl, control_dt=1e-3)
 
 
 def run_dhp_surface(quick: bool, noisy: bool = True, depth_of_cut: str = "approximate",

@@ -741,9 +741,9 @@ def validate_directional_scenario(data: dict, source: str):
 def run_directional_scenario(data: dict, source: str, text: str):
     """Validate and run a directional scenario; returns the :class:`~downhole.sim.Result`
     (the TOML text in ``attrs["scenario"]``)."""
+    from downhole.sim import simulate
     from downhole.sim.inputs import sample_signal
     from downhole.sim.result import Result
-    from downhole.string.fem import simulate_directional
 
     sc, params, model = validate_directional_scenario(data, source)
     sim = sc.simulation
@@ -753,18 +753,19 @@ def run_directional_scenario(data: dict, source: str, text: str):
     else:
         td = _top_drive(sc, params)
         hook = _hook(sc)
-        kw = {}
+        inputs = {}
         op = sc.operation
         if isinstance(op.surface_speed, tuple):
-            kw["speed"] = op.surface_speed
+            inputs["surface_torque" if td.mode == "torque"
+                   else "top_drive_angular_velocity"] = op.surface_speed
         if hook.mode == "force" and op.hook_load is not None:
-            kw["hook_load"] = op.hook_load
+            inputs["hook_load"] = op.hook_load
         if hook.mode == "velocity" and isinstance(op.rop, tuple):
-            kw["hook_velocity"] = op.rop
+            inputs["top_drive_axial_velocity"] = op.rop
         try:
-            res = simulate_directional(model, sim.duration, sim.dt, top_drive=td, hook=hook,
-                                       depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,
-                                       scenario=text, attrs=attrs, start=sim.start, **kw)
+            res = simulate(model, inputs, duration=sim.duration, dt=sim.dt, top_drive=td,
+                           hook=hook, depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,
+                           attrs=attrs, start=sim.start)
         except ScenarioError:
             raise
         except DownholeInputError as exc:

@@ -327,7 +327,7 @@ def validate_neutral_scenario(data: dict, source: str):
 def run_neutral_scenario(data: dict, source: str, text: str):
     """Run a neutral-model scenario (``[model] fidelity = "neutral"`` of a preset); returns a
     :class:`~downhole.sim.Result` with the scenario text in ``attrs["scenario"]``."""
-    from downhole.string.neutral import simulate_neutral
+    from downhole.sim import simulate
 
     sc, model = validate_neutral_scenario(data, source)
     sim = sc.simulation
@@ -339,7 +339,7 @@ def run_neutral_scenario(data: dict, source: str, text: str):
     noise["angular"] = noise.pop("angular_velocity")
     attrs = {"scenario": text, "scenario_source": source, "title": sc.title}
     try:
-        return simulate_neutral(model, duration=sim.duration, dt=sim.dt, controller=ctrl,
+        return simulate(model, duration=sim.duration, dt=sim.dt, controller=ctrl,
                                 inputs=(surface.axial_command, surface.surface_speed),
                                 reference=reference, noise=noise,
                                 depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,

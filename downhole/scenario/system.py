@@ -63,7 +63,6 @@ the lumped and neutral models, a ``rop`` into the steady WOB as the FEM's initia
 
 from __future__ import annotations
 
-import inspect
 import math
 from types import SimpleNamespace
 from typing import Any, Literal
@@ -441,35 +440,12 @@ def validate_system_scenario(data: dict, source: str, fidelity: str | None = Non
     if fid == "neutral" and dt > min(model.tau1, model.tau2):
         raise ScenarioError(source, "simulation.dt", f"dt = {dt:g} s exceeds the neutral "
                             f"model's wave delay {min(model.tau1, model.tau2):.4g} s")
-    if sim.start != "rest":
-        _start_supported(fid, sim.start, source)
     try:
         steady_bit_state(system.bit, sc.operation.surface_speed, sc.operation.rop,
                          sc.operation.wob)
     except DownholeInputError as exc:
         raise ScenarioError(source, "operation.wob", str(exc)) from None
     return sc, fid, system, model
-
-
-def _simulate_function(fid: str):
-    if fid in ("lumped4", "lumped12"):
-        from downhole.sim import simulate
-
-        return simulate
-    if fid == "neutral":
-        from downhole.string.neutral import simulate_neutral
-
-        return simulate_neutral
-    from downhole.string.fem import simulate_directional
-
-    return simulate_directional
-
-
-def _start_supported(fid: str, start: str, source: str) -> None:
-    if "start" not in inspect.signature(_simulate_function(fid)).parameters:
-        raise ScenarioError(source, "simulation.start", f"start = {start!r} is not supported "
-                            f"at fidelity {fid!r} yet; use start = 'rest' or fidelity "
-                            "'lumped4' / 'lumped12'")
 
 
 def run_system_scenario(data: dict, source: str, text: str, fidelity: str | None = None):
@@ -482,20 +458,18 @@ def run_system_scenario(data: dict, source: str, text: str, fidelity: str | None
     dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]
     attrs = {"scenario": text, "scenario_source": source, "title": sc.title, "fidelity": fid}
     rop, wob, tob = steady_bit_state(system.bit, op.surface_speed, op.rop, op.wob)
-    func = _simulate_function(fid)
-    kw = {"start": sim.start} if "start" in inspect.signature(func).parameters else {}
+    from downhole.sim import simulate
+
+    kw = dict(duration=sim.duration, dt=dt, depth_of_cut=sim.depth_of_cut,
+              record_dt=sim.record_dt, attrs=attrs, start=sim.start)
     try:
         if fid in ("lumped4", "lumped12"):
             from downhole.sim import SurfaceInputs
 
-            return func(model, SurfaceInputs.velocity(rop, op.surface_speed),
-                        duration=sim.duration, dt=dt, depth_of_cut=sim.depth_of_cut,
-                        integrator=sim.integrator, record_dt=sim.record_dt, attrs=attrs, **kw)
+            return simulate(model, SurfaceInputs.velocity(rop, op.surface_speed),
+                            integrator=sim.integrator, **kw)
         if fid == "neutral":
-            u = model.steady_inputs(rop, op.surface_speed, wob, tob)
-            return func(model, duration=sim.duration, dt=dt, inputs=u,
-                        depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt, attrs=attrs,
-                        **kw)
+            return simulate(model, model.steady_inputs(rop, op.surface_speed, wob, tob), **kw)
         td = sc.rig.top_drive
         top = TopDrive(inertia=td.inertia, mode="pi", speed=op.surface_speed, kp=td.kp,
                        ki=td.ki)
@@ -506,9 +480,7 @@ def run_system_scenario(data: dict, source: str, text: str, fidelity: str | None
         else:
             hook = Hook(mode="force", wob=op.wob, block_mass=hk.block_mass,
                         servo_stiffness=hk.servo_stiffness, servo_damping=hk.servo_damping)
-        return func(model, sim.duration, dt, top_drive=top, hook=hook,
-                    depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt, scenario=text,
-                    attrs=attrs, **kw)
+        return simulate(model, top_drive=top, hook=hook, **kw)
     except ScenarioError:
         raise
     except DownholeInputError as exc:

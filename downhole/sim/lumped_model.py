@@ -126,12 +126,39 @@ class ChainModel:
             out[name] = np.sqrt(np.sort(np.linalg.eigvalsh(m @ k @ m)))
         return out
 
+    #: Default step of :func:`downhole.sim.simulate`, s (the seed's).
+    default_dt = 5e-4
+
     def kernel_pack(self, dt: float, mode: str = "velocity", depth_of_cut: str = "delayed",
                     integrator: str = "euler") -> ChainPack:
         """The kernel arrays of this chain for one step ``dt`` (s), top ``mode`` (``velocity``:
         driven towards a given top position and velocity; ``force``: hook load and surface
         torque applied), depth of cut and integrator (``euler`` or ``newmark``)."""
         return ChainPack(self, dt, mode, depth_of_cut, integrator)
+
+    def run_pack(self, dt: float, depth_of_cut: str, inputs, bit_noise: bool,
+                 options: dict) -> ChainPack:
+        """The pack :func:`downhole.sim.simulate` runs (see its module docstring): the top
+        mode from ``inputs`` (a :class:`~downhole.sim.inputs.SurfaceInputs`); ``options``
+        ``integrator``, ``rock_points_per_pitch``, ``rock_memory``."""
+        opts = dict(options)
+        integrator = opts.pop("integrator", "euler")
+        spec = RockSurfaceSpec(self.bit.n_blades, int(opts.pop("rock_points_per_pitch", 512)),
+                               bool(opts.pop("rock_memory", True)))
+        if opts:
+            raise DownholeInputError(f"a lumped model takes the options integrator, "
+                                     f"rock_points_per_pitch, rock_memory; got {sorted(opts)}")
+        if bit_noise:
+            raise DownholeInputError("noise.wob / noise.tob (bit-force noise) is a neutral-model "
+                                     "input; the lumped top is a given reference")
+        mode = getattr(inputs, "mode", "velocity")
+        if inputs is not None and not hasattr(inputs, "sample"):
+            raise DownholeInputError(f"a lumped model's inputs are SurfaceInputs.velocity(...) "
+                                     f"or SurfaceInputs.force(...), got {inputs!r}")
+        pk = ChainPack(self, dt, "force" if mode == "force" else "velocity", depth_of_cut,
+                       integrator)
+        pk.spec = spec
+        return pk
 
 
 def lumped_model(string: str | LumpedParams = "table_2_1", bit: BitParams | None = None,
@@ -225,6 +252,9 @@ class ChainPack:
     """
 
     observation_names = CHAIN_CHANNELS
+    kind = "lumped"
+    n_cmd = 2
+    spec: RockSurfaceSpec | None = None
 
     def __init__(self, model: ChainModel, dt: float, mode: str, depth_of_cut: str,
                  integrator: str):
@@ -366,6 +396,48 @@ class ChainPack:
             ref = st["step_ref"] = np.zeros((2, 4))
         return self.run(st, self.step_reference(st, command, ref), rec, 1, 0)
 
+    # ---- the run protocol of downhole.sim.simulate
+    def rows(self, inputs, t) -> np.ndarray:
+        """The top reference at the step boundaries ``t``: position, angle, velocity, angular
+        velocity (force mode: hook load, surface torque in columns 0 and 1)."""
+        from downhole.sim.inputs import SurfaceInputs
+
+        inputs = inputs if inputs is not None else SurfaceInputs.velocity()
+        pos, vel = inputs.sample(t)
+        out = np.empty((len(t), 4))
+        out[:, 0], out[:, 1], out[:, 2], out[:, 3] = pos[0], pos[1], vel[0], vel[1]
+        return out
+
+    def begin(self, start: str, rows, clearance: float):
+        """Kernel state and the record of t = 0 (see :meth:`start`)."""
+        return self.start(start, rows[0], self.spec, clearance, input_mode=self.mode)
+
+    def still_rows(self, t) -> np.ndarray:
+        """Rows holding :meth:`default_command` (a closed loop's start)."""
+        out = np.zeros((len(t), 4))
+        c = self.default_command()
+        names = self.command_names
+        cols = (0, 1) if self.mode == "force" else (2, 3)
+        out[:, cols[0]], out[:, cols[1]] = c[names[0]], c[names[1]]
+        return out
+
+    def first_command(self, rows) -> np.ndarray:
+        """The command held before a controller's first output."""
+        return np.array(rows[0, 0:2] if self.mode == "force" else rows[0, 2:4], float)
+
+    def command(self, out, held, who: str) -> None:
+        """A controller's output into ``held`` (by :attr:`command_names`)."""
+        _named_command(self.command_names, out, held, who)
+
+    def command_channels(self, hist) -> dict:
+        """Closed-loop channels of the held commands (none: the record has the top's)."""
+        return {}
+
+    def channels(self, rec, rows, idx):
+        """The Result's channels, units and attributes."""
+        ch = {name: rec[:, i] for i, name in enumerate(CHAIN_CHANNELS[1:])}
+        return ch, {}, {"integrator": self.integrator, "input_mode": self.mode}
+
     def run(self, st, top_ref, rec, rec_every, rec_start=0):
         """Advance ``len(top_ref) - 1`` steps from ``st`` (updated in place); ``(status,
         rows written)``."""
@@ -378,6 +450,20 @@ class ChainPack:
                           wa[0], wa[1], wa[2], wa[0], wa[1], wa[2], st["lag"], self._cmd,
                           top_ref, top_ref.shape[0] - 1, self.dt, rec, rec_every, rec_start,
                           work)
+
+
+def _named_command(names, out, held, who: str) -> None:
+    """Write the commands ``names`` found in the controller output ``out`` into ``held``."""
+    if not isinstance(out, dict):
+        raise DownholeInputError(f"{who}.command must return a dict of {names}, got {out!r}")
+    hit = False
+    for i, name in enumerate(names):
+        if name in out:
+            held[i] = float(out[name])
+            hit = True
+    if not hit and out:
+        raise DownholeInputError(f"{who}.command returned {sorted(out)}; this plant takes "
+                                 f"{names}")
 
 
 def _start_state(model: ChainModel, start: str, mode: str, v0: float, w0: float,

@@ -2,7 +2,7 @@
 and multi-ramp (Eqs. 3.34-3.35) and user-defined signals.
 
 They live in the mechanics core because the plant runners sample them (e.g.
-:func:`downhole.string.neutral.simulate_neutral` hands the sampled reference to any controller);
+:func:`downhole.sim.simulate` hands the sampled reference to any controller);
 :mod:`downhole.control.eid.references` re-exports them for the EID controller."""
 
 from __future__ import annotations

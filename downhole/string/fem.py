@@ -6,7 +6,7 @@ depth (axial displacement, twist angle). There is no cos-angle "rotation" (seed 
 docs/seed-errata.md): curvature enters only through gravity (rho A g cos(inclination), lumped
 exactly as w * delta-TVD per element) and soft-string wellbore contact. Damping is Rayleigh (alpha0
 M + beta0 K) or modal. The model is an immutable :class:`DirectionalModel`;
-:func:`simulate_directional` runs it (the one compiled kernel, :mod:`downhole.sim.kernel`, implicit
+:func:`downhole.sim.simulate` runs it (the one compiled kernel, :mod:`downhole.sim.kernel`, implicit
 Newmark) from the static equilibrium and :class:`DirectionalPlant` steps it one dt at a time
 (a lumped :class:`~downhole.sim.lumped_model.ChainModel` too).
 ``DirectionalModel.linear_model`` exports the discrete linear model (A_d, B_d); the non-dimensional
@@ -39,7 +39,6 @@ from downhole.sim.kernel import (
 )
 from downhole.sim.lumped_model import ChainModel
 from downhole.sim.plant import Plant
-from downhole.sim.result import Result
 from downhole.sim.wave import WaveParams
 from downhole.string.drillstring import DrillString
 from downhole.string.neutral import NeutralModel
@@ -53,7 +52,6 @@ __all__ = [
     "DirectionalPlant",
     "fem_from_nodes",
     "fem_model",
-    "simulate_directional",
     "table_5_1_setup",
 ]
 
@@ -116,6 +114,25 @@ class DirectionalModel:
     node_c: int
     wave: dict | None = None
     info: dict = field(default_factory=dict)
+
+    #: Default step of :func:`downhole.sim.simulate`, s (the real-time testbed's).
+    default_dt = 1e-3
+
+    def run_pack(self, dt: float, depth_of_cut: str, inputs, bit_noise: bool,
+                 options: dict) -> _Packed:
+        """The pack :func:`downhole.sim.simulate` runs; ``options``: ``top_drive`` (default
+        :class:`~downhole.params.rig.TopDrive`) and ``hook`` (default
+        :class:`~downhole.params.rig.Hook`)."""
+        opts = dict(options)
+        top_drive = opts.pop("top_drive", None) or TopDrive()
+        hook = opts.pop("hook", None) or Hook()
+        if opts:
+            raise DownholeInputError(f"a {self.kind} model takes the options top_drive and "
+                                     f"hook (commands go into inputs); got {sorted(opts)}")
+        if bit_noise:
+            raise DownholeInputError("noise.wob / noise.tob (bit-force noise) is a neutral-model "
+                                     "input")
+        return _packed(self, dt, top_drive, hook, depth_of_cut)
 
     @property
     def n_nodes(self) -> int:
@@ -1009,7 +1026,12 @@ class _Packed:
         return dict(state=state, run=run, surf=surf, istate=istate, rp=rp, wa=wa, wt=wt,
                     lag=lag)
 
-    def run(self, st, cmd, rec, rec_every, rec_start=0):
+    def run(self, st, rows, rec, rec_every, rec_start=0):
+        """Advance ``len(rows) - 1`` steps, step k holding ``rows[k + 1]``; ``(status, rows
+        written)``."""
+        return self._kernel(st, np.ascontiguousarray(rows[1:, :2]), rec, rec_every, rec_start)
+
+    def _kernel(self, st, cmd, rec, rec_every, rec_start):
         wa, wt = st["wa"], st["wt"]
         work = st.get("work")
         if work is None:
@@ -1022,8 +1044,71 @@ class _Packed:
     def step(self, st, command, rec):
         """One step holding ``command``; ``(status, rows)``."""
         cmd = st.setdefault("cmd", np.zeros((1, 2)))
-        cmd[0] = command
-        return self.run(st, cmd, rec, 1, 0)
+        cmd[0] = command[:2]
+        return self._kernel(st, cmd, rec, 1, 0)
+
+    # ---- the run protocol of downhole.sim.simulate
+    kind = "directional"
+    n_cmd = 2
+
+    def rows(self, inputs, t) -> np.ndarray:
+        """The commands at the step boundaries ``t`` from ``inputs``, a mapping of command name
+        (:attr:`command_names`) to signal; missing ones are the hook's and top drive's own."""
+        names = self.command_names
+        inputs = {} if inputs is None else inputs
+        if not isinstance(inputs, dict):
+            raise DownholeInputError(f"a {self.model.kind} model's inputs are a mapping of "
+                                     f"{names} to signals, got {type(inputs).__name__}")
+        extra = set(inputs) - set(names)
+        if extra:
+            raise DownholeInputError(f"inputs: {sorted(extra)} is not a command of this "
+                                     f"{self.model.kind} model with a {self.hook.mode} hook and "
+                                     f"a {self.top_drive.mode} top drive; it takes {names}")
+        out = np.empty((len(t), 2))
+        dflt = self.default_command()
+        out[:, 0] = (_signal(inputs[names[0]], t, names[0]) if names[0] in inputs
+                     else dflt[names[0]])
+        out[:, 1] = (_signal(inputs[names[1]], t, names[1]) if names[1] in inputs
+                     else self.top_drive.command(t))
+        return out
+
+    def still_rows(self, t) -> np.ndarray:
+        """Rows holding :meth:`default_command` (a closed loop's start)."""
+        c = self.default_command()
+        out = np.empty((len(t), 2))
+        out[:, 0], out[:, 1] = c[self.command_names[0]], c[self.command_names[1]]
+        return out
+
+    def begin(self, start: str, rows, clearance: float):
+        """Kernel state and the record of t = 0 under the commands of the first step."""
+        r = rows[1] if len(rows) > 1 else rows[0]
+        return _directional_start(self, start, float(r[0]), float(r[1]), clearance)
+
+    def first_command(self, rows) -> np.ndarray:
+        """The command held before a controller's first output."""
+        return np.array(rows[0, :2], float)
+
+    def command(self, out, held, who: str) -> None:
+        """A controller's output into ``held`` (by :attr:`command_names`)."""
+        from downhole.sim.lumped_model import _named_command
+
+        _named_command(self.command_names, out, held, who)
+
+    def command_channels(self, hist) -> dict:
+        """Closed-loop channels of the held commands (none: the record has the top's)."""
+        return {}
+
+    def channels(self, rec, rows, idx):
+        """The Result's channels, units and attributes."""
+        m = self.model
+        ch = {name: rec[:, i].copy() for i, name in enumerate(CHANNELS)}
+        if rows is not None:
+            ch["reference_angular_velocity"][0] = rows[0, 1]
+        if self.top_drive.mode == "torque":
+            del ch["reference_angular_velocity"]
+        return ch, dict(EXTRA_UNITS), {
+            "model_kind": m.kind, "n_states": m.n_states, "top_drive_mode": self.top_drive.mode,
+            "hook_mode": self.hook.mode, "node_md": m.node_md.tolist()}
 
 
 _PACKS: weakref.WeakKeyDictionary[DirectionalModel, dict] = weakref.WeakKeyDictionary()
@@ -1045,134 +1130,6 @@ def _packed(model: DirectionalModel, dt: float, top_drive: TopDrive, hook: Hook,
             per_model.clear()
         pk = per_model[key] = _Packed(model, dt, top_drive, hook, depth_of_cut)
     return pk
-
-
-def _check_duration(duration, dt, record_dt):
-    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
-        raise DownholeInputError(f"duration must be a positive number of seconds, got {duration!r}")
-    if record_dt is not None and not (record_dt >= dt):
-        raise DownholeInputError(f"record_dt must be >= dt = {dt}, got {record_dt!r}")
-
-
-def simulate_directional(model: DirectionalModel, duration: float = 20.0, dt: float = 1e-3, *,
-                         top_drive: TopDrive | None = None, hook: Hook | None = None,
-                         depth_of_cut: str = "delayed", record_dt: float | None = 0.01,
-                         hook_load=None, hook_velocity=None, speed=None, scenario: str = "",
-                         record_nodes: bool = False, attrs: dict | None = None,
-                         start: str = "rest", clearance: float = 0.05) -> Result:
-    """Run a directional FEM or hybrid model from its static equilibrium (or a moving start).
-
-    Parameters
-    ----------
-    model : DirectionalModel
-    duration, dt : float
-        Simulated time and step, s (numbers, quantity strings such as ``"0.5 ms"`` or pint
-        quantities; also ``record_dt`` and ``clearance``).
-    top_drive : TopDrive, optional
-        Default: PI at 10 rad/s, J_td = DEFAULT_TOP_DRIVE_INERTIA (500 kg m^2), Kp = 1e4, Ki = 2e3.
-    hook : Hook, optional
-        Default: constant hook load = buoyed weight - 120 kN.
-    depth_of_cut : {"delayed", "approximate"}
-    record_dt : float or None
-        Recording interval (None: every step).
-    hook_load : number, (times, values) or callable, optional
-        Hook load (N) over time overriding the constant hook load (force-mode hook); a
-        callable gets the step times (an array; a scalar-only callable is called per time).
-    hook_velocity : number, (times, values) or callable, optional
-        Block velocity (m/s) over time overriding ``hook.velocity`` (velocity-mode hook).
-    speed : number, (times, values) or callable, optional
-        Top-drive set-point (rad/s; N m in torque mode) over time overriding
-        ``top_drive.command``.
-    record_nodes : bool
-        Also record ``node_axial_velocity`` and ``node_angular_velocity`` (time x node) at
-        the recording interval (node depths in the attr ``node_md``).
-    start : {"rest", "off_bottom", "steady"}
-        Initial state under the commands of the first step: ``rest`` (static equilibrium, bit
-        carrying ``hook.wob``); ``off_bottom`` (every node moving at the block velocity and the
-        speed set-point, the bit ``clearance`` m above a flat bottom; needs a velocity hook and
-        a speed-controlled top drive); ``steady`` (the steady drilling state: string wound up
-        by TOB, wall friction and damping, compressed by WOB, PI integrator and hook servo
-        holding the steady top forces, wave segments carrying the steady waves, a helical
-        bottom of depth of cut 2 pi v / omega). With a force-driven hook the steady ROP is the
-        root of WOB(2 pi v / omega, v, omega) = buoyed weight - hook load - axial drag.
-    clearance : float
-        Bit height above the hole bottom for ``start="off_bottom"``, m.
-
-    Returns
-    -------
-    Result
-        Standard channels plus ``force_b``, ``torque_b``, ``force_c``, ``torque_c`` (string
-        tension and torque at B and C), ``top_drive_angle``; attrs ``bit_radius``, ``model``,
-        ``n_states``, ``dt``.
-
-    Raises
-    ------
-    DownholeInputError, SimulationDiverged
-    """
-    top_drive = top_drive or TopDrive()
-    hook = hook or Hook()
-    duration = si_or_number(duration, "time", "duration")
-    dt = si_or_number(dt, "time", "dt")
-    record_dt = si_or_number(record_dt, "time", "record_dt")
-    clearance = si_or_number(clearance, "length", "clearance")
-    _check_duration(duration, dt, record_dt)
-    pk = _packed(model, dt, top_drive, hook, depth_of_cut)
-    n_steps = int(round(duration / dt))
-    every = 1 if record_dt is None else max(1, int(round(record_dt / dt)))
-    t = (np.arange(n_steps) + 1) * dt
-    cmd = np.empty((n_steps, 2))
-    if hook.mode == "force":
-        if hook_velocity is not None:
-            raise DownholeInputError("hook_velocity needs a velocity-mode hook "
-                                     "(Hook(mode='velocity'))")
-        cmd[:, 0] = pk.hook_load0 if hook_load is None else _signal(hook_load, t, "hook_load")
-    else:
-        if hook_load is not None:
-            raise DownholeInputError("hook_load needs a force-mode hook (Hook(mode='force'))")
-        cmd[:, 0] = hook.velocity if hook_velocity is None else _signal(hook_velocity, t,
-                                                                          "hook_velocity")
-    cmd[:, 1] = top_drive.command(t) if speed is None else _signal(speed, t, "speed")
-    if n_steps < 1:
-        raise DownholeInputError(f"duration = {duration} s is shorter than one step dt = {dt} s")
-    st, rec0 = _directional_start(pk, start, float(cmd[0, 0]), float(cmd[0, 1]), clearance)
-    n_rec = n_steps // every
-    rec = np.zeros((n_rec + 1, len(CHANNELS)))
-    rec[0] = rec0
-    if record_nodes:
-        nodes_a = np.zeros((n_rec + 1, model.n_nodes))
-        nodes_t = np.zeros((n_rec + 1, model.n_nodes))
-        rows = 0
-        status = 0
-        for j in range(n_rec):
-            status, r_ = pk.run(st, cmd[j * every:(j + 1) * every], rec, every, j + 1)
-            if status != 0:
-                break
-            rows += r_
-            nodes_a[j + 1] = st["state"][1]
-            nodes_t[j + 1] = st["state"][4]
-    else:
-        status, rows = pk.run(st, cmd, rec, every, 1)
-    if status != 0:
-        raise SimulationDiverged(float(st["run"]["time"][0]), "bit_angular_velocity")
-    time = np.concatenate([[0.0], (np.arange(1, rows + 1)) * every * dt])
-    channels = {name: rec[:rows + 1, i] for i, name in enumerate(CHANNELS)}
-    sp0 = (top_drive.command(np.array([0.0]))[0] if speed is None
-           else _signal(speed, np.array([0.0]), "speed")[0]) if start == "rest" else cmd[0, 1]
-    channels["reference_angular_velocity"] = np.concatenate(
-        [[sp0], channels["reference_angular_velocity"][1:]])
-    if top_drive.mode == "torque":
-        del channels["reference_angular_velocity"]
-    units = dict(EXTRA_UNITS)
-    if record_nodes:
-        channels["node_axial_velocity"] = nodes_a[:rows + 1]
-        channels["node_angular_velocity"] = nodes_t[:rows + 1]
-        units.update(node_axial_velocity="m/s", node_angular_velocity="rad/s")
-    return Result(time, channels, units=units,
-                  attrs={"bit_radius": model.bit.radius, "model": model.name,
-                         "model_kind": model.kind, "n_states": model.n_states, "dt": dt,
-                         "depth_of_cut": depth_of_cut, "top_drive_mode": top_drive.mode,
-                         "hook_mode": hook.mode, "scenario": scenario, "start": start,
-                         "node_md": model.node_md.tolist(), **(attrs or {})})
 
 
 def _signal(sig, t, name):
@@ -1220,7 +1177,7 @@ def _initial_record_compute(pk: _Packed, st) -> np.ndarray:
 
 class DirectionalPlant(Plant):
     """Step-by-step plant over the one kernel (the :class:`~downhole.sim.plant.Plant`
-    contract): a directional FEM or hybrid model, or a lumped chain model.
+    contract): a directional FEM or hybrid model, a lumped chain model or the neutral model.
 
     Directional models. Commands (named, all held over the step): ``hook_load`` (N; or
     ``top_drive_axial_velocity`` m/s with a velocity hook) and ``top_drive_angular_velocity``
@@ -1230,7 +1187,7 @@ class DirectionalPlant(Plant):
     ``top_drive_*_velocity``, ...), forces at B and C, ``time`` and, for hardware-in-the-loop,
     ``last_node_axial_velocity`` and ``last_node_angular_velocity`` (the string's last node,
     where a rig replaces the bit). ``reset(start=...)``: ``"rest"`` (static equilibrium, bit
-    carrying ``hook.wob``), ``"off_bottom"`` or ``"steady"`` (see :func:`simulate_directional`).
+    carrying ``hook.wob``), ``"off_bottom"`` or ``"steady"`` (see :func:`downhole.sim.simulate`).
 
     Lumped models (:class:`~downhole.sim.lumped_model.ChainModel`). Commands:
     ``top_drive_axial_velocity`` (m/s) and ``top_drive_angular_velocity`` (rad/s) for a
@@ -1238,14 +1195,19 @@ class DirectionalPlant(Plant):
     (N m) when ``mode="force"``. Observations: the standard Result channel names and ``time``.
     ``integrator``: ``"euler"`` (the seed's Chapter 2 scheme) or ``"newmark"``.
 
+    The neutral model (:class:`~downhole.string.neutral.NeutralModel`). Commands:
+    ``top_drive_axial_velocity`` relative to the hanging equilibrium (U_A - M_S g / alpha_A,
+    m/s) and ``top_drive_angular_velocity`` (U_T, rad/s), the dampers' commanded velocities;
+    observations as for a lumped model.
+
     Parameters
     ----------
-    model : DirectionalModel or ChainModel
+    model : DirectionalModel, ChainModel or NeutralModel
     dt : float
-        Step, s (default 1e-3 for a directional model, the real-time testbed's; 5e-4 for a
-        lumped one, the seed's).
+        Step, s (default the model's ``default_dt``: 1e-3 for a directional model, the
+        real-time testbed's; 5e-4 for a lumped one, the seed's; 1e-4 for the neutral one).
     top_drive, hook : optional
-        As in :func:`simulate_directional` (directional models).
+        The rig (directional models; see :meth:`DirectionalModel.run_pack`).
     depth_of_cut : {"delayed", "approximate"}
     mode : {"velocity", "force"}
         Lumped models: how the top is driven.

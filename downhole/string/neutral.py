@@ -7,8 +7,8 @@ tau = L sqrt(rho/E), L sqrt(rho/G) (Eq. 3.10 prints them inverted); :meth:`Neutr
 returns its matrices (Eq. 3.13) for control design. The wave form runs on the one mechanics
 kernel (:func:`downhole.sim.kernel.run_kernel`) as a two-node configuration (:class:`NeutralPack`:
 the massless top node with its dampers to the commands, the wave joint, the bit node);
-:func:`simulate_neutral` runs it open loop, or closed loop through a controller's compiled runner
-(which steps the same kernel) or any controller in a Python loop, and returns a Result;
+:func:`downhole.sim.simulate` runs it open loop, or closed loop through a controller's compiled
+runner (which steps the same kernel) or any controller in a Python loop, and returns a Result;
 :class:`downhole.string.fem.DirectionalPlant` steps it.
 
 Conventions. Velocities positive downward / forward. The top boundary is the seed's
@@ -29,12 +29,10 @@ import numpy as np
 
 from downhole.bit.law import approx_depth_of_cut, bit_forces
 from downhole.bit.rock_surface import RockSurfaceSpec, rock_depth, rock_init, rock_init_helix
-from downhole.errors import DownholeInputError, SimulationDiverged
+from downhole.errors import DownholeInputError
 from downhole.params import BitParams, NeutralStringParams, get_preset
 from downhole.sim.kernel import CHANNELS, KernelParams, new_kernel_work, new_run_state, run_kernel
 from downhole.sim.plant import check_start, steady_depth_of_cut
-from downhole.sim.references import as_reference
-from downhole.sim.result import Result
 from downhole.sim.wave import (
     WaveSegment,
     segments_from_pipe,
@@ -42,7 +40,6 @@ from downhole.sim.wave import (
     wave_push,
     wave_state,
 )
-from downhole.units import si_or_number
 
 __all__ = [
     "NOMINAL_U_A",
@@ -51,7 +48,6 @@ __all__ = [
     "NeutralModel",
     "NeutralPack",
     "neutral_model",
-    "simulate_neutral",
 ]
 
 #: docs/seed-errata.md: open-loop commands giving 10 mm/s and 20 rad/s with Table 3.1.
@@ -239,6 +235,19 @@ class NeutralModel:
             Bd=d([1.0 / self.params.bit_mass, 1.0 / self.params.bit_inertia]), C=np.eye(2),
             h1=2 * self.tau1, h2=2 * self.tau2, tau=(self.tau1, self.tau2),
             u_offset=(self.hang_command, 0.0))
+
+    #: Default step of :func:`downhole.sim.simulate`, s.
+    default_dt = 1e-4
+
+    def run_pack(self, dt: float, depth_of_cut: str, inputs, bit_noise: bool,
+                 options: dict) -> NeutralPack:
+        """The pack :func:`downhole.sim.simulate` runs; ``options``: ``rock_points_per_pitch``."""
+        opts = dict(options)
+        rpp = int(opts.pop("rock_points_per_pitch", 512))
+        if opts:
+            raise DownholeInputError(f"the neutral model takes the option "
+                                     f"rock_points_per_pitch; got {sorted(opts)}")
+        return NeutralPack(self, dt, depth_of_cut, rpp, bit_noise)
 
     def kernel_pack(self, dt: float, depth_of_cut: str = "delayed",
                     rock_points_per_pitch: int = 512, bit_noise: bool = False) -> NeutralPack:
@@ -521,196 +530,63 @@ class NeutralPack:
                 st["state"], st["run"], st["surf"], st["istate"], st["rp"],
                 wa[0], wa[1], wa[2], wt[0], wt[1], wt[2], st["lag"])
 
-    def run(self, st, cmd, rec, rec_every, rec_start=0):
-        """Advance ``len(cmd)`` steps under the commands ``cmd`` (relative axial, angular
-        [, WOB and TOB disturbances]); ``(status, rows written)``."""
+    def _kernel(self, st, cmd, rec, rec_every, rec_start):
         return run_kernel(*self.kernel_args(st), cmd, self._no_ref, cmd.shape[0], self.dt,
                           rec, rec_every, rec_start, st["work"])
+
+    def run(self, st, rows, rec, rec_every, rec_start=0):
+        """Advance ``len(rows) - 1`` steps, step k holding ``rows[k + 1]`` (relative axial,
+        angular [, WOB and TOB disturbances]); ``(status, rows written)``."""
+        return self._kernel(st, np.ascontiguousarray(rows[1:]), rec, rec_every, rec_start)
 
     def step(self, st, command, rec):
         """One step holding ``command``; ``(status, rows)``."""
         cmd = st["cmd"]
-        cmd[0, 0], cmd[0, 1] = command[0], command[1]
-        return self.run(st, cmd, rec, 1, 0)
+        cmd[0, :] = command[:cmd.shape[1]]
+        return self._kernel(st, cmd, rec, 1, 0)
 
+    # ---- the run protocol of downhole.sim.simulate
+    kind = "neutral"
 
-def simulate_neutral(model: NeutralModel | NeutralStringParams | str = "table_3_1",
-                     bit: BitParams | None = None, *, duration: float = 10.0, dt: float = 1e-4,
-                     controller=None, inputs=None, reference=None, noise=None,
-                     depth_of_cut: str = "delayed", record_dt: float | None = None,
-                     seed: int = 0, rock_points_per_pitch: int = 512,
-                     control_dt: float | None = None, python_loop: bool = False,
-                     attrs: dict | None = None, start: str = "rest",
-                     clearance: float = 0.05) -> Result:
-    """Simulate the neutral-type (wave) model on the one kernel, open loop or closed loop.
-
-    Parameters
-    ----------
-    model : NeutralModel, NeutralStringParams or str
-        The string (a preset name such as ``"table_3_1"`` works).
-    bit : BitParams, optional
-        Overrides the model's bit (e.g. a perturbed epsilon for a sensitivity study).
-    duration, dt : float
-        Simulated time and step, s (dt <= tau1; default 1e-4).
-    controller : object, optional
-        Closed loop: any object with ``reset()`` and ``command(t, observation, reference) ->
-        {"top_drive_axial_velocity": ..., "top_drive_angular_velocity": ...}`` (or the seed's
-        ``command_axial`` U_A and ``command_angular`` U_T) runs in a Python loop over the
-        plant (observation: the named channels, bit velocities with the measurement noise;
-        reference: the reference velocities). Compiled fast path (duck-typed): if the
-        controller has ``neutral_runner(dt)`` returning a callable ``runner(pack, st, ref,
-        mnoise, cmd_noise, nsteps, every, rec)``, the loop runs there: ``pack`` is the
-        :class:`NeutralPack`, ``st`` its state at rest, ``ref`` and ``mnoise`` (2, nsteps + 1)
-        the sampled reference and measurement noise, ``cmd_noise`` the bit-force noise
-        (nsteps, 2), ``rec`` the record (rows every ``every`` steps and the last, row 0 filled,
-        columns :data:`~downhole.sim.kernel.CHANNELS`); it steps the kernel through
-        ``pack.kernel_args(st)`` and returns ``(status, step, extra)`` (``extra`` a dict of
-        further channels per record row, with ``command_axial`` and ``command_angular``).
-        :meth:`EIDController.neutral_runner
-        <downhole.control.eid.controller.EIDController.neutral_runner>` is one. Returning
-        ``None`` falls back to the Python loop. The attribute ``label`` (default the class name)
-        names the controller in the result's attributes.
-    inputs : SurfaceInputs or tuple, optional
-        Open-loop commands (U_A, U_T) in the seed's convention (U_A includes M_S g/alpha_A):
-        ``SurfaceInputs.velocity(axial=U_A, angular=U_T)`` or a pair of signals (constant,
-        ``(t, values)`` or ``f(t)``). Default the nominal (1.147224 m/s, 22.5196 rad/s), which
-        gives 10 mm/s and 20 rad/s. Ignored with a controller.
-    reference : Reference or pair of signals, optional
-        Closed-loop reference (bit axial velocity m/s, bit angular velocity rad/s); default the
-        controller's ``reference`` attribute if it has one, else 10 mm/s and 20 rad/s.
-    noise : dict, optional
-        White noise: ``{"axial": sigma_v, "angular": sigma_w}`` measurement noise (standard
-        deviation per controller sample, m/s and rad/s) and optionally ``"wob"``, ``"tob"``
-        (N, N m) as bit-force noise (per plant step).
-    depth_of_cut : {"delayed", "approximate"}
-        Depth of cut from the rock-surface memory (delayed, Eqs. 2.9-2.10) or the
-        approximation d = 2 pi v / omega.
-    record_dt : float, optional
-        Output interval, s; default: every step up to 20 000 samples, then thinned.
-    seed : int
-        Noise seed.
-    rock_points_per_pitch : int
-        Resolution of the rock-surface memory (grid points per blade pitch, default 512).
-    control_dt : float, optional
-        Python-loop controllers only: controller sample time (a multiple of dt; default dt).
-        The command is held between samples.
-    python_loop : bool
-        Ignore a controller's compiled ``neutral_runner`` and step it through the Python loop.
-    attrs : dict, optional
-        Extra metadata merged into the result's attributes.
-    start : {"rest", "off_bottom", "steady"}
-        Initial state (:data:`downhole.sim.plant.START_MODES`), open loop only: hanging at
-        rest; moving at the commands of t = 0 with the bit ``clearance`` m off a flat bottom; or
-        the steady drilling state under the commands of t = 0.
-    clearance : float
-        Bit height above the hole bottom for ``start="off_bottom"``, m.
-
-    Returns
-    -------
-    Result
-        Standard channels plus ``command_axial``/``command_angular`` (U_A, U_T); with a controller
-        also the reference and measured velocities, and for the EID its disturbance estimates and
-        predictions. The attribute ``bit_radius`` is set (for MSE).
-
-    Raises
-    ------
-    DownholeInputError
-        Bad arguments (named). SimulationDiverged: the bit state ran away or went non-finite.
-    """
-    if not isinstance(model, NeutralModel):
-        model = neutral_model(model, bit)
-    elif bit is not None:
-        model = model.with_bit(bit)
-    duration = _check_positive("duration", si_or_number(duration, "time", "duration"))
-    dt = _check_positive("dt", si_or_number(dt, "time", "dt"))
-    record_dt = si_or_number(record_dt, "time", "record_dt")
-    control_dt = si_or_number(control_dt, "time", "control_dt")
-    clearance = si_or_number(clearance, "length", "clearance")
-    nsteps = int(round(duration / dt))
-    if nsteps < 1:
-        raise DownholeInputError(f"duration = {duration} s is shorter than one step dt = {dt} s")
-    if record_dt is None:
-        every = max(1, int(math.ceil((nsteps + 1) / 20000)))
-    else:
-        every = max(1, int(round(_check_positive("record_dt", record_dt) / dt)))
-    t = np.arange(nsteps + 1) * dt
-    rng = np.random.default_rng(seed)
-    noise = dict(noise or {})
-    unknown = set(noise) - {"axial", "angular", "wob", "tob"}
-    if unknown:
-        raise DownholeInputError(f"noise: unknown keys {sorted(unknown)}; expected axial, "
-                                 "angular, wob, tob")
-    sig = {}
-    for key in ("axial", "angular", "wob", "tob"):
-        s = float(noise.get(key, 0.0))
-        if not s >= 0:
-            raise DownholeInputError(f"noise.{key} must be >= 0, got {s}")
-        sig[key] = s
-    mnoise = np.zeros((2, nsteps + 1))
-    for i, key in enumerate(("axial", "angular")):
-        if sig[key] > 0:
-            mnoise[i] = rng.normal(0.0, sig[key], nsteps + 1)
-    bit_noise = sig["wob"] > 0 or sig["tob"] > 0
-    pk = NeutralPack(model, dt, depth_of_cut, rock_points_per_pitch, bit_noise)
-    cmd = np.zeros((nsteps, pk.n_cmd))
-    for i, key in enumerate(("wob", "tob")):
-        if sig[key] > 0:
-            cmd[:, 2 + i] = rng.normal(0.0, sig[key], nsteps)
-    meta = {"model": model.name, "dt": dt, "depth_of_cut": depth_of_cut,
-            "bit_radius": model.bit.radius, "n_blades": model.bit.n_blades,
-            "controller": "open-loop", "tau1": model.tau1, "tau2": model.tau2,
-            "epsilon": model.bit.epsilon}
-    check_start(start)
-    closed = controller is not None
-    if closed and start != "rest":
-        raise DownholeInputError(f"start={start!r} needs an open-loop run: a closed loop "
-                                 "starts from 'rest' (the controller's integrators and "
-                                 "predictor have no equilibrium initialization)")
-    meta["start"] = start
-    nrec = nsteps // every + 1 + (1 if nsteps % every else 0)
-    idx = np.minimum(np.arange(nrec) * every, nsteps)
-    rec = np.empty((nrec, len(CHANNELS)))
-    hang = model.hang_command
-    if closed:
-        if not (hasattr(controller, "command") and hasattr(controller, "reset")):
-            raise DownholeInputError("controller must have reset() and command(t, observation, "
-                                     f"reference); got {type(controller).__name__}")
-        if reference is None:
-            reference = getattr(controller, "reference", None)
-        reference = as_reference(reference)
-        ref = reference.sample(t)
-        meta["reference"] = reference.name
-        meta["controller"] = getattr(controller, "label", type(controller).__name__)
-        hook = getattr(controller, "neutral_runner", None)
-        runner = hook(dt) if (hook is not None and not python_loop) else None
-        st, rec[0] = pk.start("rest", (0.0, 0.0))
-        if runner is not None:
-            status, kfail, extra = runner(pk, st, ref, mnoise, cmd[:, 2:], nsteps, every, rec)
-        else:
-            status, kfail, extra = _python_loop(pk, st, controller, ref, mnoise, cmd, nsteps,
-                                                every, rec, control_dt, meta)
-        if status != 0:
-            raise SimulationDiverged(kfail * dt, "bit_angular_velocity")
-        channels = {name: rec[:, i] for i, name in enumerate(CHANNELS[:11])}
-        channels["reference_axial_velocity"] = ref[0, idx]
-        channels["reference_angular_velocity"] = ref[1, idx]
-        channels.update(extra)
-    else:
+    def rows(self, inputs, t) -> np.ndarray:
+        """The relative commands (U_A - hang, U_T[, 0, 0]) at the step boundaries ``t`` from the
+        seed's (U_A, U_T) ``inputs`` (default the nominal)."""
         u = _open_loop_inputs(inputs, t)
-        cmd[:, 0] = u[0, 1:] - hang  # the command over step k is the input of t_{k+1}
-        cmd[:, 1] = u[1, 1:]
-        st, rec[0] = pk.start(start, (u[0, 0] - hang, u[1, 0]), clearance)
-        n_main = (nsteps // every) * every
-        status, rows = pk.run(st, cmd[:n_main], rec, every, 1)
-        if status == 0 and n_main < nsteps:
-            status, _ = pk.run(st, cmd[n_main:], rec, nsteps - n_main, 1 + rows)
-        if status != 0:
-            raise SimulationDiverged(float(st["run"]["time"][0]), "bit_angular_velocity")
-        channels = {name: rec[:, i] for i, name in enumerate(CHANNELS[:11])}
-        channels["command_axial"] = u[0, idx]
-        channels["command_angular"] = u[1, idx]
-    meta.update(attrs or {})
-    return Result(t[idx], channels, units=_EXTRA_UNITS, attrs=meta)
+        out = np.zeros((len(t), self.n_cmd))
+        out[:, 0] = u[0] - self.model.hang_command
+        out[:, 1] = u[1]
+        return out
+
+    def still_rows(self, t) -> np.ndarray:
+        """Rows holding the string still (a closed loop's start)."""
+        return np.zeros((len(t), self.n_cmd))
+
+    def begin(self, start: str, rows, clearance: float):
+        """Kernel state and the record of t = 0 (see :meth:`start`)."""
+        return self.start(start, rows[0], clearance)
+
+    def first_command(self, rows) -> np.ndarray:
+        """The command held before a controller's first output."""
+        return np.array(rows[0, :2], float)
+
+    def command(self, out, held, who: str) -> None:
+        """A controller's output into ``held``: the plant's names, or the seed's
+        ``command_axial`` (U_A, including M_S g / alpha_A) and ``command_angular``."""
+        held[0], held[1] = _relative_command(out, self.model.hang_command, who)
+
+    def command_channels(self, hist) -> dict:
+        """The held commands as the seed's U_A, U_T."""
+        return {"command_axial": hist[:, 0] + self.model.hang_command,
+                "command_angular": hist[:, 1].copy()}
+
+    def channels(self, rec, rows, idx):
+        """The Result's channels (open loop: with U_A, U_T), units and attributes."""
+        ch = {name: rec[:, i] for i, name in enumerate(CHANNELS[:11])}
+        if rows is not None:
+            ch.update(self.command_channels(rows[idx]))
+        m = self.model
+        return ch, dict(_EXTRA_UNITS), {"tau1": m.tau1, "tau2": m.tau2,
+                                        "epsilon": m.bit.epsilon}
 
 
 def _open_loop_inputs(inputs, t) -> np.ndarray:
@@ -732,64 +608,6 @@ def _open_loop_inputs(inputs, t) -> np.ndarray:
             raise DownholeInputError(f"inputs: expected (U_A, U_T), got {len(sigs)} items")
     return np.vstack([_sample(sigs[0], t, "inputs axial (U_A)"),
                       _sample(sigs[1], t, "inputs angular (U_T)")])
-
-
-def _python_loop(pk: NeutralPack, st, controller, ref, mnoise, cmd, nsteps, every, rec,
-                 control_dt, meta):
-    """Closed loop with a controller stepped from Python: at t_k it sees the record of t_k
-    (bit velocities with the measurement noise) and its command is held over the next
-    ``control_dt``."""
-    dt = pk.dt
-    if control_dt is None:
-        sub = 1
-    else:
-        sub = int(round(_check_positive("control_dt", control_dt) / dt))
-        if sub < 1 or abs(sub * dt - control_dt) > 1e-9 * control_dt:
-            raise DownholeInputError(f"control_dt = {control_dt} s must be a multiple of dt = "
-                                     f"{dt} s")
-    if nsteps % sub:
-        raise DownholeInputError(f"duration must be a multiple of control_dt = {sub * dt} s")
-    meta["control_dt"] = sub * dt
-    if getattr(controller, "dt", None) is not None:
-        controller.dt = sub * dt  # the contract's sample time (downhole.control.base)
-    controller.reset()
-    hang = pk.model.hang_command
-    names = pk.observation_names[1:]
-    nrec = rec.shape[0]
-    extra = {k: np.full(nrec, np.nan) for k in ("command_axial", "command_angular",
-                                                "measured_axial_velocity",
-                                                "measured_angular_velocity")}
-    row = np.zeros((1, len(CHANNELS)))
-    last = rec[0].copy()
-    u = (0.0, 0.0)
-    for k in range(nsteps + 1):
-        if k % sub == 0:
-            obs = dict(zip(names, last[:11].tolist()))
-            obs["time"] = k * dt
-            obs["bit_axial_velocity"] += mnoise[0, k]
-            obs["bit_angular_velocity"] += mnoise[1, k]
-            out = controller.command(k * dt, obs, {
-                "reference_axial_velocity": float(ref[0, k]),
-                "reference_angular_velocity": float(ref[1, k])})
-            u = _relative_command(out, hang, type(controller).__name__)
-        r = k // every if k % every == 0 else (nrec - 1 if k == nsteps else -1)
-        if r >= 0:
-            rec[r] = last
-            extra["command_axial"][r] = u[0] + hang
-            extra["command_angular"][r] = u[1]
-            extra["measured_axial_velocity"][r] = last[1] + mnoise[0, k]
-            extra["measured_angular_velocity"][r] = last[3] + mnoise[1, k]
-        if k == nsteps:
-            break
-        c = st["cmd"]
-        c[0, 0], c[0, 1] = u
-        if c.shape[1] > 2:
-            c[0, 2:] = cmd[k, 2:]
-        status, _ = pk.run(st, c, row, 1, 0)
-        if status != 0:
-            return 1, k, extra
-        last = row[0].copy()
-    return 0, nsteps, extra
 
 
 def _relative_command(out, hang: float, who: str) -> tuple[float, float]:

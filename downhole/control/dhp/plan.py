@@ -203,18 +203,20 @@ def _knot_inputs(p, t, spacing, scale):
 def _run_plan(dmodel, design, p, st: PlanSettings, depth_of_cut="approximate"):
     """Compiled FEM run of the knot inputs; (time, design states (n+1, 4N), inputs)."""
     from downhole.control.topdrive import Hook, TopDrive
-    from downhole.string.fem import simulate_directional
+    from downhole.sim import simulate
 
     dt = design.dt
     n = int(round(st.duration / dt))
     t = np.arange(n + 1) * dt
     u = _knot_inputs(p, t, st.knot_spacing, design.input_scale)
-    # simulate_directional evaluates a schedule at the end of each step; shifted by dt it
+    # simulate holds over step k the commands of its end, t_{k+1}; shifted by dt the schedule
     # applies u(t_k) over step k, as a controller command does
-    res = simulate_directional(
-        dmodel, n * dt, dt, top_drive=TopDrive(mode="torque", inertia=st.top_drive_inertia),
-        hook=Hook(mode="force", wob=0.0), depth_of_cut=depth_of_cut, record_dt=None,
-        hook_load=(t + dt, float(dmodel.buoyed_weight) - u[:, 0]), speed=(t + dt, u[:, 1]),
+    res = simulate(
+        dmodel, {"hook_load": (t + dt, float(dmodel.buoyed_weight) - u[:, 0]),
+                 "surface_torque": (t + dt, u[:, 1])},
+        duration=n * dt, dt=dt,
+        top_drive=TopDrive(mode="torque", inertia=st.top_drive_inertia),
+        hook=Hook(mode="force", wob=0.0), depth_of_cut=depth_of_cut, record_dt=dt,
         record_nodes=True)
     md = np.asarray(dmodel.node_md, float)         # record_nodes: every node of dmodel
     nd = np.asarray(design.node_depths, float)

@@ -1,6 +1,6 @@
 """The EID controller object (seed Fig. 3.3, corrected): design with :func:`design_eid`, run with
-:func:`downhole.string.neutral.simulate_neutral` (compiled, through
-:meth:`EIDController.neutral_runner` and :mod:`downhole.control.eid.neutral_runner`) or step it
+:func:`downhole.sim.simulate` (compiled, through
+:meth:`EIDController.kernel_runner` and :mod:`downhole.control.eid.neutral_runner`) or step it
 from Python with :meth:`EIDController.command`; save/load as ``.npz`` + JSON (no pickle).
 
 Structure (per channel, see :mod:`downhole.control.eid._kernel`): observer driven by the delayed
@@ -83,13 +83,25 @@ class EIDController:
                 u_min=float(self.u_limits[i][0]), u_max=float(self.u_limits[i][1])))
         return cp[0], cp[1]
 
-    def neutral_runner(self, dt: float):
-        """The compiled closed loop on the neutral-type string at step ``dt``: the fast-path hook
-        of :func:`~downhole.string.neutral.simulate_neutral` (see
-        :mod:`downhole.control.eid.neutral_runner`)."""
+    def kernel_runner(self, pack):
+        """The compiled closed loop on the neutral-type string: the fast-path hook of
+        :func:`downhole.sim.simulate` (see :mod:`downhole.control.eid.neutral_runner`);
+        ``None`` (the Python loop) for other models.
+
+        Parameters
+        ----------
+        pack : object
+            The kernel configuration ``simulate`` runs (``pack.kind``, ``pack.dt``).
+
+        Returns
+        -------
+        callable or None
+        """
+        if getattr(pack, "kind", None) != "neutral":
+            return None
         from downhole.control.eid.neutral_runner import make_neutral_runner
 
-        return make_neutral_runner(self.compiled_params(dt))
+        return make_neutral_runner(self.compiled_params(pack.dt))
 
     # --- Python stepping (SIL / generic plants) -----------------------------------------------
     def reset(self) -> None:

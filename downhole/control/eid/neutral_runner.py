@@ -1,6 +1,6 @@
 """The EID controller's compiled closed loop on the neutral-type string: the fast path that
-:func:`downhole.string.neutral.simulate_neutral` asks a controller for through
-``controller.neutral_runner(dt)``.
+:func:`downhole.sim.simulate` asks a controller for through
+``controller.kernel_runner(pack)``.
 
 The loop couples :func:`~downhole.control.eid._kernel.eid_step` with the one mechanics kernel
 (:func:`~downhole.sim.kernel.run_kernel`, configured by
@@ -100,7 +100,7 @@ NO_DAMPER = DamperParams(k_d=0.0, tau_steps=1, h_steps=1, a0=0.0, a1=0.0, g1=0.0
 
 
 def make_neutral_runner(cp, damper=None):
-    """A runner for ``simulate_neutral``'s compiled fast path with EID parameters ``cp`` (from
+    """A runner for ``simulate``'s compiled fast path with EID parameters ``cp`` (from
     :meth:`EIDController.compiled_params <downhole.control.eid.controller.EIDController.
     compiled_params>`) and optionally the predictive damper ``damper = (dp, bpc)``
     (:class:`~downhole.control.eid.predictor.PredictiveEID`); fresh states per call."""

@@ -34,7 +34,7 @@ a negative damping that at 5 rad/s and 17-20 mm/s exceeds the string's).
 
 Linear check: :func:`predictive_closed_loop` is :func:`~downhole.control.eid.stability.
 regenerative_closed_loop` for this loop with an exact prediction (the plant row gains b k_d).
-The controller runs compiled in :func:`~downhole.string.neutral.simulate_neutral` (its
+The controller runs compiled in :func:`~downhole.sim.simulate` (its
 ``neutral_runner``) or from Python; both call :func:`damper_step`.
 """
 
@@ -65,8 +65,8 @@ __all__ = [
 class PredictiveEID:
     """An :class:`~downhole.control.eid.controller.EIDController` plus the predictive bit damper
     on the axial channel (module docstring). Same controller contract (``reset``, ``command``,
-    ``dt``, ``needs``, ``commands``); runs compiled in ``simulate_neutral`` through
-    :meth:`neutral_runner` (the EID loop of :mod:`downhole.control.eid.neutral_runner` with
+    ``dt``, ``needs``, ``commands``); runs compiled in ``simulate`` through
+    :meth:`kernel_runner` (the EID loop of :mod:`downhole.control.eid.neutral_runner` with
     the damper), or from Python.
 
     Parameters
@@ -132,11 +132,25 @@ class PredictiveEID:
         """Fresh ``(dh, ds, xbuf)`` for parameters ``dp``."""
         return damper_arrays(dp)
 
-    def neutral_runner(self, dt: float):
+    def kernel_runner(self, pack):
         """Compiled closed loop on the neutral string: the EID loop of
-        :mod:`downhole.control.eid.neutral_runner` with this damper."""
+        :mod:`downhole.control.eid.neutral_runner` with this damper (``None`` for other
+        models).
+
+        Parameters
+        ----------
+        pack : object
+            The kernel configuration :func:`downhole.sim.simulate` runs.
+
+        Returns
+        -------
+        callable or None
+        """
+        if getattr(pack, "kind", None) != "neutral":
+            return None
         from downhole.control.eid.neutral_runner import make_neutral_runner
 
+        dt = pack.dt
         return make_neutral_runner(self.eid.compiled_params(dt),
                                    damper=(self.damper_params(dt),
                                            self.model.bit.kernel_params()))
