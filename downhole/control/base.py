@@ -23,6 +23,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from downhole.errors import DownholeInputError
+from downhole.sim.loop import run_loop
 
 __all__ = ["Controller", "check_pair", "run_closed_loop"]
 
@@ -153,23 +154,22 @@ def run_closed_loop(plant, controller, duration: float, *, reference=None,
     controller.reset()
     held = plant.default_command() if set_point is None else dict(plant.default_command(),
                                                                   **set_point)
-    ref_fn = reference if callable(reference) else (lambda t, r=dict(reference or {}): r)
     names = list(obs)
     rows = np.empty((n + 1, len(names)))
     cmd_names = list(plant.command_names)
     cmds = np.empty((n + 1, len(cmd_names)))
-    t = 0.0
-    for k in range(n + 1):
-        out = controller.command(t, obs, ref_fn(t))
-        held.update(out)
-        rows[k] = [obs[c] for c in names]
-        cmds[k] = [held[c] for c in cmd_names]
+
+    def on_sample(k, o, h):
+        rows[k] = [o[c] for c in names]
+        cmds[k] = [h[c] for c in cmd_names]
         if record is not None:
-            record(t, obs, dict(held))
-        if k == n:
-            break
-        obs = plant.step(held)
-        t = (k + 1) * plant.dt
+            record(k * plant.dt, o, dict(h))
+
+    ref = (reference if callable(reference)
+           else (lambda t, r=dict(reference or {}): r))
+    run_loop(plant.step, controller, obs, n, plant.dt, held=held,
+             write=lambda out, seen, h: h.update(out), reference=lambda k, t: ref(t),
+             on_sample=on_sample)
     result = {"time": np.arange(n + 1) * plant.dt}
     result.update({c: rows[:, i] for i, c in enumerate(names) if c != "time"})
     result.update({f"command:{c}": cmds[:, i] for i, c in enumerate(cmd_names)})

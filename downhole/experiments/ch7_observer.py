@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from downhole.experiments import experiment
+from downhole.sim.loop import run_loop
 
 #: What holds from the surface (the claim of ``observer-surface``), checked below.
 EID_ROP_BOUND = 0.10        # max |v - 10 mm/s| / 10 mm/s from 10 s (fig3.4 full state: 0.01)
@@ -64,14 +65,14 @@ def run_dhp_surface(quick: bool, noisy: bool = True, depth_of_cut: str = "approx
     v = np.empty(n + 1)
     w = np.empty(n + 1)
     err = np.empty((n + 1, 2))
-    for k in range(n + 1):
-        cmd = ctrl.command(k * dhp.dt, obs)
+    def on_sample(k, o, held):
         est = fb.estimate["state"]
-        v[k], w[k] = obs["bit_axial_velocity"], obs["bit_angular_velocity"]
-        err[k] = est[-2:] - obs["state"][-2:]
-        if k == n:
-            break
-        obs = plant.step(cmd)
+        v[k], w[k] = o["bit_axial_velocity"], o["bit_angular_velocity"]
+        err[k] = est[-2:] - o["state"][-2:]
+
+    run_loop(plant.step, ctrl, obs, n, dhp.dt, held={},
+             write=lambda out, seen, held: (held.clear(), held.update(out)),
+             on_sample=on_sample)
     t = np.arange(n + 1) * dhp.dt
     return {"time": t, "bit_axial_velocity": v, "bit_angular_velocity": w,
             "estimate_error_axial": err[:, 0], "estimate_error_angular": err[:, 1]}

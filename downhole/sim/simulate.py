@@ -30,6 +30,7 @@ import numpy as np
 
 from downhole.errors import DownholeInputError, SimulationDiverged
 from downhole.sim.kernel import CHANNELS
+from downhole.sim.loop import run_loop
 from downhole.sim.lumped_model import DEPTH_OF_CUT_MODES, INTEGRATORS
 from downhole.sim.plant import check_start
 from downhole.sim.references import as_reference
@@ -285,9 +286,9 @@ def _bit_noise(pk, rows, sig, rng) -> None:
 
 
 def _python_loop(pk, st, controller, ref, mnoise, rows, nsteps, every, rec, control_dt, meta):
-    """Closed loop with a controller stepped from Python: at t_k it sees the record of t_k
-    (bit velocities with the measurement noise) and its command is held over the next
-    ``control_dt``."""
+    """Closed loop with a controller stepped from Python (:func:`downhole.sim.loop.run_loop`):
+    at t_k it sees the record of t_k (bit velocities with the measurement noise) and its command
+    is held over the next ``control_dt``."""
     dt = pk.dt
     if control_dt is None:
         sub = 1
@@ -307,35 +308,44 @@ def _python_loop(pk, st, controller, ref, mnoise, rows, nsteps, every, rec, cont
                                                 "measured_angular_velocity")}
     cmd_hist = np.full((nrec, pk.n_cmd), np.nan)
     row = np.zeros((1, len(CHANNELS)))
-    last = rec[0].copy()
     held = pk.first_command(rows)
     if pk.n_cmd > 2:
         held = np.concatenate([held[:2], rows[0, 2:pk.n_cmd]])
     who = type(controller).__name__
-    for k in range(nsteps + 1):
-        if k % sub == 0:
-            obs = dict(zip(CHANNELS, last.tolist()))
-            obs["time"] = k * dt
-            obs["bit_axial_velocity"] += mnoise[0, k]
-            obs["bit_angular_velocity"] += mnoise[1, k]
-            out = controller.command(k * dt, obs, {
-                "reference_axial_velocity": float(ref[0, k]),
-                "reference_angular_velocity": float(ref[1, k])})
-            pk.command(out, held, who)
+    taken = [0]
+
+    def step(h):
+        k = taken[0]
+        if pk.n_cmd > 2:
+            h[2:] = rows[k + 1, 2:pk.n_cmd]
+        status, _ = pk.step(st, h, row)
+        if status != 0:
+            raise SimulationDiverged(k * dt, _diverged_channel(st["state"]))
+        taken[0] = k + 1
+        return row[0].copy()
+
+    def measure(k, last):
+        obs = dict(zip(CHANNELS, last.tolist()))
+        obs["time"] = k * dt
+        obs["bit_axial_velocity"] += mnoise[0, k]
+        obs["bit_angular_velocity"] += mnoise[1, k]
+        return obs
+
+    def on_sample(k, last, h):
         r = k // every if k % every == 0 else (nrec - 1 if k == nsteps else -1)
         if r >= 0:
             rec[r] = last
-            cmd_hist[r] = held
+            cmd_hist[r] = h
             extra["measured_axial_velocity"][r] = last[1] + mnoise[0, k]
             extra["measured_angular_velocity"][r] = last[3] + mnoise[1, k]
-        if k == nsteps:
-            break
-        if pk.n_cmd > 2:
-            held[2:] = rows[k + 1, 2:pk.n_cmd]
-        status, _ = pk.step(st, held, row)
-        if status != 0:
-            return 1, k, extra
-        last = row[0].copy()
+
+    def reference(k, t):
+        return {"reference_axial_velocity": float(ref[0, k]),
+                "reference_angular_velocity": float(ref[1, k])}
+
+    run_loop(step, controller, rec[0].copy(), nsteps, dt, held=held,
+             write=lambda out, seen, h: pk.command(out, h, who), reference=reference,
+             every=sub, measure=measure, on_sample=on_sample)
     extra.update(pk.command_channels(cmd_hist))
     return 0, nsteps, extra
 

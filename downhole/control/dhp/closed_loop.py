@@ -20,6 +20,7 @@ import numpy as np
 from downhole.control.affine import INPUT_UNITS, ControlAffineModel
 from downhole.control.dhp.controller import DHPController
 from downhole.errors import DownholeInputError, SimulationDiverged
+from downhole.sim.loop import run_loop
 from downhole.sim.plant import plant_bit_radius
 from downhole.sim.result import Result
 
@@ -103,19 +104,27 @@ def run_design_model(controller: DHPController, model: ControlAffineModel, durat
     Z = np.empty((n + 1, model.n_states))
     U = np.empty((n + 1, model.n_inputs))
     P, Us = model.state_scale, model.input_scale
-    zb = z / P
-    controller.reset()
-    for k in range(n + 1):
-        zp = zb * P
-        Z[k] = zp
-        u = controller.control(k, zp)
-        U[k] = u
-        if k == n:
-            break
-        zb = model.step(zb, u / Us)
+    names = list(controller.input_names)
+    state = {"zb": z / P, "k": 0}
+
+    def step(u):
+        zb = state["zb"] = model.step(state["zb"], u / Us)
+        state["k"] += 1
         if not np.all(np.isfinite(zb)):
             bad = int(np.argmax(~np.isfinite(zb)))
-            raise SimulationDiverged((k + 1) * model.dt, model.state_names[bad])
+            raise SimulationDiverged(state["k"] * model.dt, model.state_names[bad])
+        return {"state": zb * P}
+
+    def write(out, seen, u):
+        u[:] = [out[nm] for nm in names]
+
+    def on_sample(k, obs, u):
+        Z[k] = obs["state"]
+        U[k] = u
+
+    controller.reset()
+    run_loop(step, controller, {"state": state["zb"] * P}, n, model.dt,
+             held=np.empty(model.n_inputs), write=write, on_sample=on_sample)
     return _result(controller, model, Z[::record_every], U[::record_every],
                    np.arange(n + 1)[::record_every] * model.dt, "design model", attrs)
 
@@ -171,19 +180,22 @@ def run_on_plant(controller: DHPController, plant, duration: float, *, adapter=N
     obs = plant.reset()
     controller.reset()
     rows, inputs, times = [], [], []
-    keys = None
-    for k in range(n + 1):
-        cmd = controller.command(k * dt, obs)
+    keys = [kk for kk in obs if isinstance(obs[kk], (int, float)) and kk != "time"]
+    given: dict = {}
+
+    def write(out, seen, held):
+        given.clear()
+        given.update(out)
+        held.clear()
+        held.update(adapter(out, seen, dt) if adapter is not None else out)
+
+    def on_sample(k, o, held):
         if k % record_every == 0:
-            if keys is None:
-                keys = [kk for kk in obs if isinstance(obs[kk], (int, float)) and kk != "time"]
-            rows.append([obs[kk] for kk in keys])
-            inputs.append([cmd[nm] for nm in controller.input_names])
+            rows.append([o[kk] for kk in keys])
+            inputs.append([given[nm] for nm in controller.input_names])
             times.append(k * dt)
-        if k == n:
-            break
-        pc = adapter(cmd, obs, dt) if adapter is not None else cmd
-        obs = plant.step(pc)
+
+    run_loop(plant.step, controller, obs, n, dt, held={}, write=write, on_sample=on_sample)
     data = np.asarray(rows, dtype=float)
     ch = {kk: data[:, i] for i, kk in enumerate(keys)}
     t = np.asarray(times)
