@@ -198,10 +198,10 @@ def _number_text(x: float) -> str:
 
 
 def _figure(x: float) -> str:
-    """A converted value for a message: ``1,146``, ``8.5``, ``0.0025``."""
+    """A converted value for a message: ``1,146``, ``12.25``, ``0.0025`` (4 digits)."""
     if abs(x) >= 100.0:
         return f"{x:,.0f}"
-    return f"{x:.3g}"
+    return f"{x:.4g}"
 
 
 def format_value(value: float, unit: str, dimension: str) -> str:
