@@ -38,7 +38,9 @@ scenario, :mod:`downhole.scenario.schema`)::
 
     [well]                          # optional (default: the preset's Table 5.1 well); one of:
     survey = "well_survey.csv"      # MD, INC, AZI columns; path relative to this file
-    units = "si"                    # survey MD in m ("si") or ft ("oilfield")
+    units = "si"                    # survey MD in m ("si") or ft ("oilfield"); default: the
+                                    #   CSV header's unit ("MD (ft)"), else m; must agree with it
+    hole_diameter = "8.5 in"        # default: the bit's diameter (checked against bit and string)
     # md = [0, 500, 1000] ; inclination = [0, 10, 30] ; azimuth = [0, 45, 45]  (m, deg)
     # [[well.sections]]             # surface first
     # type = "vertical" | "tangent" (length) | "arc" (radius, angle, toolface, azimuth)
