@@ -146,6 +146,13 @@ CASES = {
         "is above 30 deg/30m, the sharpest curve a rotating string passes (medium-radius "
         "wells); check the stations' units (inclination and azimuth in degrees, MD in "
         "metres)"),
+    "string longer than the well": (
+        FIRST, [('length = "2820 m"', 'length = "3500 m"'),
+                ('outer_diameter = "6.75 in"', 'length = "180 m"\nouter_diameter = "6.75 in"')],
+        "", "string.segments",
+        "the string (3,680 m = 12,073.5 ft, 2 segments) is longer than the well (3,000 m = "
+        "9,842.52 ft); check the segments' lengths and the well's depth unit (a survey in feet "
+        'needs units = "oilfield")'),
     "stations in feet read as metres": (
         FIRST, [('[[well.sections]]\ntype = "vertical"\nlength = "3000 m"',
                  "[well]\nmd = [0, 5000, 20000]\ninclination = [0, 0, 0]\n"

@@ -626,9 +626,13 @@ def _string(sc: DirectionalScenario, source: str, params, well):
         stabs = tuple(Stabilizer(x.distance_from_bit, x.outer_diameter) for x in st.stabilizers)
         ds = DrillString(tuple(segs), stabs, mud_density=st.mud_density, g=params.g)
     if ds.length > well.total_depth + 1e-6:
+        ft = 1.0 / 0.3048
         raise ScenarioError(source, "string.segments",
-                            f"the string ({ds.length:g} m) is longer than the well "
-                            f"({well.total_depth:g} m)")
+                            f"the string ({ds.length:,.6g} m = {ds.length * ft:,.6g} ft, "
+                            f"{len(segs)} segments) is longer than the well "
+                            f"({well.total_depth:,.6g} m = {well.total_depth * ft:,.6g} ft); "
+                            "check the segments' lengths and the well's depth unit (a survey "
+                            "in feet needs units = \"oilfield\")")
     return ds
 
 
