@@ -52,6 +52,7 @@ from pathlib import Path
 
 from downhole._reader import read_toml
 from downhole.errors import ScenarioError
+from downhole.plausible import check_scenario
 
 __all__ = [
     "RENAMES",
@@ -194,12 +195,24 @@ VALUE_RENAMES: dict[tuple[str, str], str] = {
 
 
 def check_dialect(data: dict, source: str) -> None:
-    """Refuse older-dialect keys (one line naming the replacement) and unknown top-level keys.
+    """Refuse older-dialect keys (one line naming the replacement), unknown top-level keys and
+    implausible values (:func:`downhole.plausible.check_scenario`: a rotary speed, WOB, ROP,
+    torque, diameter, mud density or length no rig sees, a string wider than the hole).
+
+    Every loader calls this first, so every file gets the same refusals.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed scenario file.
+    source : str
+        The file, for messages.
 
     Raises
     ------
     ScenarioError
-        Naming the file, the dotted key and its replacement (or the known tables).
+        Naming the file, the dotted key and its replacement (or the known tables), or the
+        implausible value, its range and the likely fix.
     """
     for dotted in sorted(RENAMES, key=lambda k: (-k.count("."), k)):
         found, value = _lookup(data, dotted)
@@ -212,6 +225,7 @@ def check_dialect(data: dict, source: str) -> None:
         if key not in TABLES:
             raise ScenarioError(source, key, f"unknown table; a scenario has {', '.join(TABLES)}"
                                 " (see docs/scenarios.md)")
+    check_scenario(data, source)
 
 
 def read_scenario(path: str | Path) -> tuple[dict, str, str]:
@@ -228,7 +242,15 @@ def read_scenario(path: str | Path) -> tuple[dict, str, str]:
 
 
 def _loc(loc) -> str:
-    return ".".join(str(p) for p in loc if not str(p).startswith("function-"))
+    """A pydantic error location as messages name fields: dotted keys, list positions 1-based
+    in brackets (``("string", "segments", 1, "length")`` -> ``string.segments[2].length``)."""
+    out = ""
+    for p in loc:
+        if isinstance(p, int):
+            out += f"[{p + 1}]"
+        elif not str(p).startswith("function-"):
+            out += f".{p}" if out else str(p)
+    return out
 
 
 def raise_validation(source: str, exc, prefix: str = ""):

@@ -27,6 +27,7 @@ __all__ = [
     "RANGES",
     "SI_UNITS",
     "SYSTEMS",
+    "UNIT_TYPOS",
     "UnitError",
     "UnitSystem",
     "as_si",
@@ -348,11 +349,15 @@ def to_si(value: float | str, dimension: str) -> float:
     elif not isinstance(value, str):
         raise UnitError(f"expected a number or a quantity string, got {type(value).__name__}")
     else:
-        number, unit = parse_quantity_string(value)
+        try:
+            number, unit = parse_quantity_string(value)
+        except UnitError as exc:
+            raise UnitError(f"{exc}{_did_you_mean(value, dimension)}") from None
         try:
             q = ureg.Quantity(number, unit) if unit else ureg.Quantity(number)
         except Exception as exc:  # pint raises several error types
-            raise UnitError(f"cannot parse quantity {value!r}: {exc}") from None
+            raise UnitError(f"cannot parse quantity {value!r}: {exc}"
+                            f"{_did_you_mean(value, dimension)}") from None
     try:
         if target == "":
             si = q.to("dimensionless").magnitude
@@ -362,7 +367,7 @@ def to_si(value: float | str, dimension: str) -> float:
     except pint.DimensionalityError:
         raise UnitError(
             f"quantity {value!r} has unit '{q.units}', which cannot be converted to "
-            f"{target or 'a plain number'}"
+            f"{target or 'a plain number'}{_did_you_mean(value, dimension)}"
         ) from None
     except Exception as exc:  # offset units (degC) and other pint refusals
         raise UnitError(f"cannot convert quantity {value!r} to {target or 'a number'}: "
@@ -372,6 +377,67 @@ def to_si(value: float | str, dimension: str) -> float:
     except (OverflowError, TypeError, ValueError):
         raise UnitError(f"quantity {value!r} does not convert to a finite number") from None
     return check_range(si, dimension)
+
+
+#: Units drillers write that pint reads otherwise or not at all -> the unit meant.
+UNIT_TYPOS: dict[str, str] = {
+    "klb": "klbf", "klbs": "klbf", "kip": "klbf", "kips": "klbf", "lb": "lbf", "lbs": "lbf",
+    "klbsf": "klbf",
+    "knm": "kN*m", "kn.m": "kN*m", "nm": "N*m", "ftlb": "ft*lbf", "ftlbf": "ft*lbf",
+    "ft-lb": "ft*lbf", "ft.lb": "ft*lbf", "kftlb": "kft*lbf", "kftlbf": "kft*lbf",
+    "kft-lb": "kft*lbf", "kft.lb": "kft*lbf", "ppg": "lb/gal", "sg": "g/cm^3", "kg/l": "kg/L",
+    "fph": "ft/h", "ft/hr": "ft/h", "m/hr": "m/h", "mph": "m/h", "revs": "rpm",
+    "deg/100ft": "deg_per_100ft", "°/100ft": "deg_per_100ft", "deg/30m": "deg_per_30m",
+    "°/30m": "deg_per_30m", "inch": "in", "inches": "in", '"': "in",
+}
+
+#: The units of each dimension a "did you mean" may suggest (close spellings of these).
+_SUGGEST: dict[str, tuple[str, ...]] = {
+    "length": ("m", "mm", "cm", "km", "ft", "in"),
+    "velocity": ("m/s", "mm/s", "m/h", "ft/h", "ft/s"),
+    "angular_velocity": ("rpm", "rad/s"),
+    "angle": ("deg", "rad"),
+    "force": ("N", "kN", "MN", "lbf", "klbf"),
+    "torque": ("N*m", "kN*m", "ft*lbf", "kft*lbf"),
+    "mass": ("kg", "t", "lb"),
+    "pressure": ("Pa", "kPa", "MPa", "GPa", "psi", "bar"),
+    "time": ("s", "ms", "min", "h"),
+    "density": ("kg/m^3", "g/cm^3", "lb/gal"),
+    "curvature": ("deg_per_30m", "deg_per_100ft", "rad/m"),
+}
+
+
+def _did_you_mean(value: str, dimension: str) -> str:
+    """``'; did you mean "30 klbf"?'`` for a quantity string whose unit is a known slip
+    (:data:`UNIT_TYPOS`) or a close spelling of a unit of ``dimension``; ``''`` otherwise."""
+    import difflib
+
+    m = _NUMBER.match(value) if isinstance(value, str) else None
+    if m is None:
+        return ""
+    number, unit = m.group(1), value[m.end():].strip()
+    if not unit:
+        return ""
+    candidates = []
+    typo = UNIT_TYPOS.get(unit.lower()) or UNIT_TYPOS.get(unit.replace(" ", "").lower())
+    if typo:
+        candidates.append(typo)
+    pool = _SUGGEST.get(dimension, ())
+    lower = {u.lower(): u for u in pool}
+    candidates += [lower[u] for u in difflib.get_close_matches(unit.lower(), list(lower), 3, 0.5)]
+    for cand in candidates:
+        if cand != unit and _converts(cand, SI_UNITS[dimension] or "dimensionless"):
+            return f'; did you mean "{number} {cand}"?'
+    return ""
+
+
+def _converts(unit: str, target: str) -> bool:
+    """True when pint converts ``unit`` to ``target``."""
+    try:
+        _registry().Quantity(1.0, unit).to(target)
+    except Exception:  # unknown unit or other dimension
+        return False
+    return True
 
 
 # ----------------------------------------------------------------------- quantities from Python

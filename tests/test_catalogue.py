@@ -103,7 +103,7 @@ duration = "1 s"
     validate_data(data, source)
     p.write_text(base.replace("{seg}", 'catalogue = "5in 19.50 S135 NC50"\nouter_diameter = "5 in"'))
     data, source, _ = load_scenario(p)
-    with pytest.raises(ScenarioError, match="string.segments.0.*either catalogue or"):
+    with pytest.raises(ScenarioError, match=r"string.segments\[1\].*either catalogue or"):
         validate_data(data, source)
     p.write_text(base.replace("{seg}", 'catalogue = "5in 19 S135"'))
     data, source, _ = load_scenario(p)

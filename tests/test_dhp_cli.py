@@ -77,7 +77,7 @@ def test_design_dhp_writes_controller_report_and_result(tmp_path, capsys):
     ('[controller.dhp]\ninput_limits = [["300 kN", "-50 kN"], [-6e4, 6e4]]\n',
      "controller.dhp.input_limits: force limits"),
     ('[controller.dhp]\ninput_limits = [[1, 2, 3], [-6e4, 6e4]]\n',
-     "controller.dhp.input_limits.0"),
+     "controller.dhp.input_limits[1]"),
     ('[controller.dhp.plan]\nknots = 3\n', "controller.dhp.plan.knots: unknown key"),
     ('[controller.dhp.plan]\nn_knots = 30\n',
      "controller.dhp.plan: PlanSettings: the knots end at 12 s"),

@@ -30,7 +30,6 @@ PENDING: set[tuple[str, str]] = {
     ("_atomic.py", "write_json_atomic"),
     ("_atomic.py", "write_text_atomic"),
     ("_reader.py", "read_scenario_text"),
-    ("_schema.py", "check_dialect"),
     ("_schema.py", "raise_validation"),
     ("_schema.py", "read_scenario"),
     ("_timing.py", "best_time"),

@@ -229,7 +229,7 @@ def test_renamed_keys_name_the_new_key(tmp_path, capsys, table, key, value, new)
 def test_set_point_errors_name_the_field(tmp_path):
     for op, field in (({"rop": "10 mm/s"}, "operation"), ({"wob": "1e8 N"}, "operation.wob")):
         path = _short_copy(tmp_path, "table_5_1", operation=op)
-        data, source, _ = load_scenario(path)
-        with pytest.raises(ScenarioError) as info:
+        with pytest.raises(ScenarioError) as info:  # 1e8 N: implausible when the file is read
+            data, source, _ = load_scenario(path)
             validate_data(data, source)
         assert info.value.field == field, info.value

@@ -172,7 +172,7 @@ def test_directional_survey_md_of_1e12_m(tmp_path):
     base = (EXAMPLES / "directional_fem_stickslip.toml").read_text()
     p = write(tmp_path, base + "\n[well]\nmd = [0, 500, 1e12]\ninclination = [0, 0, 10]\n"
                                "azimuth = [0, 0, 0]\n")
-    expect_error(p, "well.md", "station 2", "0 to 100000 m")
+    expect_error(p, "well.md", "station 3", "0 to 100000 m")
     (tmp_path / "w.csv").write_text("md,inc,azi\n0,0,0\n500,0,0\n1e12,10,0\n")
     p = write(tmp_path, base + '\n[well]\nsurvey = "w.csv"\n')
     expect_error(p, "well.survey", "line 4, column 'md'", "1e+12 m, is beyond any well drilled")
@@ -262,7 +262,7 @@ def test_wrong_shapes_in_directional_tables(tmp_path):
                          ("[well]\nmd = [0, 500]\ninclination = [0]\nazimuth = [0, 0]\n",
                           "well.md"),
                          ("[[string.segments]]\nouter_diameter = [1, 2]\ninner_diameter = 0\n",
-                          "string.segments.0.outer_diameter")]:
+                          "string.segments[1].outer_diameter")]:
         p = write(tmp_path, base + "\n" + extra)
         with pytest.raises(ScenarioError) as info:
             validate(p)

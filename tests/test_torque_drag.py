@@ -470,7 +470,7 @@ def test_cli_oilfield_units_are_the_si_run_converted_by_pint(tmp_path):
     ("\n[torque_drag]\nfriction_factors = [0.1, -1]\n", [], "torque_drag.friction_factors"),
     ("\n[torque_drag]\nstep = \"0 m\"\n", [], "torque_drag.step"),
     ("\n[torque_drag]\nbogus = 1\n", [], "torque_drag.bogus"),
-    ("\n[torque_drag]\nwob = \"900 MN\"\n", [], "torque_drag.wob: no steady cutting"),
+    ("\n[torque_drag]\nwob = \"900 MN\"\n", [], "torque_drag.wob: 900 MN = 900,000 kN is above 700 kN"),
     ("\n[torque_drag]\nwob = \"0 N\"\n", [], "torque_drag.wob"),
     ("\n[torque_drag]\nfriction_factors = [true]\n", [], "expected numbers"),
     ("\n[torque_drag]\nvertical_section_azimuth = \"1e9 deg\"\n", [],

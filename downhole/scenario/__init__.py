@@ -338,8 +338,20 @@ def register_model_type(name: str, runner: Callable) -> None:
     MODEL_TYPES[name] = runner
 
 
+def _catalogue_od(name: str) -> float:
+    from downhole.string.catalogue import catalogue_section
+
+    return float(catalogue_section(name).outer_diameter)
+
+
 def parse_scenario(data: dict, source: str, schema=LumpedScenario):
-    """Validate ``data`` against ``schema``; raise :class:`ScenarioError` naming the field."""
+    """Validate ``data`` against ``schema``; raise :class:`ScenarioError` naming the field.
+
+    The geometry is checked as a whole first (:func:`downhole.plausible.check_geometry`, with
+    the catalogue's tubulars)."""
+    from downhole.plausible import check_geometry
+
+    check_geometry(data, source, catalogue=_catalogue_od)
     try:
         return schema.model_validate(data)
     except ValidationError as exc:

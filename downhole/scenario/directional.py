@@ -38,7 +38,9 @@ scenario, :mod:`downhole.scenario.schema`)::
 
     [well]                          # optional (default: the preset's Table 5.1 well); one of:
     survey = "well_survey.csv"      # MD, INC, AZI columns; path relative to this file
-    units = "si"                    # survey MD in m ("si") or ft ("oilfield")
+    units = "si"                    # survey MD in m ("si") or ft ("oilfield"); default: the
+                                    #   CSV header's unit ("MD (ft)"), else m; must agree with it
+    hole_diameter = "8.5 in"        # default: the bit's diameter (checked against bit and string)
     # md = [0, 500, 1000] ; inclination = [0, 10, 30] ; azimuth = [0, 45, 45]  (m, deg)
     # [[well.sections]]             # surface first
     # type = "vertical" | "tangent" (length) | "arc" (radius, angle, toolface, azimuth)
@@ -249,10 +251,13 @@ class SectionSettings(_Strict):
 
 
 class WellSettings(_Strict):
-    """``[well]``: a survey CSV, survey columns or sections (exactly one)."""
+    """``[well]``: a survey CSV, survey columns or sections (exactly one), and the hole's
+    diameter (default: the bit's; checked against the bit and the string,
+    :func:`downhole.plausible.check_geometry`)."""
 
     survey: str | None = None
     units: Literal["si", "oilfield"] = "si"
+    hole_diameter: Q["length"] | None = Field(None, gt=0)
     md: list[float] | None = None
     inclination: list[float] | None = None
     azimuth: list[float] | None = None
@@ -328,7 +333,8 @@ class StringSettings(_Strict):
                 raise ValueError("segments is empty")
             for k, seg in enumerate(v[:-1]):
                 if seg.length is None:
-                    raise ValueError(f"segment {k}: only the last segment may omit length")
+                    raise ValueError(f"segment {k + 1}: only the last segment may omit "
+                                     "length")
         return v
 
 
@@ -489,7 +495,8 @@ SURVEY_RANGES = {"md": (0.0, 1e5), "inclination": (0.0, 180.0), "azimuth": (-360
 
 
 def _check_stations(source: str, prefix: str, md, inc, azi, length_unit: str) -> None:
-    """Every station finite and inside :data:`SURVEY_RANGES` (MD in ``length_unit``)."""
+    """Every station finite and inside :data:`SURVEY_RANGES` (MD in ``length_unit``), and no
+    interval sharper than :data:`downhole.plausible.MAX_DOGLEG`; stations are named 1-based."""
     scale = 0.3048 if length_unit == "ft" else 1.0
     for name, values, k in (("md", md, scale), ("inclination", inc, 1.0),
                             ("azimuth", azi, 1.0)):
@@ -498,9 +505,23 @@ def _check_stations(source: str, prefix: str, md, inc, azi, length_unit: str) ->
         field = prefix if prefix.endswith("survey") else f"{prefix}.{name}"
         for i, v in enumerate(np.asarray(values, float)):
             if not (np.isfinite(v) and lo <= v * k <= hi):
-                raise ScenarioError(source, field, f"station {i}: {name} {v:g} "
+                raise ScenarioError(source, field, f"station {i + 1}: {name} {v:g} "
                                     f"{'ft' if (name == 'md' and k != 1.0) else unit} is outside "
                                     f"the admissible range {lo:g} to {hi:g} {unit}")
+    if prefix.endswith("survey"):
+        return  # read_survey_csv checks the dogleg severity by the file's lines
+    from downhole.plausible import MAX_DEPTH, check_dogleg
+
+    if len(md) and md[-1] * scale > MAX_DEPTH:
+        hint = ("; if the depths are in feet, say units = \"oilfield\""
+                if length_unit == "m" and md[-1] * 0.3048 <= MAX_DEPTH else "")
+        raise ScenarioError(source, f"{prefix}.md", f"station {len(md)}: the deepest station, "
+                            f"{md[-1]:g} {length_unit}, is beyond any well drilled "
+                            f"({MAX_DEPTH:g} m){hint}")
+    bad = check_dogleg(md, inc, azi, length_unit=length_unit)
+    if bad is not None:
+        raise ScenarioError(source, f"{prefix}.inclination", f"stations {bad[0]} to "
+                            f"{bad[0] + 1}: {bad[1]}")
 
 
 def _well(sc: DirectionalScenario, source: str, params):
@@ -518,7 +539,9 @@ def _well(sc: DirectionalScenario, source: str, params):
         except ScenarioError as exc:
             raise ScenarioError(source, "well.survey", f"{path}: {exc.message}") from None
         with _wrap(source, "well.survey"):
-            well = read_survey_csv(path, units=w.units)
+            # units said in the file must agree with the CSV's header ("MD (ft)")
+            well = read_survey_csv(path, units=w.units if "units" in w.model_fields_set
+                                   else None)
         st = well.stations
         _check_stations(source, "well.survey", st["md"], np.degrees(st["inclination"]),
                         np.degrees(st["azimuth"]), "m")
@@ -539,7 +562,32 @@ def _well(sc: DirectionalScenario, source: str, params):
                      "well.azimuth" if "azimuth" in msg else "well.md")
             raise ScenarioError(source, field, msg) from None
     with _wrap(source, "well.sections"):
-        return WellPath.from_sections([s.build() for s in w.sections])
+        well = WellPath.from_sections([s.build() for s in w.sections])
+    _check_sections(source, w.sections, well)
+    return well
+
+
+def _check_sections(source: str, sections, well) -> None:
+    """No section curves sharper than :data:`downhole.plausible.MAX_DOGLEG` (an arc's radius
+    or a build-and-turn's change of direction over its length); named 1-based."""
+    from downhole.plausible import MAX_DOGLEG, format_value
+
+    top = 0.0
+    limit = format_value(MAX_DOGLEG, "deg_per_30m", "curvature")
+    for k, sec in enumerate(sections, start=1):
+        length = sec.length if sec.length is not None else sec.radius * sec.angle
+        mid = min(top + 0.5 * length, well.total_depth)
+        top += length
+        dls = float(well.curvature(mid))
+        if dls > MAX_DOGLEG * (1 + 1e-9):
+            what = (f"radius {sec.radius:g} m" if sec.type == "arc" else
+                    f"a turn of {math.degrees(dls * length):.3g} deg over {length:g} m")
+            raise ScenarioError(source, f"well.sections[{k}]", (
+                f"{what} is a dogleg severity of "
+                f"{format_value(dls, 'deg_per_30m', 'curvature')} "
+                f"({format_value(dls, 'deg_per_100ft', 'curvature')}), above {limit}, the "
+                "sharpest curve a rotating string passes; check the section's radius or length "
+                "and its units (a radius of R m curves 1719 / R deg/30m)"))
 
 
 def _string(sc: DirectionalScenario, source: str, params, well):
@@ -559,7 +607,7 @@ def _string(sc: DirectionalScenario, source: str, params, well):
                 if length is None:
                     length = well.total_depth - used
                     if length <= 0:
-                        raise ScenarioError(source, f"string.segments.{k}.length",
+                        raise ScenarioError(source, f"string.segments[{k + 1}].length",
                                             f"the segments above fill the well "
                                             f"({used:g} m of {well.total_depth:g} m); "
                                             "give a length")
@@ -578,9 +626,13 @@ def _string(sc: DirectionalScenario, source: str, params, well):
         stabs = tuple(Stabilizer(x.distance_from_bit, x.outer_diameter) for x in st.stabilizers)
         ds = DrillString(tuple(segs), stabs, mud_density=st.mud_density, g=params.g)
     if ds.length > well.total_depth + 1e-6:
+        ft = 1.0 / 0.3048
         raise ScenarioError(source, "string.segments",
-                            f"the string ({ds.length:g} m) is longer than the well "
-                            f"({well.total_depth:g} m)")
+                            f"the string ({ds.length:,.6g} m = {ds.length * ft:,.6g} ft, "
+                            f"{len(segs)} segments) is longer than the well "
+                            f"({well.total_depth:,.6g} m = {well.total_depth * ft:,.6g} ft); "
+                            "check the segments' lengths and the well's depth unit (a survey "
+                            "in feet needs units = \"oilfield\")")
     return ds
 
 

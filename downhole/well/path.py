@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from downhole.errors import DownholeInputError
+from downhole.plausible import MAX_DEPTH
 from downhole.units import _is_quantity, as_si_array, si_or_number
 
 __all__ = [
@@ -512,7 +513,7 @@ _AZI_NAMES = ("azi", "az", "azimuth", "azi_deg", "azi (deg)", "azimuth (deg)")
 #: Largest survey file read, bytes (a survey of 100,000 stations is ~3 MB).
 MAX_SURVEY_BYTES = 32 * 2**20
 #: Deepest measured depth of a plausible survey, m (the longest wells drilled reach ~15 km).
-MAX_SURVEY_MD = 15_000.0
+MAX_SURVEY_MD = MAX_DEPTH
 _DELIMITERS = ",;\t "
 
 
@@ -527,7 +528,7 @@ def _survey_header(cells: list[str]) -> tuple[int, int, int] | None:
         return None
 
 
-def read_survey_csv(path, *, units: str = "si", angle_unit: str = "deg") -> WellPath:
+def read_survey_csv(path, *, units: str | None = None, angle_unit: str = "deg") -> WellPath:
     """Read a survey CSV with columns MD, INC, AZI (header names case-insensitive).
 
     Title lines above the header are skipped (the header is the first line that names the three
@@ -542,9 +543,10 @@ def read_survey_csv(path, *, units: str = "si", angle_unit: str = "deg") -> Well
     path : path-like
         CSV file with a header row naming measured depth (``md``/``measured_depth``),
         inclination (``inc``/``inclination``) and azimuth (``azi``/``azimuth``).
-    units : {"si", "oilfield"}
-        Measured depth in metres (``si``) or feet (``oilfield``). A header like ``md_ft`` or
-        ``MD (ft)`` overrides this.
+    units : {"si", "oilfield"}, optional
+        Measured depth in metres (``si``) or feet (``oilfield``). Default: what the header says
+        (``md_ft`` or ``MD (ft)``: feet; ``md_m`` or ``MD (m)``: metres), else metres. Given
+        and contradicting the header, the file is refused.
     angle_unit : {"deg", "rad"}
         Unit of inclination and azimuth.
 
@@ -557,14 +559,16 @@ def read_survey_csv(path, *, units: str = "si", angle_unit: str = "deg") -> Well
     DownholeInputError
         Missing or special file, no header, a non-numeric cell, a depth that does not increase,
         an inclination outside 0-180 deg or an azimuth outside 0-360 deg (as written, before any
-        reduction), or a deepest station beyond :data:`MAX_SURVEY_MD` (with the hint to say
+        reduction), an interval whose dogleg severity is above
+        :data:`downhole.plausible.MAX_DOGLEG` (30 deg/30 m), ``units`` contradicting the
+        header's unit, or a deepest station beyond :data:`MAX_SURVEY_MD` (with the hint to say
         ``units = "oilfield"`` when the depths look like feet); each names the file, its line
         and the column.
     """
     from downhole._reader import read_regular_file
 
     p = Path(path)
-    if units not in ("si", "oilfield"):
+    if units not in (None, "si", "oilfield"):
         raise DownholeInputError(f"units must be 'si' or 'oilfield', got {units!r}")
     if angle_unit not in ("deg", "rad"):
         raise DownholeInputError(f"angle_unit must be 'deg' or 'rad', got {angle_unit!r}")
@@ -599,10 +603,16 @@ def read_survey_csv(path, *, units: str = "si", angle_unit: str = "deg") -> Well
     names = [c.strip() for c in cells]
     md_name = names[imd].lower()
     length_unit = "ft" if units == "oilfield" else "m"
-    if "ft" in md_name:
-        length_unit = "ft"
-    elif md_name.endswith("_m") or "(m)" in md_name:
-        length_unit = "m"
+    said = "ft" if "ft" in md_name else "m" if (md_name.endswith("_m") or "(m)" in md_name) \
+        else None
+    if said is not None and units is not None and said != length_unit:
+        raise DownholeInputError(
+            f"{p}: line {hline}, column {names[imd]!r}: the header says measured depth in "
+            f"{'feet' if said == 'ft' else 'metres'}, but units = {units!r} says "
+            f"{'feet' if length_unit == 'ft' else 'metres'}; did you mean units = "
+            f"\"{'oilfield' if said == 'ft' else 'si'}\"?")
+    if said is not None:
+        length_unit = said
     ang = "deg" if angle_unit == "deg" else "rad"
     rows, where = [], []
     for n, line in enumerate(lines[hline:], start=hline + 1):
@@ -642,6 +652,12 @@ def read_survey_csv(path, *, units: str = "si", angle_unit: str = "deg") -> Well
             raise DownholeInputError(f"{p}: line {n}, column {names[imd]!r}: measured depth "
                                      f"{md:g} {length_unit} does not increase (line "
                                      f"{where[r - 1]}: {data[r - 1, 0]:g} {length_unit})")
+    from downhole.plausible import check_dogleg
+
+    bad = check_dogleg(data[:, 0], data[:, 1], data[:, 2], length_unit=length_unit,
+                       degrees=ang == "deg")
+    if bad is not None:
+        raise DownholeInputError(f"{p}: line {where[bad[0]]}, column {names[iinc]!r}: {bad[1]}")
     deepest = data[-1, 0] * (0.3048 if length_unit == "ft" else 1.0)
     if deepest > MAX_SURVEY_MD:
         hint = ("; if the depths are in feet, say units = \"oilfield\" or name the column "
