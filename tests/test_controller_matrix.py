@@ -7,9 +7,11 @@ description whose signals it needs, and the runners agree.
   axial and angular velocity commands);
 - runners: ``offline`` (:func:`~downhole.control.base.run_closed_loop`), ``sil`` (the real-time
   SIL loop in process, unpaced), ``udp`` (the SIL loop with the controller behind the UDP link)
-  and ``fmu`` (the plant exported with :func:`~downhole.sil.fmu.export_plant_fmu`, once per
-  fidelity per module, driven through FMPy's low-level API by
-  :func:`~downhole.sil.fmu.run_fmu_closed_loop`).
+  and ``fmu`` (the plant exported with :func:`~downhole.sil.fmu.export_fmu` from
+  ``examples/table_5_1.toml`` at each fidelity, once per module, driven through FMPy's
+  low-level API by :func:`~downhole.sil.fmu.run_fmu_closed_loop`); every runner steps the plant
+  that scenario describes (:func:`~downhole.sil.fmu.scenario_plant`), holding the scenario's
+  set-points until the controller sets a command.
 
 Each cell checks the pair, runs every runner and requires the bit speed of ``sil``, ``udp`` and
 ``fmu`` to equal the offline one (``rtol = atol = 1e-6``; they are the same loop, bit for bit in
@@ -24,7 +26,6 @@ import pytest
 
 from downhole.control.base import check_pair, run_closed_loop
 from downhole.control.ztorque import ZTorque, torsional_impedance
-from downhole.params.rig import Hook, TopDrive
 from downhole.sil import RealTimeRunner
 from downhole.sil.controllers import SurfacePI
 from downhole.sil.link import ControllerClient
@@ -63,17 +64,34 @@ def system():
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    """``fmu_for(fidelity, plant)``: the FMU of each fidelity, exported once per module (about
-    0.1 s) from the first plant a cell builds for it (the plant the other runners use)."""
-    from downhole.sil.fmu import export_plant_fmu
+def scenarios(tmp_path_factory):
+    """The scenario of each fidelity: ``examples/table_5_1.toml`` (Table 5.1, no friction), the
+    neutral model at 1 ms."""
+    from pathlib import Path
+
+    folder = tmp_path_factory.mktemp("scenarios")
+    text = Path("examples/table_5_1.toml").read_text()
+    out = {}
+    for fid in FIDELITIES:
+        path = folder / f"{fid}.toml"
+        path.write_text(text.replace('record_dt = "10 ms"', 'record_dt = "10 ms"\ndt = "1 ms"')
+                        if fid == "neutral" else text)
+        out[fid] = path
+    return out
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory, scenarios):
+    """``fmu_for(fidelity)``: the FMU of each fidelity, exported once per module."""
+    from downhole.sil.fmu import export_fmu
 
     folder = tmp_path_factory.mktemp("fmus")
     built = {}
 
-    def fmu_for(fidelity, plant):
+    def fmu_for(fidelity):
         if fidelity not in built:
-            built[fidelity] = export_plant_fmu(plant, folder / f"{fidelity}.fmu")
+            built[fidelity] = export_fmu(scenarios[fidelity], folder / f"{fidelity}.fmu",
+                                         fidelity=fidelity)
         return built[fidelity]
 
     return fmu_for
@@ -86,15 +104,15 @@ def eid_design(system):
     return design_eid(system.build("neutral"))
 
 
-def _plant(system, fidelity):
-    model = system.build(fidelity)
-    if fidelity.startswith("lumped"):
-        return DirectionalPlant(model, dt=5e-4, integrator="newmark")
-    if fidelity == "neutral":
-        return DirectionalPlant(model, dt=1e-3)
-    # a velocity-driven hook: the axial command is a block velocity at every fidelity
-    return DirectionalPlant(model, 1e-3, top_drive=TopDrive(speed=10.0),
-                            hook=Hook(mode="velocity", velocity=0.0))
+def _plant(scenarios, fidelity):
+    """The plant the FMU of ``fidelity`` runs, holding the FMU inputs' start values (the
+    scenario's set-points) as its default command, as the FMU does."""
+    from downhole.sil.fmu import scenario_plant
+
+    plant, settings = scenario_plant(scenarios[fidelity], fidelity)
+    start = dict(settings["command_start"])
+    plant.default_command = lambda: dict(start)
+    return plant
 
 
 def _controller(name, plant, system, eid_design):
@@ -155,14 +173,14 @@ def _run(runner, plant, ctrl, fmu=None):
 
 @pytest.mark.parametrize("fidelity", FIDELITIES)
 @pytest.mark.parametrize("controller", CONTROLLERS)
-def test_controller_runs_at_every_fidelity_in_every_runner(system, eid_design, fmus, controller,
-                                                           fidelity):
+def test_controller_runs_at_every_fidelity_in_every_runner(system, eid_design, scenarios, fmus,
+                                                           controller, fidelity):
     out = {}
     for runner in RUNNERS:
-        plant = _plant(system, fidelity)
+        plant = _plant(scenarios, fidelity)
         ctrl = _controller(controller, plant, system, eid_design)
         assert check_pair(ctrl, plant) is None
-        w, cmd = _run(runner, plant, ctrl, fmus(fidelity, plant) if runner == "fmu" else None)
+        w, cmd = _run(runner, plant, ctrl, fmus(fidelity) if runner == "fmu" else None)
         assert np.all(np.isfinite(w)) and np.all(np.isfinite(cmd))
         assert np.all(np.abs(cmd) <= 100.0)
         out[runner] = (np.asarray(w), np.asarray(cmd))

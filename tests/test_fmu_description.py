@@ -18,14 +18,14 @@ BASE = {"N": {"kg": 1, "m": 1, "s": -2}, "N*m": {"kg": 1, "m": 2, "s": -2}, "m":
 
 @pytest.fixture(scope="module")
 def lumped_fmu(tmp_path_factory):
-    from downhole.sil.fmu import export_plant_fmu
-    from downhole.sim.lumped_model import lumped_model
-    from downhole.string.fem import DirectionalPlant
+    from downhole.sil.fmu import export_fmu
 
-    plant = DirectionalPlant(lumped_model("table_2_1"), dt=5e-4)
-    return export_plant_fmu(plant, tmp_path_factory.mktemp("fmu") / "lumped.fmu", stop_time=2.0,
-                            command_start={"top_drive_axial_velocity": 0.01,
-                                           "top_drive_angular_velocity": 10.0})
+    folder = tmp_path_factory.mktemp("fmu")
+    scenario = folder / "lumped.toml"  # Table 2.1, 4th order, 0.5 ms, 10 mm/s and 10 rad/s
+    scenario.write_text('[model]\nfidelity = "lumped4"\npreset = "table_2_1"\n\n'
+                        '[operation]\nrop = "10 mm/s"\nsurface_speed = "10 rad/s"\n\n'
+                        '[simulation]\nduration = "2 s"\ndt = "0.5 ms"\n')
+    return export_fmu(scenario, folder / "lumped.fmu")
 
 
 def _check_description(md, stop_time, step):

@@ -452,8 +452,10 @@ def sil_controller(port: int | None = typer.Option(
 
 
 @app.command("export-fmu")
-def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML, or a scenario that "
-                                                     "describes the system ([well], [string])"),
+def export_fmu(scenario: Path = typer.Argument(..., help="scenario TOML: a SIL scenario, a "
+                                                     "scenario that describes the system ([well], "
+                                                     "[string]) or a preset scenario that "
+                                                     "`downhole simulate` runs"),
                out: Path = typer.Option(Path("plant.fmu"), "--out", help="FMU file to write"),
                fidelity: str | None = typer.Option(
                    None, "--fidelity", help="system scenarios: lumped4 | lumped12 | neutral | "
@@ -461,27 +463,23 @@ def export_fmu(scenario: Path = typer.Argument(..., help="SIL scenario TOML, or 
                units: str = UNITS_OPTION, unit: list[str] | None = UNIT_OPTION):
     """Build an FMI 2.0 co-simulation FMU of the scenario's plant (pythonfmu).
 
+    The FMU carries the scenario's text, the fidelity and the options as JSON (no pickle, no
+    code but downhole's FMU slave); every instance rebuilds the plant with the installed
+    downhole and validates the scenario like any file. A doStep advances at most 60 s of
+    simulated time (docs/sil.md).
+
     Every variable carries its SI unit and description; --units/--unit add FMI display units
     (e.g. rpm, klbf, kft*lbf with --units oilfield) that an importing tool shows; the values it
     exchanges stay SI.
 
-    A SIL scenario's plant is its model.fidelity and model.preset; a scenario that describes
-    the system ([well], [string]) is exported at its model.fidelity or --fidelity, velocity-driven at every fidelity (inputs
+    A SIL scenario's plant is its model.fidelity and model.preset; a preset scenario's plant is
+    its model at its fidelity; a scenario that describes the system ([well], [string]) is
+    exported at its model.fidelity or --fidelity, velocity-driven at every fidelity (inputs
     command_top_drive_axial_velocity and command_top_drive_angular_velocity).
     """
-    from downhole.scenario import model_type
-    from downhole.scenario.schema import read_scenario
     from downhole.sil.fmu import export_fmu as _export
-    from downhole.sil.fmu import export_system_fmu
 
     check_output_path(out, kind="file")
     display = resolve_units(units, unit)
-    data, source, _ = read_scenario(scenario)
-    if ("well" in data or "string" in data) and model_type(data, source) == "system":
-        path = export_system_fmu(scenario, out, fidelity=fidelity, units=display)
-    elif fidelity is not None:
-        fail(f"{source}: --fidelity applies to a scenario that describes the system ([well], "
-             "[string]); a SIL scenario's plant is its [model] fidelity and preset")
-    else:
-        path = _export(scenario, out, units=display)
+    path = _export(scenario, out, fidelity=fidelity, units=display)
     typer.echo(f"wrote {path}")

@@ -2,14 +2,21 @@
 OpenModelica, Simulink and other FMI tools, and a closed loop that drives such an FMU with any
 controller of the :class:`~downhole.control.base.Controller` contract.
 
-:func:`export_fmu` builds the FMU of a SIL scenario's plant; :func:`export_plant_fmu` the FMU of
-any plant object of the :class:`~downhole.sim.plant.Plant` contract, so every fidelity of one
-:class:`~downhole.system.DrillingSystem` (``lumped4``, ``lumped12``, ``neutral``, ``fem``,
-``hybrid``) can be exported. Inputs: ``command_<name>`` for every command signal of the plant;
-outputs: every observation signal, under its name in :mod:`downhole.signals` (the plant's
-simulated time as ``sim_time``: no FMU variable is named ``time``), each with its SI unit and
-description; the default experiment runs from 0 s to the scenario's duration at the plant's
-``dt``.
+:func:`export_fmu` builds the FMU of the plant of a scenario file: a SIL scenario's plant, a
+scenario that describes the system at any of its fidelities (``lumped4``, ``lumped12``,
+``neutral``, ``fem``, ``hybrid``), or a preset scenario that ``downhole simulate`` runs (lumped,
+neutral, FEM or hybrid). The FMU carries data only: the scenario's text (``scenario.toml``), the
+data files it names (a survey CSV) and ``fmu.json`` (the fidelity, the display units, the
+downhole version that exported it); no pickle, no code but the slave of this package
+(:mod:`downhole.sil.fmu_slave`). Every instance rebuilds its plant from that text with the
+scenario loader, validated like any file (:func:`load_fmu_plant`).
+
+Inputs: ``command_<name>`` for every command signal of the plant; outputs: every observation
+signal, under its name in :mod:`downhole.signals` (the plant's simulated time as ``sim_time``:
+no FMU variable is named ``time``), each with its SI unit and description; the default
+experiment runs from 0 s to the scenario's duration at the plant's ``dt``. One ``doStep`` may
+advance at most :data:`MAX_STEP_SECONDS` of simulated time and :data:`MAX_STEPS_PER_DO_STEP`
+plant steps; a larger step is an FMI error, returned at once.
 
 :func:`simulate_fmu` runs an FMU open loop with FMPy's high-level ``simulate_fmu``;
 :func:`run_fmu_closed_loop` runs the closed loop through FMPy's low-level API (instantiate,
@@ -23,24 +30,25 @@ from __future__ import annotations
 
 import json
 import math
-import pickle
+import re
 import shutil
 import tempfile
 from collections import deque
-from collections.abc import Callable, Mapping
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from downhole.errors import DownholeInputError
+from downhole.errors import DownholeInputError, ScenarioError
 from downhole.sim.result import Result
 
 __all__ = [
+    "MAX_STEPS_PER_DO_STEP",
+    "MAX_STEP_SECONDS",
     "export_fmu",
-    "export_plant_fmu",
-    "export_system_fmu",
     "fmu_signals",
+    "load_fmu_plant",
     "run_fmu_closed_loop",
+    "scenario_plant",
     "simulate_fmu",
     "system_plant",
 ]
@@ -49,6 +57,22 @@ __all__ = [
 COMMAND_PREFIX = "command_"
 #: FMU output that carries the plant's observation ``time`` (see :mod:`downhole.sil.fmu_slave`).
 TIME_OUTPUT = "sim_time"
+#: Most simulated time one ``doStep`` may advance, s: a larger communication step is an FMI
+#: error naming this bound (it returns at once instead of running for hours).
+MAX_STEP_SECONDS = 60.0
+#: Most plant steps one ``doStep`` may take (60 s at dt = 0.6 ms; 10 s at the neutral model's
+#: 0.1 ms): the other bound of a communication step.
+MAX_STEPS_PER_DO_STEP = 100_000
+#: Layout version of the FMU's ``resources/fmu.json``.
+FMU_FORMAT = 1
+#: The scenario text in the FMU's resources.
+SCENARIO_FILE = "scenario.toml"
+#: The FMU's settings in its resources: format, fidelity, options, downhole version.
+META_FILE = "fmu.json"
+#: Largest ``fmu.json`` read, bytes.
+_MAX_META_BYTES = 64 * 1024
+#: Tables and ``[model]`` keys only a SIL scenario has.
+_SIL_TABLES = ("realtime", "link", "safety", "dashboard")
 
 
 def _check_out(out) -> Path:
@@ -58,9 +82,9 @@ def _check_out(out) -> Path:
     return out
 
 
-def _display_json(units) -> str | None:
+def _display_option(units) -> dict | None:
     """The display unit system of ``units`` (a name, overrides or a
-    :class:`~downhole.units.UnitSystem`) as the FMU's ``display.json``; None for SI."""
+    :class:`~downhole.units.UnitSystem`) as the ``units`` option of ``fmu.json``; None for SI."""
     if units is None:
         return None
     from downhole.units import display_units
@@ -68,18 +92,349 @@ def _display_json(units) -> str | None:
     system = display_units(units)  # DownholeInputError on a bad name or override
     if system.name == "si" and not system.overrides:
         return None
-    return json.dumps({"system": system.name, "overrides": dict(system.overrides)})
+    return {"system": system.name, "overrides": dict(system.overrides)}
 
 
-def _build(out: Path, resources: Callable[[Path], list], units=None) -> Path:
-    """Build the FMU ``out`` from :mod:`downhole.sil.fmu_slave` and the resource files that
-    ``resources(tmp)`` writes into ``tmp`` (their paths); ``units``: the display unit system of
-    the variables (FMI ``DisplayUnit``, the values stay SI)."""
+def _constant(value, source: str, field: str, command: str) -> float:
+    """A constant set-point of the scenario (the start value of an FMU input); a time profile
+    is refused: the importing tool drives the input."""
+    if isinstance(value, tuple):
+        raise ScenarioError(source, field, f"a time profile cannot be exported: the FMU input "
+                            f"{COMMAND_PREFIX}{command} is driven by the importing tool; give a "
+                            "constant (its start value)")
+    return float(value)
+
+
+def _settings(start: str, command: dict, duration: float) -> dict:
+    command = {k: float(v) for k, v in command.items()}
+    return {"start": start, "set_point": command, "command_start": command,
+            "stop_time": float(duration)}
+
+
+def _data_files(data: dict, source: str) -> list[str]:
+    """The data files a scenario names that the FMU carries beside it (``well.survey``), as
+    paths relative to the scenario's folder."""
+    well = data.get("well")
+    survey = well.get("survey") if isinstance(well, dict) else None
+    if not isinstance(survey, str):
+        return []
+    rel = PurePosixPath(survey.replace("\\", "/"))
+    if rel.is_absolute() or ".." in rel.parts or (len(survey) > 1 and survey[1] == ":") \
+            or not rel.parts:
+        raise ScenarioError(source, "well.survey", f"{survey!r}: an FMU carries the survey "
+                            "beside the scenario; give a path relative to the scenario's folder, "
+                            "without '..'")
+    return [str(rel)]
+
+
+def _fidelity_of_file(fid: str, fidelity: str | None, source: str) -> None:
+    if fidelity is not None and fidelity != fid:
+        raise ScenarioError(source, "--fidelity", f"--fidelity applies to a scenario that "
+                            f"describes the system ([well], [string]); this file's plant is its "
+                            f"[model] fidelity {fid!r}")
+
+
+def _lumped_plant(data: dict, source: str, fidelity):
+    from downhole.scenario import validate_lumped
+    from downhole.string.fem import DirectionalPlant
+
+    sc, model = validate_lumped(data, source)
+    _fidelity_of_file(sc.model.fidelity, fidelity, source)
+    sim, s = sc.simulation, sc.operation
+    if not sim.rock_memory:
+        raise ScenarioError(source, "simulation.rock_memory", "false is not supported by the "
+                            "FMU plant (it keeps the rock-surface memory)")
+    plant = DirectionalPlant(model, dt=sim.dt, mode=s.mode, depth_of_cut=sim.depth_of_cut,
+                             integrator=sim.integrator)
+    names = plant.command_names
+    fields = ("rop", "surface_speed") if s.mode == "velocity" else ("hook_load",
+                                                                    "surface_torque")
+    cmd = {n: _constant(getattr(s, f), source, f"operation.{f}", n)
+           for n, f in zip(names, fields)}
+    return plant, _settings(sim.start, cmd, sim.duration), sc.model.fidelity
+
+
+def _neutral_plant(data: dict, source: str, fidelity):
+    from downhole.scenario.neutral import NeutralSurface, validate_neutral_scenario
+    from downhole.string.fem import DirectionalPlant
+
+    sc, model = validate_neutral_scenario(data, source)
+    _fidelity_of_file("neutral", fidelity, source)
+    sim = sc.simulation
+    noisy = [k for k, v in sim.noise.model_dump().items() if v > 0]
+    if noisy:
+        raise ScenarioError(source, f"simulation.noise.{noisy[0]}", "noise is not part of the "
+                            "FMU plant; remove [simulation.noise] to export it")
+    surface = sc.operation or NeutralSurface()
+    ua = _constant(surface.axial_command, source, "operation.axial_command",
+                   "top_drive_axial_velocity")
+    ut = _constant(surface.surface_speed, source, "operation.surface_speed",
+                   "top_drive_angular_velocity")
+    plant = DirectionalPlant(model, dt=sim.dt, depth_of_cut=sim.depth_of_cut)
+    # the plant's axial command is relative to the hanging equilibrium (U_A - M_S g / alpha_A)
+    cmd = {"top_drive_axial_velocity": ua - model.hang_command,
+           "top_drive_angular_velocity": ut}
+    return plant, _settings(sim.start, cmd, sim.duration), "neutral"
+
+
+def _directional_plant(data: dict, source: str, fidelity):
+    from downhole.scenario.directional import _hook, _top_drive, validate_directional_scenario
+    from downhole.string.fem import DirectionalPlant
+
+    sc, params, model = validate_directional_scenario(data, source)
+    fid = sc.model.fidelity
+    _fidelity_of_file(fid, fidelity, source)
+    if sc.controller.type == "dhp":
+        raise ScenarioError(source, "controller.type", "'dhp' is not supported: the plant of a "
+                            "saved DHP controller (torque-driven top drive, slack-off hook) is "
+                            "exported from a SIL scenario with [model] interface = 'state'")
+    op, sim = sc.operation, sc.simulation
+    _constant(op.surface_speed, source, "operation.surface_speed", "top_drive_angular_velocity")
+    hook = _hook(sc)
+    if hook.mode == "velocity":
+        _constant(op.rop, source, "operation.rop", "top_drive_axial_velocity")
+    plant = DirectionalPlant(model, sim.dt, top_drive=_top_drive(sc, params), hook=hook,
+                             depth_of_cut=sim.depth_of_cut)
+    cmd = plant.default_command()
+    if hook.mode == "force" and op.hook_load is not None:
+        cmd["hook_load"] = _constant(op.hook_load, source, "operation.hook_load", "hook_load")
+    return plant, _settings(sim.start, cmd, sim.duration), fid
+
+
+def _system_plant(data: dict, source: str, fidelity):
+    from downhole.scenario.system import DEFAULT_DT, steady_bit_state, validate_system_scenario
+
+    sc, fid, system, model = validate_system_scenario(data, source, fidelity)
+    sim, op = sc.simulation, sc.operation
+    dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]
+    rop, wob, tob = steady_bit_state(system.bit, op.surface_speed, op.rop, op.wob)
+    plant = system_plant(system, model, fid, dt, surface_speed=op.surface_speed, rop=rop,
+                         depth_of_cut=sim.depth_of_cut, integrator=sim.integrator)
+    if fid == "neutral":  # the commands of the steady state, as `downhole simulate` drives it
+        ua, ut = model.steady_inputs(rop, op.surface_speed, wob, tob)
+        cmd = {"top_drive_axial_velocity": ua - model.hang_command,
+               "top_drive_angular_velocity": ut}
+    else:
+        cmd = {"top_drive_axial_velocity": rop, "top_drive_angular_velocity": op.surface_speed}
+    return plant, _settings(sim.start, cmd, sim.duration), fid
+
+
+def _sil_plant(data: dict, source: str, fidelity):
+    from downhole.sil.scenario import build_from_scenario, parse_sil_scenario
+
+    sc = parse_sil_scenario(data, source)
+    if fidelity is not None and fidelity != sc.model.fidelity:
+        raise ScenarioError(source, "--fidelity", "--fidelity applies to a scenario that "
+                            "describes the system ([well], [string]); a SIL scenario's plant is "
+                            "its [model] fidelity and preset")
+    if sc.link.mode == "hil":
+        raise ScenarioError(source, "link.mode", "'hil' is not supported: the HIL plant takes "
+                            "the rig's bit velocities over the link; an FMU plant has no link")
+    plant, _ = build_from_scenario(sc, with_controller=False)
+    start = dict(getattr(plant, "default_start", None) or {"start": "rest", "set_point": None})
+    return plant, {"start": start["start"], "set_point": start["set_point"],
+                   "command_start": {}, "stop_time": float(sc.simulation.duration)}, \
+        sc.model.fidelity
+
+
+def _is_sil(data: dict) -> bool:
+    model = data.get("model")
+    return any(t in data for t in _SIL_TABLES) or (isinstance(model, dict)
+                                                   and "interface" in model)
+
+
+def _build_plant(data: dict, source: str, fidelity: str | None):
+    """``(plant, settings, fidelity)`` of a parsed scenario (see :func:`scenario_plant`)."""
+    from downhole.scenario import _load_plugins, is_lumped_type, model_type
+
+    if _is_sil(data):
+        return _sil_plant(data, source, fidelity)
+    try:
+        mtype = model_type(data, source)
+        if mtype == "system":
+            return _system_plant(data, source, fidelity)
+        if mtype == "dhp":
+            raise ScenarioError(source, "controller.type", "a DHP design scenario trains a "
+                                "controller: it has no plant to export (export a SIL scenario "
+                                "with [model] interface = 'state')")
+        if is_lumped_type(mtype):
+            return _lumped_plant(data, source, fidelity)
+        if mtype == "neutral":
+            return _neutral_plant(data, source, fidelity)
+        if mtype in ("fem", "hybrid"):
+            return _directional_plant(data, source, fidelity)
+        _load_plugins()
+        raise ScenarioError(source, "model.fidelity", f"{mtype!r} is a plug-in model type; "
+                            "only the built-in plants can be exported as an FMU")
+    except ScenarioError as exc:
+        if exc.field in ("--fidelity", "controller.type", "simulation.rock_memory",
+                         "link.mode") \
+                or exc.field.startswith(("simulation.noise", "operation.", "well.survey")):
+            raise
+        try:  # a SIL scenario without a SIL-only table ([model], [operation], [simulation])
+            return _sil_plant(data, source, fidelity)
+        except ScenarioError:
+            raise exc from None
+
+
+def _scenario_plant(path: Path, fidelity: str | None):
+    """``(plant, settings, info)``: :func:`scenario_plant` and ``info`` = ``{"text", "source",
+    "fidelity", "data_files"}``."""
+    from downhole.scenario.schema import read_scenario
+
+    data, source, text = read_scenario(path)
+    files = _data_files(data, source)
+    try:
+        plant, settings, fid = _build_plant(data, source, fidelity)
+    except ScenarioError:
+        raise
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "model", str(exc)) from None
+    from downhole.signals import check_command_value
+
+    for name, value in settings["command_start"].items():
+        why = check_command_value(name, value)
+        if why is not None:
+            raise ScenarioError(source, "operation", f"start value of the FMU input "
+                                f"{COMMAND_PREFIX}{name}: {why}")
+    try:  # the slave resets the plant like this when it leaves initialization mode
+        plant.reset(start=settings["start"], set_point=settings["set_point"])
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "simulation.start", str(exc)) from None
+    return plant, settings, {"text": text, "source": source, "fidelity": fid,
+                             "data_files": files}
+
+
+def scenario_plant(scenario, fidelity: str | None = None):
+    """The plant an FMU of ``scenario`` runs, and how it starts.
+
+    The scenario is read and validated as ``downhole simulate`` and ``downhole sil`` read it;
+    the plant is built at ``fidelity``: a SIL scenario's plant
+    (:func:`~downhole.sil.scenario.build_from_scenario`); a system scenario at any fidelity
+    (:func:`system_plant`, velocity-driven); a lumped, neutral, FEM or hybrid preset scenario
+    at its own fidelity, with the scenario's rig, step, depth-of-cut model and integrator. The
+    ``[operation]`` set-points are the start values of the inputs (a time profile is refused:
+    the importing tool drives the inputs); ``[controller]``, ``[reference]`` and the run's
+    recording settings are not part of the plant.
+
+    Parameters
+    ----------
+    scenario : str or os.PathLike
+        Scenario TOML file.
+    fidelity : str, optional
+        Fidelity of a system scenario (default: its ``[model] fidelity``); for other files only
+        their own fidelity is accepted.
+
+    Returns
+    -------
+    (Plant, dict)
+        The plant (reset as the FMU starts it) and its settings: ``start``, ``set_point`` (of
+        ``plant.reset``), ``command_start`` (start values of the inputs) and ``stop_time``
+        (the scenario's duration, s).
+
+    Raises
+    ------
+    ScenarioError
+        One line naming the file and the field: an invalid scenario, or what the FMU plant does
+        not support (a DHP design or saved DHP controller, a time profile, noise, a survey
+        outside the scenario's folder, a fidelity the file cannot represent).
+    """
+    plant, settings, _ = _scenario_plant(Path(scenario), fidelity)
+    return plant, settings
+
+
+def _version(text: str) -> tuple:
+    return tuple(int(x) for x in re.findall(r"\d+", text)[:3])
+
+
+def _read_meta(path: Path) -> dict:
+    """``fmu.json``, checked: ``format``, ``fidelity``, ``options`` and ``downhole_version``."""
+    import downhole
+    from downhole._reader import read_regular_file
+    from downhole.scenario.system import FIDELITY_NAMES
+
+    try:
+        meta = json.loads(read_regular_file(path, _MAX_META_BYTES, "the FMU's settings (JSON)"))
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise DownholeInputError(f"{path}: not valid JSON ({exc})") from None
+    keys = {"format", "fidelity", "options", "downhole_version", "source"}
+    if not isinstance(meta, dict) or set(meta) != keys:
+        raise DownholeInputError(f"{path}: expected the keys {sorted(keys)}")
+    if meta["format"] != FMU_FORMAT:
+        raise DownholeInputError(f"{path}: format {meta['format']!r}; this downhole reads "
+                                 f"format {FMU_FORMAT}")
+    if meta["fidelity"] not in FIDELITY_NAMES:
+        raise DownholeInputError(f"{path}: fidelity {meta['fidelity']!r} is not one of "
+                                 f"{', '.join(FIDELITY_NAMES)}")
+    options = meta["options"]
+    if not isinstance(options, dict) or set(options) - {"units"}:
+        raise DownholeInputError(f"{path}: options must be a table with at most 'units'")
+    units = options.get("units")
+    if units is not None and not (isinstance(units, dict) and isinstance(units.get("system"), str)
+                                  and isinstance(units.get("overrides", {}), dict)):
+        raise DownholeInputError(f"{path}: options.units must be {{'system': name, 'overrides': "
+                                 "{...}}")
+    need = meta["downhole_version"]
+    if not isinstance(need, str) or not _version(need):
+        raise DownholeInputError(f"{path}: downhole_version must be a version string")
+    if _version(downhole.__version__) < _version(need):
+        raise DownholeInputError(f"this FMU was exported by downhole {need}; the installed "
+                                 f"downhole {downhole.__version__} is older: install downhole "
+                                 f">= {need}")
+    return meta
+
+
+def load_fmu_plant(resources):
+    """Rebuild the plant of an FMU from its resources (what every FMU instance does).
+
+    Reads ``fmu.json`` (format, fidelity, options, the downhole version that exported it: the
+    installed one must not be older) and rebuilds the plant from ``scenario.toml`` at that
+    fidelity with :func:`scenario_plant`, so a tampered or hand-edited scenario is validated
+    like any file and refused with its one-line message.
+
+    Parameters
+    ----------
+    resources : str or os.PathLike
+        The FMU's ``resources`` folder.
+
+    Returns
+    -------
+    (Plant, dict, UnitSystem or None)
+        The plant, its settings (see :func:`scenario_plant`) and the display unit system of
+        the variables (None: SI).
+
+    Raises
+    ------
+    DownholeInputError
+        A missing or invalid ``fmu.json``, a downhole older than the exporter's;
+        :class:`~downhole.errors.ScenarioError` for an invalid scenario.
+    """
+    resources = Path(resources)
+    meta = _read_meta(resources / META_FILE)
+    plant, settings, _ = _scenario_plant(resources / SCENARIO_FILE, meta["fidelity"])
+    units = meta["options"].get("units")
+    system = None
+    if units is not None:
+        from downhole.units import display_units
+
+        system = display_units(units["system"], units.get("overrides") or {})
+    return plant, settings, system
+
+
+def _build(out: Path, info: dict, scenario: Path, units) -> Path:
+    """Build the FMU ``out`` from :mod:`downhole.sil.fmu_slave`, the scenario's text, its data
+    files and ``fmu.json``."""
     from pythonfmu.builder import FmuBuilder
 
+    import downhole
     from downhole._atomic import atomic_path
 
-    display = _display_json(units)
+    options = {}
+    display = _display_option(units)
+    if display is not None:
+        options["units"] = display
+    meta = {"format": FMU_FORMAT, "fidelity": info["fidelity"], "options": options,
+            "downhole_version": downhole.__version__, "source": Path(info["source"]).name}
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="downhole_fmu_") as tmp:
         tmp = Path(tmp)
@@ -87,33 +442,43 @@ def _build(out: Path, resources: Callable[[Path], list], units=None) -> Path:
         shutil.copy2(Path(__file__).with_name("fmu_slave.py"), script)
         res = tmp / "resources"
         res.mkdir()
-        files = resources(res)
-        if display is not None:
-            (res / "display.json").write_text(display)
-            files.append(res / "display.json")
-        built = FmuBuilder.build_FMU(script, dest=tmp / "out", project_files=files)
+        (res / SCENARIO_FILE).write_text(info["text"], encoding="utf-8")
+        (res / META_FILE).write_text(json.dumps(meta, indent=1))
+        files = [res / SCENARIO_FILE, res / META_FILE]
+        for rel in info["data_files"]:
+            dest = res / rel
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(scenario.parent / rel, dest)
+            files.append(res / PurePosixPath(rel).parts[0])
+        built = FmuBuilder.build_FMU(script, dest=tmp / "out", project_files=sorted(set(files)))
         with atomic_path(out) as part:  # the build is in /tmp: copy, fsync, rename
             shutil.copyfile(built, part)
     return out
 
 
-def export_fmu(scenario, out="plant.fmu", *, units=None) -> Path:
-    """Build ``out`` (an ``.fmu``) from a SIL scenario file (validated first).
+def export_fmu(scenario, out="plant.fmu", *, fidelity: str | None = None, units=None) -> Path:
+    """Build ``out`` (an ``.fmu``) of the plant of a scenario file.
 
-    The plant is the scenario's ``[plant]`` (``model`` selects the fidelity: ``lumped`` with
-    ``order = 4 | 12``, ``fem``, ``hybrid24 | hybrid68 | hybrid108``); for a plant built in
-    Python (e.g. any fidelity of a :class:`~downhole.system.DrillingSystem`) use
-    :func:`export_plant_fmu`.
+    The scenario is validated and its plant built first (:func:`scenario_plant`), so an
+    unsupported file fails here with one line, not inside the FMU. The FMU carries the
+    scenario's text, the data files it names (a survey CSV), the fidelity and the options
+    (display units) as JSON, and the downhole version that exported it; no pickle and no code
+    but the package's FMU slave. Every instance rebuilds the plant with the installed downhole
+    (:func:`load_fmu_plant`).
 
     Parameters
     ----------
     scenario : str or os.PathLike
-        SIL scenario TOML file (copied into the FMU's resources).
+        A SIL scenario, a scenario that describes the system ([well], [string]) or a lumped,
+        neutral, FEM or hybrid preset scenario (``downhole simulate``).
     out : str or os.PathLike, optional
-        FMU file to write (default ``"plant.fmu"``); must end in ``.fmu``.
+        FMU file to write (default ``"plant.fmu"``, atomically); must end in ``.fmu``.
+    fidelity : str, optional
+        Fidelity of a system scenario (``lumped4``, ``lumped12``, ``neutral``, ``fem``,
+        ``hybrid``; default its ``[model] fidelity``).
     units : str or UnitSystem, optional
-        Display unit system of the FMU's variables (``"oilfield"``, ``docs/units.md``); values
-        stay SI.
+        Display unit system of the FMU's variables (FMI 2.0 ``DisplayUnit``, e.g.
+        ``"oilfield"``, ``docs/units.md``); the values an importer exchanges stay SI.
 
     Returns
     -------
@@ -123,129 +488,20 @@ def export_fmu(scenario, out="plant.fmu", *, units=None) -> Path:
     Raises
     ------
     ScenarioError
-        Invalid scenario.
+        Invalid scenario, or what the FMU plant does not support (:func:`scenario_plant`).
     DownholeInputError
-        ``out`` does not end in ``.fmu``.
+        ``out`` does not end in ``.fmu``; a bad display unit system.
     """
-    from downhole.sil.scenario import build_from_scenario, load_sil_scenario
-
     scenario = Path(scenario)
     out = _check_out(out)
-    sc = load_sil_scenario(scenario)
-    build_from_scenario(sc, with_controller=False)  # fail here, not inside the FMU
-
-    def resources(res: Path) -> list:
-        shutil.copy2(scenario, res / "scenario.toml")
-        return [res / "scenario.toml"]
-
-    return _build(out, resources, units)
-
-
-def _check_plant(plant) -> None:
-    missing = [a for a in ("command_names", "observation_names", "dt", "default_command",
-                           "reset", "step") if not hasattr(plant, a)]
-    if missing:
-        raise DownholeInputError(f"{type(plant).__name__} is not a plant of the Plant contract "
-                                 f"(downhole.sim.plant.Plant): it lacks {missing}")
-    if not plant.command_names or not plant.observation_names:
-        raise DownholeInputError(f"{type(plant).__name__} declares no command or no "
-                                 "observation signals; an FMU needs both")
-    clash = [n for n in plant.observation_names if n.startswith(COMMAND_PREFIX)
-             and n[len(COMMAND_PREFIX):] in plant.command_names]
-    if clash:
-        raise DownholeInputError(f"observations {clash} would clash with the FMU inputs "
-                                 f"{COMMAND_PREFIX}<command>")
-
-
-def export_plant_fmu(plant, out="plant.fmu", *, start: str = "rest",
-                     set_point: Mapping[str, float] | None = None,
-                     command_start: Mapping[str, float] | None = None,
-                     stop_time: float = 10.0, units=None) -> Path:
-    """Build ``out`` (an ``.fmu``) wrapping ``plant``, a plant of the Plant contract.
-
-    The plant is pickled into the FMU's resources as it is now (model, step ``dt``, options such
-    as the integrator or the hook mode); every FMU instance unpickles its own copy and starts
-    with ``plant.reset(start=start, set_point=set_point)`` when it leaves initialization mode.
-    The FMU runs in a Python environment with the same downhole version. A plant that holds
-    local functions (the DHP ``state`` interface's design model) cannot be pickled: export its
-    SIL scenario with :func:`export_fmu` instead.
-
-    Parameters
-    ----------
-    plant : downhole.sim.plant.Plant
-        E.g. ``DirectionalPlant(system.build("lumped4"), dt=5e-4)`` (any
-        :class:`~downhole.string.fem.DirectionalPlant`: lumped, neutral, FEM or hybrid).
-    out : path
-        The ``.fmu`` file to write (atomically).
-    start : {"rest", "off_bottom", "steady"}
-        How every run of the FMU starts (:data:`downhole.sim.plant.START_MODES`).
-    set_point : mapping, optional
-        Set-point of the start (default: the plant's default command).
-    command_start : mapping, optional
-        Start values of the inputs ``command_<name>`` (default: the plant's default command);
-        the command an importing tool applies until it sets the inputs.
-    stop_time : float
-        Stop time of the FMU's default experiment, s (start 0, step the plant's ``dt``).
-    units : str or UnitSystem, optional
-        Display units of the variables (FMI 2.0 ``DisplayUnit`` and ``displayUnit``, e.g.
-        ``"oilfield"``: rpm, klbf, kft*lbf, ft/h); the values an importer exchanges stay SI.
-
-    Returns
-    -------
-    Path
-        ``out``.
-
-    Raises
-    ------
-    DownholeInputError
-        ``out`` does not end in ``.fmu``; ``plant`` is not a plant of the contract, cannot be
-        pickled, or cannot start as asked (the plant's reason); a ``command_start`` entry
-        that is not a command of the plant or not admissible.
-    """
-    import downhole
-    from downhole.signals import check_command_value
-    from downhole.sim.plant import check_start
-
-    out = _check_out(out)
-    _check_plant(plant)
-    check_start(start)
-    set_point = None if set_point is None else {str(k): float(v) for k, v in set_point.items()}
-    command_start = dict(command_start or {})
-    unknown = [k for k in command_start if k not in plant.command_names]
-    if unknown:
-        raise DownholeInputError(f"command_start names {unknown}; {type(plant).__name__} takes "
-                                 f"{list(plant.command_names)}")
-    for k, v in command_start.items():
-        why = check_command_value(k, v)
-        if why is not None:
-            raise DownholeInputError(f"command_start: {why}")
-    command_start = {k: float(v) for k, v in command_start.items()}
-    if isinstance(stop_time, bool) or not isinstance(stop_time, (int, float)) \
-            or not math.isfinite(stop_time) or stop_time <= 0:
-        raise DownholeInputError(f"stop_time must be a positive number of seconds, got "
-                                 f"{stop_time!r}")
-    try:
-        blob = pickle.dumps(plant)
-    except Exception as exc:
-        raise DownholeInputError(f"{type(plant).__name__} cannot be pickled into the FMU: "
-                                 f"{exc}") from None
-    copy = pickle.loads(blob)  # fail here, not inside the FMU
-    copy.reset(start=start, set_point=set_point)
-
-    def resources(res: Path) -> list:
-        (res / "plant.pkl").write_bytes(blob)
-        (res / "start.json").write_text(json.dumps({
-            "start": start, "set_point": set_point, "command_start": command_start,
-            "stop_time": float(stop_time), "plant": type(plant).__name__,
-            "downhole_version": downhole.__version__}))
-        return [res / "plant.pkl", res / "start.json"]
-
-    return _build(out, resources, units)
+    _display_option(units)
+    _, _, info = _scenario_plant(scenario, fidelity)
+    return _build(out, info, scenario, units)
 
 
 def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: float = 10.0,
                  rop: float = 0.0, depth_of_cut: str = "delayed", integrator: str = "newmark"):
-    """The velocity-driven plant of ``model`` that :func:`export_system_fmu` wraps.
+    """The velocity-driven plant of ``model`` that :func:`export_fmu` wraps for a system scenario.
 
     Commands ``top_drive_axial_velocity`` (m/s) and ``top_drive_angular_velocity`` (rad/s) at
     every fidelity. ``lumped4`` / ``lumped12``: :class:`~downhole.string.fem.DirectionalPlant`
@@ -298,54 +554,6 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
     return DirectionalPlant(model, dt, top_drive=top, hook=hook, depth_of_cut=depth_of_cut)
 
 
-def export_system_fmu(scenario, out="plant.fmu", *, fidelity: str | None = None,
-                      units=None) -> Path:
-    """Build ``out`` from a scenario that describes the system (``[model] fidelity``).
-
-    At ``fidelity`` (default: the file's): the plant of :func:`system_plant` with the scenario's
-    ``[simulation] dt`` (default: the fidelity's), ``depth_of_cut``, ``integrator`` and
-    ``start``; the inputs start at the scenario's set-points (``[operation] rop`` or the ROP of
-    the steady bit state at ``wob``, and ``surface_speed``).
-
-    Parameters
-    ----------
-    scenario : str or os.PathLike
-        System scenario TOML file.
-    out : str or os.PathLike, optional
-        FMU file to write (default ``"plant.fmu"``); must end in ``.fmu``.
-    units : str or UnitSystem, optional
-        Display unit system of the FMU's variables (``"oilfield"``, ``docs/units.md``); values
-        stay SI.
-    fidelity : str, optional
-        Fidelity to export (default: the scenario's ``[model] fidelity``).
-
-    Returns
-    -------
-    pathlib.Path
-        The FMU written.
-
-    Raises
-    ------
-    ScenarioError
-        Invalid scenario, or a feature the fidelity cannot represent (naming the field).
-    DownholeInputError
-        ``out`` does not end in ``.fmu``.
-    """
-    from downhole.scenario.schema import read_scenario
-    from downhole.scenario.system import DEFAULT_DT, steady_bit_state, validate_system_scenario
-
-    out = _check_out(out)
-    data, source, _ = read_scenario(Path(scenario))
-    sc, fid, system, model = validate_system_scenario(data, source, fidelity)
-    sim, op = sc.simulation, sc.operation
-    dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]
-    rop, _, _ = steady_bit_state(system.bit, op.surface_speed, op.rop, op.wob)
-    plant = system_plant(system, model, fid, dt, surface_speed=op.surface_speed, rop=rop,
-                         depth_of_cut=sim.depth_of_cut, integrator=sim.integrator)
-    command = {"top_drive_axial_velocity": rop, "top_drive_angular_velocity": op.surface_speed}
-    return export_plant_fmu(plant, out, start=sim.start,
-                            set_point=None if sim.start == "rest" else command,
-                            command_start=command, stop_time=float(sim.duration), units=units)
 
 
 def simulate_fmu(fmu, stop_time: float, step_size: float, start_values: dict | None = None
@@ -461,6 +669,14 @@ class _Log:
         self.messages.append(message.decode("utf-8", "replace") if isinstance(message, bytes)
                              else str(message))
 
+    def last_line(self) -> str:
+        """The last line of the last message (pythonfmu puts the exception there)."""
+        for m in reversed(self.messages):
+            lines = [ln.strip() for ln in m.splitlines() if ln.strip()]
+            if lines:
+                return lines[-1]
+        return ""
+
 
 def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = None,
                         reference=None, record_every: int = 1) -> Result:
@@ -476,8 +692,8 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
     Parameters
     ----------
     fmu : path
-        An FMU written by :func:`export_fmu` or :func:`export_plant_fmu` (or any FMI 2.0
-        co-simulation FMU with the same signal names).
+        An FMU written by :func:`export_fmu` (or any FMI 2.0 co-simulation FMU with the same
+        signal names).
     controller : Controller
         Any object with ``reset()`` and ``command(t, observation, reference)``; its ``needs``
         and ``commands`` are checked against the FMU's outputs and inputs first. A discrete-time
@@ -502,8 +718,9 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
     DownholeInputError
         No such file, not an FMI 2.0 co-simulation FMU; the controller needs a signal the FMU
         does not output or sets a command it does not take (named); a bad duration or step; a
-        command that is not finite or out of its admissible range (named, with the time); a
-        step the FMU rejects (with the FMU's log message).
+        command that is not finite or out of its admissible range (named, with the time); an
+        FMU that fails to instantiate (e.g. an invalid scenario in it) or a step it rejects
+        (e.g. above :data:`MAX_STEP_SECONDS`), with the FMU's log message.
     """
     from ctypes import byref
 
@@ -572,7 +789,12 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
     cmds = np.empty((len(keep), len(in_names)))
     instantiated = False
     try:
-        slave.instantiate(callbacks=callbacks, loggingOn=True)
+        try:
+            slave.instantiate(callbacks=callbacks, loggingOn=True)
+        except Exception as exc:
+            said = log.last_line() or str(exc)
+            raise DownholeInputError(f"the FMU {fmu.name} failed to instantiate: {said}") \
+                from None
         instantiated = True
         slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
@@ -606,7 +828,8 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
             try:
                 slave.doStep(currentCommunicationPoint=t, communicationStepSize=dt)
             except Exception as exc:
-                said = "; ".join(list(log.messages)[-3:]) or str(exc)
+                said = "; ".join(" ".join(m.split()) for m in list(log.messages)[-3:]) \
+                    or str(exc)
                 raise DownholeInputError(f"the FMU {fmu.name} rejected the step at t = {t:g} s "
                                          f"(dt = {dt:g} s): {said}") from None
         slave.terminate()

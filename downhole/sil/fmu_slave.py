@@ -1,42 +1,40 @@
-"""Source of the exported FMU (FMI 2.0 co-simulation, pythonfmu): a plant of the Plant contract.
+"""Source of the exported FMU (FMI 2.0 co-simulation, pythonfmu): the plant of a scenario.
 
-This file is copied into the FMU by :func:`downhole.sil.fmu.export_fmu` (a SIL scenario, as
-``scenario.toml`` beside it) or :func:`downhole.sil.fmu.export_plant_fmu` (any plant object of
-the :class:`~downhole.sim.plant.Plant` contract at any fidelity, pickled as ``plant.pkl``, with
-its start mode in ``start.json``) as ``DownholePlant``'s script.
+This file is copied into the FMU by :func:`downhole.sil.fmu.export_fmu` as ``DownholePlant``'s
+script; it is the FMU's only code. The FMU's resources hold data only: the scenario's text
+(``scenario.toml``), the data files it names (a survey CSV) and ``fmu.json`` (format, fidelity,
+options such as the display units, the downhole version that exported it). Every instance
+rebuilds its plant from them with the installed downhole package
+(:func:`downhole.sil.fmu.load_fmu_plant`): the scenario is validated as any scenario file is,
+and an invalid one fails the instantiation with its one-line message in the FMU log.
 
 Inputs are the plant's command signals (:mod:`downhole.signals`), named ``command_<name>`` (start
-value: the plant's default command; the prefix keeps a command apart from the observation of the
+value: the scenario's set-points; the prefix keeps a command apart from the observation of the
 same name, e.g. ``top_drive_angular_velocity``); outputs are the plant's observation signals
 under their registry names, except the plant's simulated time, output as ``sim_time`` (a
 variable named ``time`` clashes with the importer's own time column). Every variable carries
 its SI unit and description from :mod:`downhole.signals` (the units declared in
 ``<UnitDefinitions>`` with their SI base-unit exponents), the constant ``bit_radius`` (m, for
 the MSE) is exported when the plant's bit is known, and the default experiment runs from 0 to
-the scenario's duration (or the ``stop_time`` of ``export_plant_fmu``) at the plant's step.
+the scenario's duration at the plant's step.
 ``do_step`` advances ``round(step_size / dt)`` plant steps holding the inputs (the
 communication step must be a whole multiple of the plant's ``dt``, the FMU's default step
-size); a rejected command (non-finite, out of its range) fails the step with the
-plant's reason in the FMU log and is never applied. The FMU imports downhole from the Python
-environment that runs it (the pickled plant needs the downhole version that exported it).
+size, and at most :data:`~downhole.sil.fmu.MAX_STEP_SECONDS` of simulated time and
+:data:`~downhole.sil.fmu.MAX_STEPS_PER_DO_STEP` plant steps: a larger, negative or non-finite
+step is an FMI error with the reason in the FMU log, returned before any plant step); a
+rejected command (non-finite, out of its range) fails the step with the plant's reason in the
+FMU log and is never applied.
 """
 
-import json
 import math
-import pickle
 from pathlib import Path
 from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
-#: FMU output name of the plant's observation ``time`` (the simulated time).
-TIME_OUTPUT = "sim_time"
-#: Default experiment stop time when the resources give none, s.
-DEFAULT_STOP_TIME = 10.0
-#: Most plant steps one ``doStep`` may take (100 s of simulated time at dt = 1 ms): a larger
-#: communication step is refused with an FMI error instead of running for hours.
-MAX_STEPS_PER_DO_STEP = 100_000
+from downhole.sil.fmu import MAX_STEP_SECONDS, MAX_STEPS_PER_DO_STEP, TIME_OUTPUT, load_fmu_plant
+
 _BASE = {"kilogram": "kg", "meter": "m", "second": "s", "ampere": "A", "kelvin": "K",
          "mole": "mol", "candela": "cd", "radian": "rad"}
 
@@ -78,17 +76,6 @@ def unit_definition(unit: str, display_units=()) -> Element:
     return node
 
 
-def _display_system(resources: Path):
-    """The display :class:`~downhole.units.UnitSystem` of ``display.json`` (None: SI)."""
-    f = resources / "display.json"
-    if not f.is_file():
-        return None
-    from downhole.units import display_units
-
-    d = json.loads(f.read_text())
-    return display_units(d["system"], d.get("overrides") or {})
-
-
 def _signal(name: str, plant=None):
     """``(unit, description)`` of a plant signal: the registry's, else the plant's own unit
     (a design-model state of the DHP ``state`` interface)."""
@@ -103,25 +90,8 @@ def _signal(name: str, plant=None):
     return unit, ""
 
 
-def _load_plant(resources: Path):
-    """``(plant, settings)`` from the FMU's resources (settings: ``start``, ``set_point``,
-    ``command_start``)."""
-    if (resources / "plant.pkl").is_file():
-        with open(resources / "plant.pkl", "rb") as fh:
-            plant = pickle.load(fh)
-        start = json.loads((resources / "start.json").read_text())
-        return plant, start
-
-    from downhole.sil.scenario import build_from_scenario, load_sil_scenario
-
-    sc = load_sil_scenario(resources / "scenario.toml")
-    plant, _ = build_from_scenario(sc, with_controller=False)
-    return plant, {"start": "rest", "set_point": None, "command_start": {},
-                   "stop_time": float(sc.simulation.duration)}
-
-
 class DownholePlant(Fmi2Slave):
-    """downhole drill-string plant (see the resources: scenario.toml or plant.pkl)."""
+    """downhole drill-string plant, rebuilt from the scenario in the resources."""
 
     author = "downhole"
     description = "downhole drill-string plant: inputs = command_<signal>, outputs = signals"
@@ -130,8 +100,7 @@ class DownholePlant(Fmi2Slave):
         super().__init__(**kwargs)
         from downhole.sim.plant import plant_bit_radius
 
-        self._plant, settings = _load_plant(Path(self.resources))
-        system = _display_system(Path(self.resources))
+        self._plant, settings, system = load_fmu_plant(Path(self.resources))
 
         def shown(name, unit):  # the display unit of a signal (None: its SI unit)
             return system.unit_of(name, unit) if (system is not None and unit) else None
@@ -139,10 +108,10 @@ class DownholePlant(Fmi2Slave):
         self._reset = {"start": settings["start"], "set_point": settings["set_point"]}
         self._dt = float(self._plant.dt)
         self.default_experiment = DefaultExperiment(
-            start_time=0.0, stop_time=float(settings.get("stop_time") or DEFAULT_STOP_TIME),
+            start_time=0.0, stop_time=float(settings["stop_time"]),
             step_size=self._dt)
         self._in = [f"command_{c}" for c in self._plant.command_names]
-        start_values = dict(self._plant.default_command(), **settings.get("command_start", {}))
+        start_values = dict(self._plant.default_command(), **settings["command_start"])
         for c, v in start_values.items():
             setattr(self, f"command_{c}", float(v))
             unit, desc = _signal(c)
@@ -198,14 +167,17 @@ class DownholePlant(Fmi2Slave):
     def do_step(self, current_time, step_size):
         if not (isinstance(step_size, (int, float)) and math.isfinite(step_size)
                 and step_size > 0):
-            self.log(f"step size {step_size!r} s is not a positive finite number",
+            self.log(f"doStep refused: the communication step {step_size!r} s is not a "
+                     "positive finite number",
                      Fmi2Status.error)
             return False
-        if step_size / self._dt > MAX_STEPS_PER_DO_STEP + 0.5:
-            self.log(f"step size {step_size!r} s needs {step_size / self._dt:.4g} plant steps of "
-                     f"dt = {self._dt!r} s, above the limit of {MAX_STEPS_PER_DO_STEP} per doStep "
-                     f"({MAX_STEPS_PER_DO_STEP * self._dt:g} s): use communication steps of at "
-                     f"most {MAX_STEPS_PER_DO_STEP * self._dt:g} s", Fmi2Status.error)
+        limit = min(MAX_STEP_SECONDS, MAX_STEPS_PER_DO_STEP * self._dt)
+        if step_size > limit * (1.0 + 1e-12):
+            self.log(f"doStep refused: a communication step of {step_size:g} s exceeds the "
+                     f"limit of {limit:g} s per doStep (at most {MAX_STEP_SECONDS:g} s of "
+                     f"simulated time and {MAX_STEPS_PER_DO_STEP} plant steps of dt = "
+                     f"{self._dt:g} s); use communication steps of at most {limit:g} s",
+                     Fmi2Status.error)
             return False
         n = round(step_size / self._dt)
         if n < 1 or abs(n * self._dt - step_size) > 1e-9 * max(1.0, step_size):
