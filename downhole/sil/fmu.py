@@ -39,6 +39,7 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 
 from downhole.errors import DownholeInputError, ScenarioError
+from downhole.sim.loop import run_loop
 from downhole.sim.result import Result
 
 __all__ = [
@@ -802,29 +803,35 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
         if getattr(controller, "dt", None) is not None:
             controller.dt = float(dt)  # the control step of this loop: every communication step
         controller.reset()
-        j = 0
-        for k in range(n + 1):
-            t = k * dt
+        keep_at = {k: j for j, k in enumerate(keep)}
+        clock = {"k": 0}
+
+        def observe():
             obs = dict(zip(obs_keys, slave.getReal(out_vr)))
-            obs.setdefault("time", t)
-            out = controller.command(t, obs, ref_fn(t))
-            unknown = [c for c in out if c not in held]
+            obs.setdefault("time", clock["k"] * dt)
+            return obs
+
+        def write(out, seen, h):
+            unknown = [c for c in out if c not in h]
             if unknown:
-                raise DownholeInputError(f"{cname} at t = {t:g} s sets {unknown}; the FMU "
-                                         f"{fmu.name} takes {sorted(taken)}")
-            held.update(out)
-            if j < len(keep) and keep[j] == k:
+                raise DownholeInputError(f"{cname} at t = {seen['time']:g} s sets {unknown}; the "
+                                         f"FMU {fmu.name} takes {sorted(taken)}")
+            h.update(out)
+
+        def on_sample(k, obs, h):
+            j = keep_at.get(k)
+            if j is not None:
                 rows[j] = [obs[c] for c in obs_keys]
-                cmds[j] = [held[c] for c in in_names]
-                j += 1
-            if k == n:
-                break
+                cmds[j] = [h[c] for c in in_names]
+
+        def step(h):
+            t = clock["k"] * dt
             for c in in_names:
-                why = check_command_value(c, held[c])
+                why = check_command_value(c, h[c])
                 if why is not None:
                     raise DownholeInputError(f"{cname} at t = {t:g} s: {why}; not applied to "
                                              f"the FMU")
-            slave.setReal(in_vr, [float(held[c]) for c in in_names])
+            slave.setReal(in_vr, [float(h[c]) for c in in_names])
             try:
                 slave.doStep(currentCommunicationPoint=t, communicationStepSize=dt)
             except Exception as exc:
@@ -832,6 +839,11 @@ def run_fmu_closed_loop(fmu, controller, duration: float, *, dt: float | None = 
                     or str(exc)
                 raise DownholeInputError(f"the FMU {fmu.name} rejected the step at t = {t:g} s "
                                          f"(dt = {dt:g} s): {said}") from None
+            clock["k"] += 1
+            return observe()
+
+        run_loop(step, controller, observe(), n, dt, held=held, write=write,
+                 reference=lambda k, t: ref_fn(t), on_sample=on_sample)
         slave.terminate()
     finally:
         if instantiated:
