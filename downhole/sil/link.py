@@ -40,11 +40,26 @@ out-of-range input, but anybody who can send to the port can forge or replay dat
 Once a client owns the session the plant reads it on a second socket *connected* to the
 owner's address (bound to the same port): the kernel delivers the owner's datagrams there and
 everybody else's to the listening socket, so a flood from elsewhere neither delays nor drops
-the owner's commands. Every read is bounded (:meth:`PlantLink.poll`): per window of one plant
-step at most ``rx_max_datagrams`` datagrams from each socket and, on the listening socket, at
-most ``rx_budget`` seconds (after its first datagram, which is always read); a step that hits a
-bound is counted (``rx_capped``, event ``receive_bound``) and the rest waits for the next step
-(or is dropped by the kernel).
+the owner's commands. Every read is bounded (:meth:`PlantLink.poll`), per window of one plant
+step:
+
+- the owner's socket: at most ``rx_max_commands`` datagrams (default 4) are handled (parsed,
+  authenticated, validated). A command whose header (read, not trusted) says it answers an
+  earlier observation than the one awaited is dropped unparsed (:meth:`wait_command` would
+  drop it as stale anyway). Once the count is reached, further datagrams waiting there are
+  read and dropped unparsed, at most ``rx_max_datagrams`` (default 32) of them - except one
+  whose header claims to answer the awaited observation, which waits for the next step.
+  Dropped datagrams are counted (``rx_dropped``), so that an owner sending more than it
+  should - keyed or not, its datagrams valid or not - neither costs the step more than these
+  bounds nor builds a backlog that would delay its next answers. Handling also stops once it
+  has cost ``rx_owner_budget`` seconds of this thread's CPU time (default 5 % of the step)
+  after the first datagram, which is always handled; what is left then waits for the next
+  step;
+- the listening socket: at most ``rx_max_datagrams`` datagrams and ``rx_budget`` seconds (wall
+  clock, default 2 % of the step) after its first datagram, which is always read; the rest
+  waits for the next step (or is dropped by the kernel).
+
+A step that hits a bound is counted (``rx_capped``, event ``receive_bound``).
 
 A datagram changes no state before it is fully validated, in this order: framing and CRC,
 (keyed) sender, session and authentication tag (the key or the session key), counter, message
@@ -62,8 +77,9 @@ second after the first from each address), failed authentication (``auth_failed`
 seen), reordered datagrams (older than the newest seen), a sender whose sequence restarted far
 behind (``seq_resync``: after 8 such datagrams in a row the tracker follows it, so a forged jump
 cannot lock the owner out); on both, stale commands (answering an earlier observation than the
-one being waited for), lost commands (gaps in the sequence), late commands (none within the
-step's wait budget) and capped reads (``rx_capped``).
+one being waited for), lost commands (gaps in the sequence; the owner's datagrams dropped by the read bound show
+up as gaps too), late commands (none within the step's wait budget), capped reads
+(``rx_capped``) and the owner's datagrams dropped unread by the bound (``rx_dropped``).
 """
 
 from __future__ import annotations
@@ -81,7 +97,11 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.sil.protocol import (
+    FLAG_AUTH,
+    HEADER,
+    HEADER_SIZE,
     KEY_ENV,
+    MAGIC,
     MAX_DATAGRAM,
     NONCE_SIZE,
     Layout,
@@ -107,7 +127,7 @@ __all__ = ["LINK_COUNTERS", "ControllerClient", "PlantLink", "is_loopback"]
 LINK_COUNTERS = ("rx", "tx", "malformed", "foreign", "duplicates", "reordered", "stale",
                  "lost", "late", "hello", "bye", "wrong_size", "refused", "auth_failed",
                  "version_mismatch", "non_finite", "out_of_range", "rx_capped", "seq_resync",
-                 "replayed")
+                 "replayed", "rx_dropped")
 
 #: Keyed links: HELLO nonces remembered (a HELLO reusing one is a replay), session ids of ended
 #: sessions remembered (their datagrams are counted as replays), challenges outstanding at once.
@@ -236,10 +256,20 @@ class PlantLink:
         ``{command: (low, high)}``; default :data:`~downhole.sil.plants.COMMAND_RANGES` for
         the layout's commands (every command needs a range).
     rx_max_datagrams : int
-        Per read window (one plant step), the most datagrams read from each socket.
+        Per read window (one plant step), the most datagrams read from the listening socket,
+        and the most datagrams of the owner read and dropped unparsed beyond
+        ``rx_max_commands`` (default 32).
     rx_budget : float, optional
         Per read window, the most seconds (wall clock) spent reading the listening socket
         (default 2 % of the step).
+    rx_max_commands : int
+        Per read window, the most datagrams from the owner's socket that are handled (parsed,
+        authenticated, validated; default 4); the excess is dropped and counted as
+        ``rx_dropped``.
+    rx_owner_budget : float, optional
+        Per read window, the most seconds of this thread's CPU time spent handling the owner's
+        datagrams after the first, which is always handled (default 5 % of the step); what is
+        left waits for the next window.
 
     Attributes
     ----------
@@ -253,8 +283,10 @@ class PlantLink:
         Last round-trip time (OBS sent -> its CMD received), s.
     step_rx_s, step_rx_n : float, int
         CPU time (of the calling thread, so that time the scheduler gives to other processes
-        is not counted) spent reading and validating datagrams, and datagrams read, since the
-        last :meth:`begin_step` (the runtime records them per step).
+        is not counted) spent reading and validating datagrams, and datagrams handled, since
+        the last :meth:`begin_step` (the runtime records them per step).
+    step_dropped : int
+        The owner's datagrams dropped unparsed since the last :meth:`begin_step`.
     step_listen_s : float
         The part of :attr:`step_rx_s` spent on the listening socket: what datagrams from
         anybody but the owner (a flood) cost this step.
@@ -263,12 +295,13 @@ class PlantLink:
     ------
     DownholeInputError
         Cannot bind, ``host`` beyond loopback without a key, bad key, or a command without an
-        admissible range.
+        admissible range, or a read bound below 1.
     """
 
     def __init__(self, layout: Layout, host: str = "127.0.0.1", port: int = 0, *,
                  key=None, key_file=None, command_ranges: dict | None = None,
-                 rx_max_datagrams: int = 32, rx_budget: float | None = None):
+                 rx_max_datagrams: int = 32, rx_budget: float | None = None,
+                 rx_max_commands: int = 4, rx_owner_budget: float | None = None):
         from downhole.sil.plants import resolve_ranges
 
         self.layout = layout
@@ -291,10 +324,15 @@ class PlantLink:
         self.command_ranges = resolve_ranges(layout.commands, command_ranges, "link commands")
         self._lo = [self.command_ranges[c][0] for c in layout.commands]
         self._hi = [self.command_ranges[c][1] for c in layout.commands]
-        if int(rx_max_datagrams) < 1:
-            raise DownholeInputError(f"rx_max_datagrams must be >= 1, got {rx_max_datagrams}")
+        for name, v in (("rx_max_datagrams", rx_max_datagrams),
+                        ("rx_max_commands", rx_max_commands)):
+            if int(v) < 1:
+                raise DownholeInputError(f"{name} must be >= 1, got {v}")
         self.rx_max_datagrams = int(rx_max_datagrams)
+        self.rx_max_commands = int(rx_max_commands)
         self.rx_budget = float(rx_budget) if rx_budget is not None else 0.02 * layout.dt
+        self.rx_owner_budget = (float(rx_owner_budget) if rx_owner_budget is not None
+                                else 0.05 * layout.dt)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
@@ -320,6 +358,7 @@ class PlantLink:
         self._cmd_seq = _SeqTracker()
         self._n_cmd = len(layout.commands)
         self._pending: dict[int, np.ndarray] = {}
+        self._awaited = 0  # the observation whose command is waited for (wait_command)
         self._cmds_since_hello = 0
         self.begin_step()
 
@@ -676,12 +715,16 @@ class PlantLink:
         :attr:`rx_budget` for this window. A window also restarts by itself after one plant
         step."""
         self._win_start = time.monotonic()
-        self._left_own = self._left_lobby = self.rx_max_datagrams
+        self._left_own = self.rx_max_commands
+        self._left_drop = self._left_lobby = self.rx_max_datagrams
+        self._own_s = 0.0  # CPU time spent on the owner's datagrams after the first
+        self._own_held = False  # the awaited answer (by its header) waits for the next window
         self._left_s = self.rx_budget if budget is None else float(budget)
         self._win_capped = False
         self.step_rx_s = 0.0
         self.step_listen_s = 0.0
         self.step_rx_n = 0
+        self.step_dropped = 0
 
     def _capped(self, where: str) -> None:
         """A bound stopped the reading with data left waiting: count the window."""
@@ -696,12 +739,49 @@ class PlantLink:
         return self._left_lobby > 0 and (self._left_s > 0
                                          or self._left_lobby == self.rx_max_datagrams)
 
+    def _own_room(self) -> bool:
+        """True while the owner's datagrams may still be handled in this window."""
+        return self._left_own > 0 and (self._left_own == self.rx_max_commands
+                                       or self._own_s < self.rx_owner_budget)
+
+    def _drop_room(self) -> bool:
+        """True while the owner's datagrams beyond the count may still be read and dropped in
+        this window."""
+        return self._left_own == 0 and self._left_drop > 0 and not self._own_held
+
+    def _claim(self, data: bytes) -> int:
+        """What the header of a datagram of the owner claims, read without parsing or trusting
+        anything: -1 a command of the current session answering an earlier observation than
+        the one awaited (useless: :meth:`wait_command` would drop it as stale), 1 a command
+        answering the awaited observation, 0 anything else. A datagram that claims a current
+        answer is handled, and validated, as any other."""
+        if len(data) < HEADER_SIZE or self._awaited == 0 or not self.connected:
+            return 0
+        magic, _ver, typ, _count, session, _seq, ack = HEADER.unpack_from(data)[:7]
+        if magic != MAGIC or typ & ~FLAG_AUTH != MsgType.CMD or session != self.session:
+            return 0
+        return -1 if 0 < ack < self._awaited else int(ack == self._awaited)
+
+    def _drop_own(self) -> None:
+        """Count one of the owner's datagrams read and dropped unparsed."""
+        if self._left_drop > 0:
+            self._left_drop -= 1
+        else:
+            self._left_own -= 1
+        self.counters["rx_dropped"] += 1
+        self.step_dropped += 1
+
     def poll(self) -> None:
-        """Read and handle the datagrams waiting (non-blocking), within the window's bounds:
-        the owner's socket first (at most ``rx_max_datagrams``), then the listening socket (at
-        most ``rx_max_datagrams`` and ``rx_budget`` s of wall time). What is left waits for
-        the next window. The CPU time this thread spends here is added to
-        :attr:`step_rx_s`."""
+        """Read and handle the datagrams waiting (non-blocking), within the window's bounds.
+
+        The owner's socket first: at most ``rx_max_commands`` datagrams handled, within
+        ``rx_owner_budget`` s of CPU time after the first; a command whose header says it
+        answers an earlier observation than the one awaited is dropped unparsed; once the
+        count is reached, at most ``rx_max_datagrams`` more are read and dropped unparsed
+        (counted as ``rx_dropped``), except one whose header claims to answer the awaited
+        observation, which waits for the next window. Then the listening socket: at most
+        ``rx_max_datagrams`` and ``rx_budget`` s of wall time. What is left waits for the next
+        window. The CPU time this thread spends here is added to :attr:`step_rx_s`."""
         c0 = time.thread_time()
         t0 = time.monotonic()
         if t0 - self._win_start >= self.layout.dt:
@@ -722,10 +802,19 @@ class PlantLink:
                 if not ok or fd not in fds:
                     continue
                 if sock is own:
-                    room = self._left_own > 0
+                    handle = self._own_room()  # the first datagram of a window always is
+                    room = handle or self._drop_room()
                 else:  # the first datagram of a window is always read (progress)
                     room = self._left_lobby > 0 and (
                         self._left_lobby == self.rx_max_datagrams or time.monotonic() < stop)
+                if room and sock is own and not handle:
+                    try:  # beyond the count: look at the header before dropping
+                        head = sock.recv(HEADER_SIZE, socket.MSG_PEEK)
+                    except OSError:
+                        head = b""
+                    if self._claim(head) == 1:  # the awaited answer (it says): next window
+                        self._own_held = True
+                        room = False
                 if not room:
                     self._capped("owner's" if sock is own else "listening")
                     if sock is own:
@@ -733,21 +822,30 @@ class PlantLink:
                     else:
                         lobby_ok = False
                     continue
-                if sock is own:
-                    self._left_own -= 1
-                else:
-                    self._left_lobby -= 1
-                n += 1
                 progressed = True
-                if sock is lobby:
-                    c1 = time.thread_time()
+                c1 = time.thread_time()
                 try:
                     data, addr = sock.recvfrom(MAX_DATAGRAM)
                 except OSError:  # nothing after all, or ICMP port unreachable (owner gone)
                     continue
+                first_own = False
+                if sock is own:
+                    if not handle:  # more than a step may handle: dropped, never parsed
+                        self._drop_own()
+                        continue
+                    if self._claim(data) == -1:  # a stale answer: dropped, never parsed
+                        self._drop_own()
+                        continue
+                    first_own = self._left_own == self.rx_max_commands
+                    self._left_own -= 1
+                else:
+                    self._left_lobby -= 1
+                n += 1
                 self._handle(data, addr)
                 if sock is lobby:
                     self.step_listen_s += time.thread_time() - c1
+                elif not first_own:
+                    self._own_s += time.thread_time() - c1
             if not progressed:
                 break
         self._left_s = max(0.0, stop - time.monotonic())
@@ -759,7 +857,7 @@ class PlantLink:
         if none)."""
         if not self.connected:
             return 0
-        seq = self._next()
+        seq = self._awaited = self._next()
         self._send(pack(MsgType.OBS, self.session, seq, values, sim_time=sim_time,
                         sent=time.monotonic(), signer=self._tx))
         return seq
@@ -775,7 +873,7 @@ class PlantLink:
             if not self.connected:
                 self._wait_readable(min(end, time.monotonic() + 0.005))
                 continue
-            seq = self._next()
+            seq = self._awaited = self._next()
             self._send(pack(MsgType.OBS, self.session, seq, values, sim_time=-1.0,
                             sent=time.monotonic(), signer=self._tx))
             got = self.wait_command(seq, min(end, time.monotonic() + interval), count=False)
@@ -790,7 +888,7 @@ class PlantLink:
         if remaining <= 0:
             return
         socks = []
-        if self._own is not None and self._left_own > 0:
+        if self._own is not None and (self._own_room() or self._drop_room()):
             socks.append(self._own)
         if self._room():
             socks.append(self.sock)
@@ -808,6 +906,7 @@ class PlantLink:
 
         Returns the command values (ndarray) or None (counted as ``late``). Commands answering
         other observations are counted as ``stale`` and dropped."""
+        self._awaited = ack
         while True:
             self.poll()
             if ack in self._pending:

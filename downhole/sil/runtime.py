@@ -18,6 +18,10 @@ Timing counters (``stats``):
   (bounded by :meth:`~downhole.sil.link.PlantLink.poll`; also recorded as ``rx_time``);
   ``max_rx_listen_s``, ``mean_rx_listen_s``: its part spent on datagrams from anybody but
   the owner (what a flood costs; recorded as ``rx_listen_time``);
+- ``rx_dropped``: datagrams of the link's owner read and dropped unparsed because the step's
+  read bound was reached (at most ``rx_max_commands`` handled per step, see
+  :class:`~downhole.sil.link.PlantLink`): an owner sending more than one command per step
+  costs each step a bounded amount of work;
 - ``rejected_commands``: commands of an in-process controller that were not finite or outside
   the plant's admissible ranges (:attr:`~downhole.sil.plants.SilPlant.command_ranges`); the
   last admissible command is held instead (remote ones are counted by the link:
@@ -71,7 +75,7 @@ STATS_KEYS = ("steps", "deadline_misses", "overruns", "late_commands", "resyncs"
               "max_lag_s", "max_exec_s", "mean_exec_s", "wall_s", "sim_s", "real_time_factor",
               "deadline_miss_fraction", "safe_actions", "rejected_commands",
               "rejected_setpoints", "max_rx_s", "mean_rx_s", "max_rx_listen_s",
-              "mean_rx_listen_s")
+              "mean_rx_listen_s", "rx_dropped")
 
 REFERENCE_NAMES = ("reference_axial_velocity", "reference_angular_velocity")
 HIL_NAMES = ("bit_axial_velocity", "bit_angular_velocity")
@@ -162,6 +166,10 @@ class RealTimeRunner:
     rx_fraction : float
         Share of the step the link may spend per step reading its listening socket (the bound
         that keeps a flood from stalling the plant).
+    rx_max_commands : int
+        Per step, the most datagrams of the link's owner handled (default 4; the excess is
+        dropped and counted as ``stats["rx_dropped"]``, see
+        :class:`~downhole.sil.link.PlantLink`).
 
     Raises
     ------
@@ -177,7 +185,7 @@ class RealTimeRunner:
                  wait_fraction: float = 0.7, safety: SafetyPolicy | None = None,
                  controller_enabled: bool = True, spin: float = 2e-4, realtime: bool = True,
                  command_timeout: float | None = None, link_key=None, link_key_file=None,
-                 rx_fraction: float = 0.02):
+                 rx_fraction: float = 0.02, rx_max_commands: int = 4):
         if not isinstance(plant, SilPlant):
             raise DownholeInputError(f"plant must be a SilPlant (downhole.sil.build_plant), got "
                                      f"{type(plant).__name__}")
@@ -232,7 +240,8 @@ class RealTimeRunner:
                 self.link = PlantLink(Layout(self.dt, "hil" if self.hil else "sil",
                                              self.obs_names, cmds, units), host, port,
                                       key=link_key, key_file=link_key_file,
-                                      command_ranges=ranges, rx_budget=rx_fraction * self.dt)
+                                      command_ranges=ranges, rx_budget=rx_fraction * self.dt,
+                                      rx_max_commands=rx_max_commands)
         elif self.hil:
             raise DownholeInputError("HIL mode needs a link to the rig")
         cmd_cols = tuple(f"command_{c}" for c in plant.command_names)
@@ -433,6 +442,7 @@ class RealTimeRunner:
         self._exec_sum = 0.0
         self._rx_sum = self._listen_sum = 0.0
         self._rx_step = self._listen_step = 0.0
+        self._dropped0 = self.link.counters["rx_dropped"] if self.link is not None else 0
 
     def _event(self, kind: str, detail: str) -> None:
         self.events.append({"time": self._k * self.dt, "wall": time.monotonic(), "kind": kind,
@@ -513,6 +523,7 @@ class RealTimeRunner:
                 link.poll()
             self._rx_step = link.step_rx_s
             self._listen_step = link.step_listen_s
+            self.stats["rx_dropped"] = link.counters["rx_dropped"] - self._dropped0
             if remote is None:
                 self.stats["late_commands"] += link.connected
             else:
