@@ -49,6 +49,25 @@ Security (every HTTP request and every WebSocket handshake, before any route, th
 - **No NaN on the wire**: ``/api/state`` and ``/ws`` replace non-finite numbers by ``null``
   and record a ``dashboard_non_finite`` event naming the fields.
 
+Limits (:class:`DashboardLimits`; the server is configured by :func:`server_config`):
+
+- **Connections**: at most ``max_connections`` open at once (default 64) and
+  ``max_connections_per_client`` from one client address (default 16); a connection beyond
+  either is closed as soon as it is accepted (uvicorn's own ``limit_concurrency`` answers 503
+  only once a request's head is complete, so it does not bound half-open connections).
+- **Request time**: a request's head and body must arrive within ``request_timeout`` seconds
+  (default 10) of the connection, or of the previous response on a kept-alive connection;
+  the connection is closed otherwise (slow headers, slow bodies, connections that never send
+  anything). A request head is at most ``max_header_bytes`` (default 16 KiB, h11's bound; 400
+  beyond); a WebSocket message from a page at most 64 KiB (uvicorn's ``ws_max_size``).
+- **Body size**: at most ``max_body_bytes`` (default 64 KiB): a larger ``Content-Length`` is
+  refused with 413 before the body is read, a chunked body once that many bytes have been read.
+- **Token guessing**: after ``token_failures`` wrong tokens (default 10) from one client
+  address, that address is locked out for ``lockout`` seconds (default 60): every request and
+  WebSocket from it is refused (429, ``Retry-After``), the right token included; a right token
+  before then resets the count. A missing token is refused (403) but not counted. Behind a
+  reverse proxy every client has the proxy's address: one guesser locks out everybody.
+
 Refusals are counted in :attr:`DashboardSession.refused` (shown in the state as ``refused``).
 """
 
@@ -60,6 +79,9 @@ import json
 import math
 import socket
 import threading
+import time
+from collections import OrderedDict
+from dataclasses import dataclass
 from http.cookies import CookieError, SimpleCookie
 from numbers import Integral, Real
 from urllib.parse import parse_qs
@@ -72,6 +94,7 @@ __all__ = [
     "TOKEN_COOKIE",
     "TREND_CHANNELS",
     "UNIT_SYSTEMS",
+    "DashboardLimits",
     "DashboardSession",
     "check_dashboard_settings",
     "display_units",
@@ -79,6 +102,7 @@ __all__ = [
     "make_app",
     "rolling_severity",
     "serve_dashboard",
+    "server_config",
 ]
 
 SIGNALS = ("bit_axial_velocity", "bit_angular_velocity", "wob", "tob", "hook_load",
@@ -91,6 +115,62 @@ TOKEN_COOKIE = "downhole_token"
 DEFAULT_REFERENCE_LIMITS = {"axial": (0.0, 0.05), "angular": (0.0, 40.0)}
 #: Shortest token accepted when the dashboard binds beyond loopback.
 MIN_REMOTE_TOKEN = 16
+#: Client addresses whose token failures are remembered at once (the oldest are forgotten).
+_MAX_TRACKED_CLIENTS = 4096
+#: Largest WebSocket message accepted from a page (the page sends none), bytes.
+_WS_MAX_SIZE = 64 * 1024
+
+
+@dataclass(frozen=True)
+class DashboardLimits:
+    """Resource limits of the dashboard's server (module docstring, docs/sil.md).
+
+    Parameters
+    ----------
+    max_connections : int
+        Connections open at once (HTTP and WebSocket); one beyond is closed when accepted.
+    max_connections_per_client : int
+        Connections open at once from one client address.
+    request_timeout : float
+        Seconds a request's head and body may take to arrive (from the connection, or from
+        the previous response on a kept-alive connection); the connection is closed then.
+    max_header_bytes : int
+        Largest request head, bytes (h11's ``max_incomplete_event_size``; 400 beyond).
+    max_body_bytes : int
+        Largest request body, bytes (413 beyond; a larger ``Content-Length`` is refused before
+        the body is read).
+    token_failures : int
+        Wrong tokens from one client address before it is locked out.
+    lockout : float
+        Seconds a client address stays locked out (429 on every request).
+
+    Raises
+    ------
+    DownholeInputError
+        A count below 1 or a time that is not a positive finite number.
+    """
+
+    max_connections: int = 64
+    max_connections_per_client: int = 16
+    request_timeout: float = 10.0
+    max_header_bytes: int = 16 * 1024
+    max_body_bytes: int = 64 * 1024
+    token_failures: int = 10
+    lockout: float = 60.0
+
+    def __post_init__(self):
+        for name in ("max_connections", "max_connections_per_client", "max_header_bytes",
+                     "max_body_bytes", "token_failures"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, Integral) or v < 1:
+                raise DownholeInputError(f"dashboard limit {name} must be an integer >= 1, "
+                                         f"got {v!r}")
+        for name in ("request_timeout", "lockout"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, Real) or not (math.isfinite(v)
+                                                                      and v > 0):
+                raise DownholeInputError(f"dashboard limit {name} must be a positive number "
+                                         f"of seconds, got {v!r}")
 _UNITS = {"axial": "m/s", "angular": "rad/s"}
 
 #: Recorded channels sent in the trend (those the plant records), plus ``stick_slip_severity``.
@@ -336,7 +416,10 @@ class DashboardSession:
     ----------
     refused : dict
         Requests refused by the dashboard's checks, by reason (``host``, ``origin``,
-        ``content_type``, ``token``), and refused set-points and references (``setpoint``).
+        ``content_type``, ``token``; the limits: ``too_large`` bodies, ``lockout`` (requests
+        of a locked-out address), ``connections`` closed when accepted, ``timeout``
+        connections closed for a request that did not arrive in time), and refused set-points
+        and references (``setpoint``).
     """
 
     def __init__(self, runner, duration: float | None = None, *, controllers: dict | None = None,
@@ -350,7 +433,8 @@ class DashboardSession:
         self._started_once = False
         self.error: str | None = None
         self.finished = threading.Event()
-        self.refused = {"host": 0, "origin": 0, "content_type": 0, "token": 0, "setpoint": 0}
+        self.refused = {"host": 0, "origin": 0, "content_type": 0, "token": 0, "setpoint": 0,
+                        "too_large": 0, "lockout": 0, "connections": 0, "timeout": 0}
         self._non_finite_reported: set[str] = set()
         self._lock = threading.Lock()
         if not (isinstance(severity_window, Real) and math.isfinite(severity_window)
@@ -669,15 +753,40 @@ def _check_token(given: str | None, token: str) -> bool:
 
 
 class _Guard:
-    """ASGI middleware: Host, Origin, content type and token checks (module docstring)."""
+    """ASGI middleware: Host, Origin, content type, body size and token checks, and the
+    lockout of token guessers (module docstring)."""
 
-    def __init__(self, app, *, session, token, allowed_hosts, allowed_origins, port):
+    def __init__(self, app, *, session, token, allowed_hosts, allowed_origins, port, limits):
         self.app = app
         self.session = session
         self.token = token
         self.hosts = allowed_hosts
         self.origins = allowed_origins
         self.port = port
+        self.limits = limits
+        #: client address -> [wrong tokens in a row, locked until (monotonic s) or 0]
+        self._failures: OrderedDict[str, list] = OrderedDict()
+
+    def _locked(self, client: str) -> float:
+        """Seconds ``client`` stays locked out (0: not locked)."""
+        entry = self._failures.get(client)
+        if entry is None or not entry[1]:
+            return 0.0
+        left = entry[1] - time.monotonic()
+        if left > 0:
+            return left
+        del self._failures[client]  # served its time: a fresh count
+        return 0.0
+
+    def _failed(self, client: str) -> None:
+        """One more wrong token from ``client``; locked out at the limit."""
+        entry = self._failures.pop(client, None) or [0, 0.0]
+        entry[0] += 1
+        if entry[0] >= self.limits.token_failures:
+            entry[1] = time.monotonic() + self.limits.lockout
+        self._failures[client] = entry  # the newest at the end
+        while len(self._failures) > _MAX_TRACKED_CLIENTS:
+            self._failures.popitem(last=False)
 
     def _refuse_reason(self, scope, headers: dict) -> tuple[str, int, str] | None:
         hosts = headers.get("host", [])
@@ -709,6 +818,12 @@ class _Guard:
                 return ("content_type", 415,
                         "send JSON (Content-Type: application/json); got "
                         f"{ctype or 'no content type'}")
+        if scope["type"] == "http":
+            for length in headers.get("content-length", []):
+                if not length.strip().isdigit() or int(length) > self.limits.max_body_bytes:
+                    return ("too_large", 413, f"the body may have at most "
+                            f"{self.limits.max_body_bytes} bytes; Content-Length is "
+                            f"{length.strip()[:20]!r}")
         return None
 
     def _given_token(self, headers: dict) -> str | None:
@@ -735,23 +850,36 @@ class _Guard:
             headers.setdefault(k.decode("latin-1").lower(), []).append(v.decode("latin-1"))
         why = self._refuse_reason(scope, headers)
         login = None
-        if (why is None and self.token is not None
-                and not _check_token(self._given_token(headers), self.token)):
-            query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
-            q = query.get("token")
-            if (scope["type"] == "http" and scope.get("method") == "GET"
-                    and scope.get("path") == "/" and q and _check_token(q[0], self.token)):
-                login = q[0]
+        extra: list = []
+        client = str((scope.get("client") or ("",))[0])
+        if why is None and self.token is not None:
+            left = self._locked(client)
+            given = self._given_token(headers)
+            if left:
+                why = ("lockout", 429, f"too many wrong tokens from {client}: locked out for "
+                       f"{math.ceil(left)} s")
+                extra = [(b"retry-after", str(math.ceil(left)).encode())]
+            elif _check_token(given, self.token):
+                self._failures.pop(client, None)
             else:
-                why = ("token", 403, "missing or wrong token (Authorization: Bearer, "
-                       f"X-Downhole-Token or the {TOKEN_COOKIE} cookie)")
+                query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
+                q = query.get("token")
+                if (scope["type"] == "http" and scope.get("method") == "GET"
+                        and scope.get("path") == "/" and q and _check_token(q[0], self.token)):
+                    login = q[0]
+                    self._failures.pop(client, None)
+                else:
+                    why = ("token", 403, "missing or wrong token (Authorization: Bearer, "
+                           f"X-Downhole-Token or the {TOKEN_COOKIE} cookie)")
+                    if given is not None or q:  # a guess (a missing token is no guess)
+                        self._failed(client)
         if why is not None:
             self.session.refused[why[0]] += 1
             if scope["type"] == "websocket":
                 await send({"type": "websocket.close", "code": 1008, "reason": why[2][:120]})
                 return
             return await self._respond(send, why[1], json.dumps({"detail": why[2]}).encode(),
-                                       [(b"content-type", b"application/json")])
+                                       [(b"content-type", b"application/json"), *extra])
         if login is not None:
             cookie = (f"{TOKEN_COOKIE}={login}; HttpOnly; SameSite=Strict; Path=/").encode()
             return await self._respond(send, 303, b"", [(b"location", b"/"),
@@ -765,7 +893,24 @@ class _Guard:
                 message["headers"] = list(message.get("headers", [])) + _SECURITY_HEADERS
             await send(message)
 
-        return await self.app(scope, receive, send_secure)
+        size = 0
+
+        async def receive_bounded():
+            """The body, refused (413) once it exceeds the limit (a chunked body has no
+            Content-Length to check first)."""
+            nonlocal size
+            message = await receive()
+            if message["type"] == "http.request":
+                size += len(message.get("body", b""))
+                if size > self.limits.max_body_bytes:
+                    from starlette.exceptions import HTTPException
+
+                    self.session.refused["too_large"] += 1
+                    raise HTTPException(status_code=413, detail=(
+                        f"the body may have at most {self.limits.max_body_bytes} bytes"))
+            return message
+
+        return await self.app(scope, receive_bounded, send_secure)
 
     @staticmethod
     async def _respond(send, status: int, body: bytes, headers: list):
@@ -811,7 +956,7 @@ def _setpoint(body: dict, name: str, limits: dict):
 def make_app(session: DashboardSession, token: str | None = None, publish_hz: float = 20.0, *,
              host: str = "127.0.0.1", port: int | None = None, allowed_hosts=(),
              allowed_origins=(), reference_limits: dict | None = None, units="metric",
-             max_points: int = 4000):
+             max_points: int = 4000, limits: DashboardLimits | None = None):
     """The FastAPI application for ``session`` (see the module docstring).
 
     Parameters
@@ -839,11 +984,15 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
         pint unit (:func:`display_units`).
     max_points : int
         Rows of trend sent at most at once (the history sent to a page that connects).
+    limits : DashboardLimits, optional
+        Body size and token lockout (default :class:`DashboardLimits`); its connection and
+        time limits apply when the app is served with :func:`server_config`.
 
     Returns
     -------
     fastapi.FastAPI
-        The application (serve it with uvicorn; :func:`serve_dashboard` does).
+        The application (serve it with uvicorn and :func:`server_config`; :func:`serve_dashboard`
+        does).
 
     Raises
     ------
@@ -855,9 +1004,9 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
     from fastapi.responses import HTMLResponse, JSONResponse, Response
 
     check_dashboard_settings("127.0.0.1", token)
-    limits = dict(DEFAULT_REFERENCE_LIMITS)
-    limits.update(reference_limits or {})
-    for name, (lo, hi) in limits.items():
+    ref_limits = dict(DEFAULT_REFERENCE_LIMITS)
+    ref_limits.update(reference_limits or {})
+    for name, (lo, hi) in ref_limits.items():
         if name not in _UNITS or not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise DownholeInputError(f"reference_limits[{name!r}] must be finite (lo, hi) with "
                                      f"lo < hi, got {(lo, hi)!r}")
@@ -867,9 +1016,14 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
     hosts = default_allowed_hosts(host) | {_norm_host(h) for h in allowed_hosts}
     origins = {o.strip().rstrip("/").lower() for o in allowed_origins}
 
+    guard = limits if limits is not None else DashboardLimits()
+    if not isinstance(guard, DashboardLimits):
+        raise DownholeInputError(f"limits must be a DashboardLimits, got {type(limits).__name__}")
     app = FastAPI(title="downhole SIL dashboard")
+    app.state.dashboard_limits = guard
+    app.state.dashboard_session = session
     app.add_middleware(_Guard, session=session, token=token, allowed_hosts=hosts,
-                       allowed_origins=origins, port=port or None)
+                       allowed_origins=origins, port=port or None, limits=guard)
 
     async def json_object(request: Request) -> dict:
         raw = await request.body()
@@ -899,7 +1053,7 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
     def state_message() -> dict:
         out = session.snapshot()
         out["units"] = disp
-        out["limits"] = {k: list(v) for k, v in limits.items()}
+        out["limits"] = {k: list(v) for k, v in ref_limits.items()}
         return out
 
     @app.get("/api/state")
@@ -973,13 +1127,13 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
             raise HTTPException(status_code=422, detail="give surface_rpm, wob and/or rop")
         for name, lim, q in (("surface_rpm", "angular", "rotary_speed"), ("rop", "axial", "rop")):
             v = si[name]
-            lo, hi = limits[lim]
+            lo, hi = ref_limits[lim]
             if v is not None and not lo <= v <= hi:
                 f, unit = disp[q]["factor"], disp[q]["unit"]
                 raise HTTPException(status_code=422, detail=(
                     f"{name} = {v * f:g} {unit} is outside the admissible range "
                     f"[{lo * f:g}, {hi * f:g}] {unit}"))
-        sp = session.set_setpoints(si["surface_rpm"], si["wob"], si["rop"], limits=limits)
+        sp = session.set_setpoints(si["surface_rpm"], si["wob"], si["rop"], limits=ref_limits)
         return {"setpoints": sp, "reference": session.runner.reference}
 
     @app.post("/api/reference")
@@ -992,8 +1146,8 @@ def make_app(session: DashboardSession, token: str | None = None, publish_hz: fl
         if extra:
             raise HTTPException(status_code=422, detail=f"unknown field(s) {sorted(extra)}; "
                                                         "expected axial (m/s), angular (rad/s)")
-        ax = _setpoint(body, "axial", limits)
-        an = _setpoint(body, "angular", limits)
+        ax = _setpoint(body, "axial", ref_limits)
+        an = _setpoint(body, "angular", ref_limits)
         if ax is None and an is None:
             raise HTTPException(status_code=422, detail="give axial (m/s) and/or angular (rad/s)")
         session.runner.set_reference(ax, an)
@@ -1056,6 +1210,107 @@ def _describe_token(token: str, source: str | None) -> str:
     return f"token {hint}" + (f" from {source}" if source else "")
 
 
+def _guarded_protocol(limits: DashboardLimits, refused: dict):
+    """uvicorn's h11 protocol with the connection limits and the request deadline of
+    ``limits`` (uvicorn itself has neither: a connection that never completes a request head
+    is kept open for ever, and ``limit_concurrency`` counts it only once its head is in)."""
+    import h11
+    from uvicorn.protocols.http.h11_impl import H11Protocol
+
+    class GuardedH11Protocol(H11Protocol):
+        _deadline = None
+
+        def connection_made(self, transport) -> None:
+            super().connection_made(transport)
+            peer = self.client[0] if self.client else None
+            same = sum(1 for c in self.connections
+                       if (getattr(c, "client", None) or (None,))[0] == peer)
+            if (len(self.connections) > limits.max_connections
+                    or same > limits.max_connections_per_client):
+                refused["connections"] += 1
+                self.connections.discard(self)
+                transport.close()
+                return
+            self._arm()
+
+        def _arm(self) -> None:
+            self._disarm()
+            self._deadline = self.loop.call_later(limits.request_timeout, self._expired)
+
+        def _disarm(self) -> None:
+            if self._deadline is not None:
+                self._deadline.cancel()
+                self._deadline = None
+
+        def _expired(self) -> None:
+            self._deadline = None
+            if self.transport.is_closing():
+                return
+            # IDLE: the request's head is not complete; SEND_BODY: nor is its body
+            if self.conn.their_state in (h11.IDLE, h11.SEND_BODY):
+                refused["timeout"] += 1
+                if self.cycle is not None and not self.cycle.response_complete:
+                    self.cycle.disconnected = True
+                self.transport.close()
+
+        def on_response_complete(self) -> None:
+            if not self.transport.is_closing():
+                self._arm()  # the next request on this connection has as long
+            super().on_response_complete()
+
+        def handle_websocket_upgrade(self, event) -> None:
+            self._disarm()  # the WebSocket protocol owns the connection from now on
+            super().handle_websocket_upgrade(event)
+
+        def connection_lost(self, exc) -> None:
+            self._disarm()
+            super().connection_lost(exc)
+
+    return GuardedH11Protocol
+
+
+def server_config(app, host: str = "127.0.0.1", port: int = 8765, **kwargs):
+    """The uvicorn configuration that serves a dashboard application with its limits.
+
+    The connection cap and the request deadline of the app's :class:`DashboardLimits` (set by
+    :func:`make_app`) are enforced by the HTTP protocol (h11) configured here, the largest
+    request head by h11's ``max_incomplete_event_size``, the largest WebSocket message by
+    ``ws_max_size``.
+
+    Parameters
+    ----------
+    app : fastapi.FastAPI
+        An application of :func:`make_app`.
+    host : str, optional
+        Address to bind (default ``"127.0.0.1"``).
+    port : int, optional
+        TCP port (default 8765).
+    **kwargs
+        Further :class:`uvicorn.Config` options (default ``log_level="warning"``).
+
+    Returns
+    -------
+    uvicorn.Config
+        The configuration (serve it with :class:`uvicorn.Server`).
+
+    Raises
+    ------
+    DownholeInputError
+        ``app`` is not an application of :func:`make_app`.
+    """
+    import uvicorn
+
+    limits = getattr(getattr(app, "state", None), "dashboard_limits", None)
+    session = getattr(getattr(app, "state", None), "dashboard_session", None)
+    if not isinstance(limits, DashboardLimits) or session is None:
+        raise DownholeInputError("server_config serves an application of make_app")
+    kwargs.setdefault("log_level", "warning")
+    return uvicorn.Config(app, host=host, port=port,
+                          http=_guarded_protocol(limits, session.refused),
+                          h11_max_incomplete_event_size=limits.max_header_bytes,
+                          ws_max_size=_WS_MAX_SIZE, **kwargs)
+
+
 def serve_dashboard(runner, host: str = "127.0.0.1", port: int = 8765,
                     token: str | None = None, duration: float | None = None,
                     publish_hz: float = 20.0, autostart: bool = True, *, allowed_hosts=(),
@@ -1063,7 +1318,7 @@ def serve_dashboard(runner, host: str = "127.0.0.1", port: int = 8765,
                     reference_limits: dict | None = None, exit_after_run: bool = True,
                     units="metric", controllers: dict | None = None,
                     controller_name: str | None = None, on_run_start=None,
-                    on_run_end=None) -> DashboardSession:
+                    on_run_end=None, limits: DashboardLimits | None = None) -> DashboardSession:
     """Serve the dashboard (blocking) until Ctrl-C or, with ``exit_after_run``, the run's end.
 
     ``token_source`` is printed instead of the token, of which at most a 4-character prefix is
@@ -1103,7 +1358,12 @@ def serve_dashboard(runner, host: str = "127.0.0.1", port: int = 8765,
         Called without arguments when the run starts the first time
         (:class:`DashboardSession` ``on_start``).
     on_run_end : callable, optional
-        Called without arguments (in a thread) when the run has used up its duration.
+        Called without arguments (in a thread) when the run has used up its duration (the
+        command line writes ``--out`` there); the server exits (``exit_after_run``) once it
+        has returned.
+    limits : DashboardLimits, optional
+        Connections, request time, body size and token lockout (default
+        :class:`DashboardLimits`).
 
     Returns
     -------
@@ -1131,8 +1391,8 @@ def serve_dashboard(runner, host: str = "127.0.0.1", port: int = 8765,
         sockets = [sock]
     app = make_app(session, token, publish_hz, host=host, port=port,
                    allowed_hosts=allowed_hosts, allowed_origins=allowed_origins,
-                   reference_limits=reference_limits, units=units)
-    server = uvicorn.Server(uvicorn.Config(app, host=host, port=port, log_level="warning"))
+                   reference_limits=reference_limits, units=units, limits=limits)
+    server = uvicorn.Server(server_config(app, host, port))
     shown = f"[{host}]" if ":" in host else host
     url = f"http://{shown}:{port}/"
 

@@ -96,15 +96,21 @@ class ControllerProcess:
 class ServerThread:
     """An ASGI ``app`` served by uvicorn on 127.0.0.1:``port`` in a daemon thread, as a context
     manager (for the dashboard's browser and HTTP tests): started on enter (20 s at most),
-    stopped on exit."""
+    stopped on exit. A dashboard app (:func:`~downhole.sil.dashboard.make_app`) is served
+    with its limits (:func:`~downhole.sil.dashboard.server_config`)."""
 
     def __init__(self, app, port: int):
         import threading
 
         import uvicorn
 
-        self.server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port,
-                                                    log_level="warning"))
+        if hasattr(getattr(app, "state", None), "dashboard_limits"):
+            from downhole.sil.dashboard import server_config
+
+            config = server_config(app, "127.0.0.1", port)
+        else:
+            config = uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning")
+        self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, daemon=True)
 
     def __enter__(self):
