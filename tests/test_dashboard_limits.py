@@ -340,3 +340,52 @@ def test_stop_answers_while_another_address_attacks():
         for s in held:
             s.close()
 
+
+
+# ------------------------------------------------------------------------------- --out
+def test_a_dashboard_run_is_written_to_out_when_it_ends(tmp_path):
+    """``downhole sil --dashboard --out``: the ended run is in ``--out`` while the dashboard
+    still shows it, and the command's end (Ctrl-C) does not write it again."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from downhole.sim.result import load_result
+
+    sc = tmp_path / "s.toml"
+    port, udp = free_port(), free_port()
+    sc.write_text(f'[model]\nfidelity = "lumped4"\n[simulation]\nduration = "0.5 s"\n'
+                  f'[link]\nport = {udp}\n[dashboard]\nport = 1\n')
+    out = tmp_path / "run.nc"
+    out.write_text("the previous result")
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=str(root))
+    cmd = [sys.executable, "-c", "import sys; from downhole.cli import main; sys.exit(main())",
+           "sil", str(sc), "--dashboard", "--autostart", "--http-port", str(port),
+           "--no-progress", "--out", str(out)]
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    marker = tmp_path / "run.nc.INCOMPLETE"
+    try:
+        def written():
+            return out.is_file() and out.read_bytes()[:4] != b"the " and not marker.exists()
+
+        assert _until(written, timeout=120), "the ended run was not written"
+        assert proc.poll() is None  # the dashboard is still up, showing the run
+        first = out.stat()
+        res = load_result(out)
+        assert res.time[-1] == pytest.approx(0.5) and "stopped_by" not in res.dataset.attrs
+        assert _request(port, "GET", "/api/state", token=None)[0] == 200
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, stderr
+    assert "(the run has ended)" in stderr and stderr.count(f"wrote {out}") == 1
+    after = out.stat()
+    assert (after.st_ino, after.st_mtime_ns) == (first.st_ino, first.st_mtime_ns)
+    assert not marker.exists()

@@ -6,7 +6,9 @@
   ``[link] connect_timeout`` (or ``--wait``) seconds. With ``--dashboard`` the run waits for
   the operator's Start on the page (``--autostart``: at once) and the dashboard stays up after
   the run until Ctrl-C (``--exit-after-run``: the command ends with the run); ``--http-port``
-  is the dashboard's port (``--port`` is the UDP link's).
+  is the dashboard's port (``--port`` is the UDP link's). With ``--out``, a dashboard run that
+  has used up its duration is written to ``--out`` at once (atomically), not when the
+  dashboard is closed.
 - ``downhole sil-controller (--scenario S.toml | --controller FILE | --rig) [--port P]``
   is the controller end: it builds (designs) its controller first, then connects to the plant
   (the scenario's ``[link]`` address by default) and answers every observation.
@@ -224,6 +226,8 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
     patience = wait if wait is not None else sc.link.connect_timeout
     stopper = _StopOnSignal(runner).install()
     out_file = OutputFile(out, "sil") if out is not None else None
+    end_write = threading.Lock()  # held while the dashboard's ended run is written
+    written = False  # --out holds the whole run already (written when the run ended)
     try:
         if use_link:
             h, p = runner.link.address
@@ -249,7 +253,24 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
             d = sc.dashboard
 
             def run_ended():
+                """The run has used up its duration: write --out now (the dashboard may stay
+                up for hours), then only browsing is left."""
+                nonlocal written
+                # the run is complete: a signal from now on only ends the dashboard, once
+                # this write is done (the command waits for it)
                 stopper.phase = "browsing"
+                with end_write:
+                    if out_file is not None:
+                        try:
+                            runner.recorder.finish()
+                            runner.result().save(out)
+                            out_file.commit()
+                            written = True
+                            typer.echo(f"wrote {out} (the run has ended)", err=True)
+                        except Exception as exc:  # tried again when the command ends
+                            typer.echo(f"error: writing {out} when the run ended failed "
+                                       f"({type(exc).__name__}: {exc}); it is written again "
+                                       "when the command ends", err=True)
 
             session = serve_dashboard(
                 runner, host=d.host, port=d.port, token=token, duration=dur,
@@ -261,6 +282,8 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                 units=display if (units != "si" or unit) else d.units,
                 on_run_start=out_file.begin if out_file is not None else None,
                 on_run_end=run_ended)
+            with end_write:  # a write of the ended run under way completes first
+                pass
             if not session.started:
                 raise _NeverStarted(stopper.signum)
             res = runner.result()
@@ -293,7 +316,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
     typer.echo(json.dumps({"stats": runner.stats, "scheduler": runner.scheduler,
                            "link": runner.link.counters if runner.link else None,
                            "events": runner.event_count}, indent=1))
-    _write_sil_result(res, out, out_file, stopper)
+    _write_sil_result(res, out, None if written else out_file, stopper)
 
 
 def _check_controller_choice(sc, scenario, cfile: str | None) -> None:
