@@ -196,7 +196,7 @@ def test_malformed_duplicated_reordered_packets_are_counted_and_ignored():
     client = ControllerClient("127.0.0.1", port)
     ctrl = pi_controller_for(plant)
     stop = threading.Event()
-    sent = {"garbage": 0}
+    sent = {"garbage": 0, "again": 0}
 
     def bad_client():
         client.connect(10.0)
@@ -221,8 +221,10 @@ def test_malformed_duplicated_reordered_packets_are_counted_and_ignored():
             if held is not None:
                 client.sock.send(held)  # reordered: older sequence number than the last
                 held = None
+                sent["again"] += 1
             if i % 7 == 0:
                 client.sock.send(pkt)  # duplicate
+                sent["again"] += 1
             if i % 5 == 0:
                 for bad in (b"garbage", b"DHSL" + bytes(60), np.random.bytes(100)):
                     junk.sendto(bad, ("127.0.0.1", port))
@@ -239,7 +241,11 @@ def test_malformed_duplicated_reordered_packets_are_counted_and_ignored():
     c = rt.link.counters
     print("\nlink counters:", c)
     assert c["malformed"] >= 0.9 * sent["garbage"] > 0
-    assert c["duplicates"] > 0 and c["reordered"] > 0
+    # the duplicates and the reordered commands: counted as such when they are parsed, or, as
+    # they answer an earlier observation than the one awaited by the time they are read,
+    # dropped unparsed by their header (rx_dropped; issue 27)
+    again = c["duplicates"] + c["reordered"] + c["stale"] + c["rx_dropped"]
+    assert again >= 0.8 * sent["again"] > 0
     assert rt.stats["steps"] == 1000 and rt.stats["safe_actions"] == 0
 
 
