@@ -1,7 +1,11 @@
 """The ``downhole`` command line: one typer app; each module of this package adds its commands.
 
 Modules register commands on :data:`app` at import (``@app.command()``) or add sub-apps
-(``app.add_typer(...)``). :func:`main` turns input errors into one-line messages and exit code 2.
+(``app.add_typer(...)``). :func:`main` turns input errors into one-line messages and exit code 2,
+and a stop signal into one line and exit code 128 + the signal: SIGTERM and SIGHUP (a closed
+terminal, a dropped SSH session) stop a command like SIGINT (Ctrl-C) does, so that its output
+folder keeps the ``INCOMPLETE`` marker with the reason and its worker processes are killed
+(see docs/architecture.md, "Signals, locks and full disks").
 """
 
 from __future__ import annotations
@@ -55,18 +59,55 @@ def _os_error_line(exc: OSError) -> str:
     return " ".join(line.split())
 
 
+#: Appended to the line of a command stopped by a signal.
+STOPPED = "the run did not finish (outputs it had not written are marked INCOMPLETE)"
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` is SIGINT's ``KeyboardInterrupt`` (click turns it into ``Abort``)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Console-script entry point."""
+    """Console-script entry point.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit code: 0, 1 (a run that failed, the environment: a full disk), 2 (bad input),
+        128 + N (stopped by signal N: 130 for SIGINT, 143 for SIGTERM, 129 for SIGHUP).
+    """
+    import signal
+
+    from downhole._workers import StopRequested, stop_on_signals
     from downhole.errors import DownholeError, DownholeInputError
 
     _load_commands()
     try:
-        rc = app(args=argv, standalone_mode=False)
+        with stop_on_signals():
+            rc = app(args=argv, standalone_mode=False)
         # with standalone_mode=False click returns the code of a typer.Exit instead of raising
         if isinstance(rc, int):
             return rc
     except typer.Exit as exc:
         return exc.exit_code
+    except StopRequested as exc:  # SIGTERM, SIGHUP
+        typer.echo(f"error: {exc}; {STOPPED}", err=True)
+        return 128 + exc.signum
+    except KeyboardInterrupt:
+        typer.echo(f"error: interrupted (SIGINT); {STOPPED}", err=True)
+        return 128 + signal.SIGINT
     except SystemExit as exc:  # click usage errors
         return int(exc.code or 0)
     except DownholeInputError as exc:
@@ -82,6 +123,9 @@ def main(argv: list[str] | None = None) -> int:
         typer.echo(f"error: {exc.args[0] if exc.args else exc}", err=True)
         return 2
     except Exception as exc:  # click's own usage errors (typer may vendor click)
+        if _interrupted(exc):  # SIGINT: click raised Abort from the KeyboardInterrupt
+            typer.echo(f"error: interrupted (SIGINT); {STOPPED}", err=True)
+            return 128 + signal.SIGINT
         click_exc = _click_exception_types()
         if isinstance(exc, click_exc):
             exc.show()
