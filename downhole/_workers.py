@@ -231,6 +231,23 @@ def _kill_workers(pool) -> None:
             p.join(timeout=5.0)
 
 
+def _start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker with SIGHUP blocked (it blocks SIGINT and
+    SIGTERM itself): a SIGHUP to the whole process group (a closed terminal) would kill it, and
+    the parent's cleanup would then relaunch it and print warnings and tracebacks. It ends by
+    itself when the parent and the workers have ended. SIGHUP to this process is only delayed
+    until the tracker has started."""
+    if not hasattr(signal, "pthread_sigmask"):
+        return
+    from multiprocessing import resource_tracker
+
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP})
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 @contextlib.contextmanager
 def worker_pool(max_workers: int) -> Iterator:
     """A ``spawn`` process pool whose workers never outlive the command that started them.
@@ -251,6 +268,7 @@ def worker_pool(max_workers: int) -> Iterator:
     from concurrent.futures import ProcessPoolExecutor
 
     with stop_on_signals():
+        _start_resource_tracker()
         pool = ProcessPoolExecutor(max_workers=max_workers, mp_context=mp.get_context("spawn"),
                                    initializer=_die_with_parent, initargs=(os.getpid(),))
         try:

@@ -23,10 +23,22 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
                   help="downhole: drilling dynamics, optimization and control.")
 
 
+#: SIGINT seen by :func:`main`'s handler; whether a command reported its end itself (``fail``).
+_sigint = {"seen": False, "reported": False}
+
+
 def fail(message: str, code: int = 2):
     """Print ``error: message`` to stderr and exit with ``code`` (no traceback)."""
     typer.echo(f"error: {message}", err=True)
+    _sigint["reported"] = True
     raise typer.Exit(code)
+
+
+def _on_sigint(signum, frame):
+    """SIGINT in :func:`main`: ``KeyboardInterrupt`` as usual, remembered (typer turns it into a
+    silent exit code 130, which :func:`main` completes with its one line)."""
+    _sigint["seen"] = True
+    raise KeyboardInterrupt
 
 
 def _load_commands() -> None:
@@ -89,19 +101,30 @@ def main(argv: list[str] | None = None) -> int:
         128 + N (stopped by signal N: 130 for SIGINT, 143 for SIGTERM, 129 for SIGHUP).
     """
     import signal
+    import threading
 
     from downhole._workers import StopRequested, stop_on_signals
     from downhole.errors import DownholeError, DownholeInputError
 
+    def _code(code: int) -> int:
+        if code == 128 + signal.SIGINT and _sigint["seen"] and not _sigint["reported"]:
+            typer.echo(f"error: interrupted (SIGINT); {STOPPED}", err=True)
+        return code
+
     _load_commands()
+    _sigint.update(seen=False, reported=False)
+    previous = None
+    if threading.current_thread() is threading.main_thread() \
+            and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        previous = signal.signal(signal.SIGINT, _on_sigint)  # not if ignored (a background job)
     try:
         with stop_on_signals():
             rc = app(args=argv, standalone_mode=False)
         # with standalone_mode=False click returns the code of a typer.Exit instead of raising
         if isinstance(rc, int):
-            return rc
+            return _code(rc)
     except typer.Exit as exc:
-        return exc.exit_code
+        return _code(exc.exit_code)
     except StopRequested as exc:  # SIGTERM, SIGHUP
         typer.echo(f"error: {exc}; {STOPPED}", err=True)
         return 128 + exc.signum
@@ -131,6 +154,9 @@ def main(argv: list[str] | None = None) -> int:
             exc.show()
             return exc.exit_code
         raise
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
     return 0
 
 
