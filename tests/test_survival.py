@@ -431,3 +431,29 @@ def test_a_symlinked_out_is_refused_with_one_line(command, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"error: --out {link}: is a symbolic link"), err
     assert list(real.iterdir()) == []
+
+
+def test_bench_marks_its_report_when_it_starts_and_a_stop_leaves_no_old_report(
+        tmp_path, capsys, monkeypatch):
+    """``bench`` removes the previous report and marks ``FILE.INCOMPLETE`` before the first
+    case; a stop (SIGTERM, here raised where a case runs) is one line and keeps the marker."""
+    import downhole.bench as bench_mod
+    from downhole._workers import StopRequested
+
+    out = tmp_path / "bench.json"
+    out.write_text('{"the previous run": true}')
+    seen = {}
+
+    def run_bench(**kwargs):
+        seen["marked"] = (tmp_path / "bench.json.INCOMPLETE").exists()
+        seen["old report gone"] = not out.exists()
+        raise StopRequested(signal.SIGTERM)
+
+    monkeypatch.setattr(bench_mod, "run_bench", run_bench)
+    name = bench_mod.all_cases()[0].name
+    assert main(["bench", "--case", name, "--out", str(out)]) == 128 + signal.SIGTERM
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: stopped by SIGTERM"), err
+    assert seen == {"marked": True, "old report gone": True}
+    assert "stopped by SIGTERM" in (tmp_path / "bench.json.INCOMPLETE").read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bench.json.INCOMPLETE"]
