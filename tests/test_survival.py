@@ -79,10 +79,11 @@ type = "pi"
 class Command:
     """``downhole ARGS`` in a subprocess of its own session; stderr collected line by line."""
 
-    def __init__(self, args, cwd: Path):
-        env = dict(os.environ, MPLBACKEND="Agg", PYTHONUNBUFFERED="1")
+    def __init__(self, args, cwd: Path, env: dict | None = None):
+        env = dict(os.environ, MPLBACKEND="Agg", PYTHONUNBUFFERED="1", **(env or {}))
         env["PYTHONPATH"] = os.pathsep.join(
-            [str(ROOT)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
+            [str(ROOT), str(cwd)] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep)
+                                     if p])
         self.p = subprocess.Popen(
             # SIGINT as in a terminal's foreground job (a test runner started in the background
             # may pass it on ignored)
@@ -195,8 +196,8 @@ def assert_group_gone(cmd: Command) -> None:
 def commands():
     started: list[Command] = []
 
-    def start(args, cwd):
-        c = Command(args, cwd)
+    def start(args, cwd, env=None):
+        c = Command(args, cwd, env)
         started.append(c)
         return c
 
@@ -300,6 +301,40 @@ def test_sil_stopped_writes_the_rows_so_far_and_leaves_nothing_running(sig, tmp_
     res = load_result(out)  # the partial recording, readable
     assert res.attrs["stopped_by"] == sig.name and 20.0 <= res.time[-1] < 600.0
     np.testing.assert_array_equal(load_chunks(tmp_path / "chunks").time, res.time)
+
+
+PLUGIN = """
+import time
+from downhole.experiments import experiment, _REGISTRY
+
+for _i in (1, 2):
+    if f"survival.slow{_i}" not in _REGISTRY:
+        @experiment(f"survival.slow{_i}", title="writes its data, then works", chapter=2,
+                    claim="it never finishes here")
+        def _slow(out_dir, quick):
+            (out_dir / "data.csv").write_text("1\\n")
+            time.sleep(600)
+            return {"measured": {}, "passed": True}
+"""
+
+
+@pytest.mark.parametrize("jobs, sig", [(1, signal.SIGHUP), (2, signal.SIGTERM)])
+def test_reproduce_stopped_leaves_its_experiments_marked_and_no_worker(jobs, sig, tmp_path,
+                                                                      commands):
+    (tmp_path / "survival_plugin.py").write_text(PLUGIN)
+    out = tmp_path / "repro"
+    ids = ["survival.slow1", "survival.slow2"]
+    cmd = commands(["reproduce", *ids, "--jobs", jobs, "--out", out], tmp_path,
+                   {"DOWNHOLE_EXPERIMENT_PLUGINS": "survival_plugin"})
+    running = lambda: list(out.glob(".survival.slow*.staging-*/survival.slow*/data.csv"))  # noqa: E731
+    cmd.wait_for("an experiment to run", lambda: len(running()) >= jobs)
+    if jobs > 1:
+        cmd.wait_for("two workers", lambda: len(cmd.workers()) >= 2)
+    check_stopped(cmd, sig, out, cmd.stop(sig))
+    for eid in ids:  # stopped: marked, no claim
+        assert sorted(p.name for p in (out / eid).iterdir()) == [MARKER]
+    if jobs == 1:  # the stopped experiment's staging folder went with it
+        assert not [p for p in out.iterdir() if ".staging-" in p.name]
 
 
 # ------------------------------------------------------------------------------- full disk
