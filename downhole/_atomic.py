@@ -175,7 +175,9 @@ def _test_pause(final: Path) -> None:
         delay = float(seconds)
     except ValueError:
         return
-    print(f"downhole-test: paused before rename {final}", file=sys.stderr, flush=True)
+    # the process's own stderr, also where a caller redirected sys.stderr (reproduce's run.log)
+    print(f"downhole-test: paused before rename {final}", file=sys.__stderr__ or sys.stderr,
+          flush=True)
     time.sleep(delay)
 
 
