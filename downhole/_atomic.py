@@ -175,7 +175,9 @@ def _test_pause(final: Path) -> None:
         delay = float(seconds)
     except ValueError:
         return
-    print(f"downhole-test: paused before rename {final}", file=sys.stderr, flush=True)
+    # the process's own stderr, also where a caller redirected sys.stderr (reproduce's run.log)
+    print(f"downhole-test: paused before rename {final}", file=sys.__stderr__ or sys.stderr,
+          flush=True)
     time.sleep(delay)
 
 
@@ -468,9 +470,19 @@ class OutputFolder:
         _fsync_dir(self.path)
 
     def begin(self) -> OutputFolder:
-        """Before the work: create and lock the folder, mark it incomplete, remove stale files."""
+        """Before the work: create and lock the folder, mark it incomplete, remove stale files.
+
+        Stopped on the way (a signal, a full disk) once the folder is locked, the marker says why
+        and the lock goes (a ``with`` block's ``__exit__`` does not run when its entry fails).
+        """
         if not self._marked:
-            self._mark()
+            try:
+                self._mark()
+            except BaseException as exc:
+                if self._lock.fd is not None:
+                    self._marked = self.marker.exists()
+                    self.fail(f"{type(exc).__name__}: {exc}".strip().rstrip(":"))
+                raise
         return self
 
     def writing(self) -> OutputFolder:
@@ -539,7 +551,16 @@ class OutputFile:
         return self.path.with_name(self.path.name + "." + MARKER)
 
     def begin(self) -> OutputFile:
+        """Before the work: lock, mark, remove the previous ``FILE`` and stale temporaries."""
         self._lock.acquire()
+        try:
+            self._mark()
+        except BaseException as exc:  # stopped on the way: say why, unlock
+            self.fail(f"{type(exc).__name__}: {exc}".strip().rstrip(":"))
+            raise
+        return self
+
+    def _mark(self) -> None:
         write_text_atomic(self.marker, _marker_text(self.command, f"writing {self.path.name}"))
         folder = self.path.parent
         stem = temp_path(self.path).name.rsplit(".part-", 1)[0]
@@ -551,7 +572,6 @@ class OutputFile:
             if self.path.is_file() or self.path.is_symlink():
                 self.path.unlink()
         _fsync_dir(folder)
-        return self
 
     def fail(self, reason: str) -> None:
         with contextlib.suppress(OSError):

@@ -44,7 +44,7 @@ from functools import lru_cache
 from downhole.errors import DownholeInputError, WorkerProcessError
 
 __all__ = ["GUARD", "StopRequested", "WorkerProcessError", "broken_pool_error",
-           "check_main_guarded", "worker_pool"]
+           "check_main_guarded", "stop_on_signals", "worker_pool"]
 
 GUARD = 'if __name__ == "__main__":'
 
@@ -165,18 +165,60 @@ class StopRequested(SystemExit):
 
 
 def _die_with_parent(parent: int) -> None:
-    """Worker initializer: the kernel kills this worker when its parent ends (Linux)."""
+    """Worker initializer: the kernel kills this worker when its parent ends (Linux), and the
+    terminal's signals to the whole process group (SIGINT from Ctrl-C, SIGHUP from a closed
+    terminal) are left to the parent, which stops the pool (no traceback from every worker)."""
+    armed = False
     if sys.platform.startswith("linux"):
         import ctypes
 
         with contextlib.suppress(OSError, AttributeError):
-            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG
+            armed = ctypes.CDLL(None, use_errno=True).prctl(
+                1, int(signal.SIGKILL)) == 0  # PR_SET_PDEATHSIG
     if os.getppid() != parent:  # the parent ended before the line above took effect
         os._exit(1)
+    if armed:  # the kernel ends this worker with its parent: the parent decides
+        for sig in (signal.SIGINT, signal.SIGHUP):
+            with contextlib.suppress(OSError, ValueError):
+                signal.signal(sig, signal.SIG_IGN)
+
+
+_stopping = False  # a stop signal was turned into StopRequested (a second one is ignored)
 
 
 def _raise_stop(signum, frame) -> None:
+    global _stopping
+    if _stopping:  # already unwinding: let the cleanup (killing workers, the marker) finish
+        return
+    _stopping = True
     raise StopRequested(signum)
+
+
+@contextlib.contextmanager
+def stop_on_signals() -> Iterator[None]:
+    """Within the block, SIGTERM and SIGHUP raise :class:`StopRequested` in the main thread.
+
+    A command run this way unwinds like on SIGINT's ``KeyboardInterrupt``: ``finally`` blocks
+    and context managers run (an :class:`~downhole._atomic.OutputFolder` records why the run
+    stopped in its ``INCOMPLETE`` marker, a :func:`worker_pool` kills its workers), and the
+    caller prints one line. A second SIGTERM or SIGHUP while unwinding is ignored (SIGKILL still
+    ends the process). Outside the main thread this does nothing. The previous handlers come
+    back on exit.
+
+    Python acts on a signal between bytecodes: a long call into compiled code (a closed loop
+    running inside one numba call) stops when that call returns.
+    """
+    global _stopping
+    handlers = {}
+    if threading.current_thread() is threading.main_thread():
+        _stopping = False
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            handlers[sig] = signal.signal(sig, _raise_stop)
+    try:
+        yield
+    finally:
+        for sig, h in handlers.items():
+            signal.signal(sig, h)
 
 
 def _kill_workers(pool) -> None:
@@ -187,6 +229,23 @@ def _kill_workers(pool) -> None:
     for p in procs:
         with contextlib.suppress(Exception):
             p.join(timeout=5.0)
+
+
+def _start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker with SIGHUP blocked (it blocks SIGINT and
+    SIGTERM itself): a SIGHUP to the whole process group (a closed terminal) would kill it, and
+    the parent's cleanup would then relaunch it and print warnings and tracebacks. It ends by
+    itself when the parent and the workers have ended. SIGHUP to this process is only delayed
+    until the tracker has started."""
+    if not hasattr(signal, "pthread_sigmask"):
+        return
+    from multiprocessing import resource_tracker
+
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP})
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 @contextlib.contextmanager
@@ -208,20 +267,14 @@ def worker_pool(max_workers: int) -> Iterator:
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    handlers = {}
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGTERM, signal.SIGHUP):
-            handlers[sig] = signal.signal(sig, _raise_stop)
-    pool = ProcessPoolExecutor(max_workers=max_workers, mp_context=mp.get_context("spawn"),
-                               initializer=_die_with_parent, initargs=(os.getpid(),))
-    try:
-        yield pool
-    except BaseException:
-        _kill_workers(pool)
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    else:
-        pool.shutdown(wait=True)
-    finally:
-        for sig, h in handlers.items():
-            signal.signal(sig, h)
+    with stop_on_signals():
+        _start_resource_tracker()
+        pool = ProcessPoolExecutor(max_workers=max_workers, mp_context=mp.get_context("spawn"),
+                                   initializer=_die_with_parent, initargs=(os.getpid(),))
+        try:
+            yield pool
+            pool.shutdown(wait=True)
+        except BaseException:  # including a signal while waiting for the last tasks
+            _kill_workers(pool)
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise

@@ -9,7 +9,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from downhole._atomic import check_output_path, write_text_atomic
+from downhole._atomic import OutputFile, check_output_path, write_text_atomic
 from downhole.cli import app, fail
 
 console = Console()
@@ -146,31 +146,38 @@ def bench(
                 and (not group or c.group in group)]
     if not selected:
         fail("no bench case selected")
-    rows, report = [], None
-    t_start = time.perf_counter()
-    with console.status("benchmarking") as status:
-        for c in selected:
-            status.update(f"benchmarking {c.name}")
-            try:
-                report = run_bench(quick=quick, names=[c.name])
-                rows += report["cases"]
-            except Exception as exc:
-                rows.append({"name": c.name, "group": c.group, "seconds": None,
-                             "baseline": None, "baseline_seconds": None, "ratio": None,
-                             "seed_seconds": c.seed_seconds, "ratio_to_seed": None,
-                             "error": f"{type(exc).__name__}: {exc}",
-                             "traceback": traceback.format_exc()})
-    machine = dict((report or {}).get("machine", {}))
-    machine.update(machine_description())
-    argv = ["downhole bench", f"--out {out}"] + (["--quick"] if quick else []) + \
-        [f"--case '{c}'" for c in case or []] + [f"--group {g}" for g in group or []]
-    full = {"machine": machine, "cases": rows,
-            "run": {"quick": quick, "date": time.strftime("%Y-%m-%d %H:%M %Z"),
-                    "downhole_version": __version__, "git_commit": _git_commit(),
-                    "command": " ".join(argv),
-                    "wall_seconds": round(time.perf_counter() - t_start, 1)}}
     out.parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(out, json.dumps(full, indent=2))
+    # marked (and locked) now: an interrupted run leaves no previous report looking fresh
+    out_file = OutputFile(out, "bench").begin()
+    try:
+        rows, report = [], None
+        t_start = time.perf_counter()
+        with console.status("benchmarking") as status:
+            for c in selected:
+                status.update(f"benchmarking {c.name}")
+                try:
+                    report = run_bench(quick=quick, names=[c.name])
+                    rows += report["cases"]
+                except Exception as exc:
+                    rows.append({"name": c.name, "group": c.group, "seconds": None,
+                                 "baseline": None, "baseline_seconds": None, "ratio": None,
+                                 "seed_seconds": c.seed_seconds, "ratio_to_seed": None,
+                                 "error": f"{type(exc).__name__}: {exc}",
+                                 "traceback": traceback.format_exc()})
+        machine = dict((report or {}).get("machine", {}))
+        machine.update(machine_description())
+        argv = ["downhole bench", f"--out {out}"] + (["--quick"] if quick else []) + \
+            [f"--case '{c}'" for c in case or []] + [f"--group {g}" for g in group or []]
+        full = {"machine": machine, "cases": rows,
+                "run": {"quick": quick, "date": time.strftime("%Y-%m-%d %H:%M %Z"),
+                        "downhole_version": __version__, "git_commit": _git_commit(),
+                        "command": " ".join(argv),
+                        "wall_seconds": round(time.perf_counter() - t_start, 1)}}
+        write_text_atomic(out, json.dumps(full, indent=2))
+    except BaseException as exc:
+        out_file.fail(f"{type(exc).__name__}: {exc}")
+        raise
+    out_file.commit()
     table = Table("case", "seconds", "baseline", "x baseline", "seed s", "x seed")
     for r in rows:
         if r.get("error"):

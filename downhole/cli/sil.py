@@ -342,7 +342,11 @@ def _write_sil_result(res, out, out_file, stopper) -> None:
         if stopper.stopped_run:
             res.dataset.attrs["stopped_by"] = signal.Signals(stopper.signum).name
         if out_file is not None:
-            res.save(out)
+            try:
+                res.save(out)  # a full disk: one line (main), the marker says why
+            except BaseException as exc:
+                out_file.fail(f"{type(exc).__name__}: {exc}")
+                raise
             out_file.commit()
             typer.echo(f"wrote {out}", err=True)
     finally:

@@ -199,8 +199,6 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
         definitions``. With ``traces``, the key ``_traces`` (dropped from the file) holds the
         plotted series.
     """
-    from downhole import __version__
-
     if out is not None:
         from downhole._atomic import check_output_path
 
@@ -220,6 +218,33 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
         from downhole._workers import check_main_guarded
 
         check_main_guarded(f"compare_controllers(jobs={jobs})", "jobs=1")
+    folder = None
+    if out is not None:  # marked and locked now: an interrupted run leaves no old scores
+        from downhole._atomic import OutputFolder
+        from downhole.compare.report import OUTPUT_FILES
+
+        folder = OutputFolder(out, OUTPUT_FILES, "compare-controllers").begin()
+    try:
+        scores, trace_data = _score(specs, all_cases, suite, jobs, progress, traces)
+        if folder is not None:
+            from downhole.compare.report import write_report
+
+            write_report(out, scores, trace_data, units, folder=folder)
+    except BaseException as exc:
+        if folder is not None:
+            folder.fail(f"{type(exc).__name__}: {exc}")
+        raise
+    if folder is not None:
+        folder.commit()
+    if traces:
+        scores["_traces"] = trace_data
+    return scores
+
+
+def _score(specs, all_cases, suite: str, jobs: int, progress, traces: bool):
+    """Run every cell; returns (scores without traces, trace data)."""
+    from downhole import __version__
+
     t_start = time.perf_counter()
     cells: dict = {c.id: {} for c in all_cases}
     todo = []  # (case, label, controller)
@@ -289,13 +314,7 @@ def compare_controllers(controllers=None, suite: str = "standard", out=None, *, 
     scores["summary"] = summarize_scores(scores)
     scores["wall_seconds"] = round(time.perf_counter() - t_start, 1)
     scores["jobs"] = jobs
-    if out is not None:
-        from downhole.compare.report import write_report
-
-        write_report(out, scores, trace_data, units)
-    if traces:
-        scores["_traces"] = trace_data
-    return scores
+    return scores, trace_data
 
 
 def summarize_scores(scores: dict) -> dict:

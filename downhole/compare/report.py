@@ -203,13 +203,36 @@ def render_html(scores: dict, traces: dict | None = None, units=None) -> str:
     return "\n".join(parts)
 
 
-def write_report(out, scores: dict, traces: dict | None = None, units=None) -> None:
+def write_report(out, scores: dict, traces: dict | None = None, units=None, *,
+                 folder: OutputFolder | None = None) -> None:
     """Write ``out/scores.json`` (SI) and ``out/index.html`` (in the display ``units``)
-    atomically (an ``INCOMPLETE`` marker stands in the folder until both are written)."""
+    atomically (an ``INCOMPLETE`` marker stands in the folder until both are written).
+
+    Parameters
+    ----------
+    out : path
+        The output folder.
+    scores : dict
+        What :func:`downhole.compare.compare_controllers` returns (keys starting with ``_`` are
+        not written).
+    traces : dict, optional
+        The plotted series (case id -> label -> series).
+    units : str or UnitSystem, optional
+        Display units of ``index.html``.
+    folder : OutputFolder, optional
+        The folder of a run that marked (and locked) ``out`` when it started; the caller
+        commits it. Default: mark, write and commit here.
+    """
     data = {k: v for k, v in scores.items() if not k.startswith("_")}
-    with OutputFolder(out, OUTPUT_FILES, "compare-controllers") as folder:
-        page = render_html(data, traces, units)
-        folder.writing()
-        write_text_atomic(folder.path / "scores.json", json.dumps(data, indent=1,
-                                                                  allow_nan=False))
-        write_text_atomic(folder.path / "index.html", page)
+    if folder is None:
+        with OutputFolder(out, OUTPUT_FILES, "compare-controllers") as own:
+            _write(own, data, traces, units)
+    else:
+        _write(folder, data, traces, units)
+
+
+def _write(folder: OutputFolder, data: dict, traces, units) -> None:
+    page = render_html(data, traces, units)
+    folder.writing()
+    write_text_atomic(folder.path / "scores.json", json.dumps(data, indent=1, allow_nan=False))
+    write_text_atomic(folder.path / "index.html", page)

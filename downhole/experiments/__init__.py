@@ -9,11 +9,12 @@ function receives ``(out_dir: pathlib.Path, quick: bool)``, writes its figure(s)
 from __future__ import annotations
 
 import importlib
-import json
 import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from downhole._atomic import write_json_atomic
 
 __all__ = ["Experiment", "all_experiments", "experiment", "get_experiment", "run_experiment"]
 
@@ -104,9 +105,7 @@ def run_experiment(eid: str, out_dir: Path, quick: bool = False) -> dict:
     outcome = exp.func(target, quick)
     claim = {"id": eid, "claim": exp.claim, "measured": _jsonable(outcome["measured"]),
              "passed": bool(outcome["passed"])}
-    tmp = target / "claim.json.tmp"
-    tmp.write_text(json.dumps(claim, indent=2))
-    tmp.replace(target / "claim.json")
+    write_json_atomic(target / "claim.json", claim)
     return claim
 
 

@@ -11,9 +11,12 @@ their timings.
 Outputs are never left stale or mixed (see "Outputs" in docs/architecture.md): when the run
 starts, every selected experiment's folder ``OUT/ID`` is emptied and marked ``INCOMPLETE`` (and
 ``OUT`` itself, whose ``reproduce.json`` and ``index.html`` are removed). Each experiment runs in
-a hidden staging folder ``OUT/.ID.staging-PID/ID`` that replaces ``OUT/ID`` by a rename once its
-``claim.json`` is written, so ``claim.json`` always sits beside the outputs of the same run. A
-killed run leaves the experiments it did not finish marked ``INCOMPLETE`` with no claim.
+a hidden staging folder ``OUT/.ID.staging-PID-RANDOM/ID`` that replaces ``OUT/ID`` by a rename
+once its ``claim.json`` is written, so ``claim.json`` always sits beside the outputs of the same
+run. A killed run leaves the experiments it did not finish marked ``INCOMPLETE`` with no claim.
+Staging and old folders are created with :func:`tempfile.mkdtemp` (an exclusive ``mkdir`` under a
+random name, readable by this user only): a link planted in a shared ``OUT`` cannot redirect an
+experiment's writes.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import os
 import platform
 import re
 import shutil
+import tempfile
 import time
 import traceback
 from collections.abc import Callable
@@ -36,6 +40,7 @@ from downhole._atomic import (
     write_json_atomic,
     write_text_atomic,
 )
+from downhole._workers import StopRequested
 from downhole.errors import DownholeInputError
 
 __all__ = ["is_timing", "machine_description", "reproduce", "run_one"]
@@ -48,8 +53,9 @@ def _write_json(path: Path, data: dict) -> None:
     write_json_atomic(path, data)
 
 
-def _staging(out_dir: Path, eid: str) -> Path:
-    return out_dir / f".{eid}.staging-{os.getpid()}"
+def _new_hidden(out_dir: Path, eid: str, kind: str) -> Path:
+    """A new, empty, private folder ``out_dir/.EID.KIND-PID-RANDOM`` (exclusive ``mkdir``)."""
+    return Path(tempfile.mkdtemp(prefix=f".{eid}.{kind}-{os.getpid()}-", dir=out_dir))
 
 
 def _check_experiment_folder(out_dir: Path, eid: str) -> None:
@@ -66,11 +72,12 @@ def _check_experiment_folder(out_dir: Path, eid: str) -> None:
 def _mark_experiment(out_dir: Path, eid: str) -> None:
     """Empty ``out_dir/eid`` and leave only the INCOMPLETE marker in it (previous run gone)."""
     target = out_dir / eid
-    if target.is_dir():
-        old = out_dir / f".{eid}.old-{os.getpid()}"
-        os.replace(target, old)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if target.is_dir() and not target.is_symlink():
+        old = _new_hidden(out_dir, eid, "old")
+        os.replace(target, old)  # onto the empty folder just made
         shutil.rmtree(old, ignore_errors=True)
-    target.mkdir(parents=True, exist_ok=True)
+    target.mkdir()  # exclusive: whatever was put in its place meanwhile is not written into
     write_text_atomic(target / MARKER, f"downhole reproduce: experiment {eid} started (pid "
                       f"{os.getpid()}) and has not finished; rerun it.\n")
 
@@ -79,7 +86,7 @@ def _remove_leftovers(out_dir: Path, eid: str) -> None:
     """Staging and old folders of ``eid`` left by killed runs (any process)."""
     if not out_dir.is_dir():
         return
-    pattern = re.compile(rf"\.{re.escape(eid)}\.(staging|old)-\d+")
+    pattern = re.compile(rf"\.{re.escape(eid)}\.(staging|old)-\d+(-\w+)?")
     for p in out_dir.iterdir():
         if p.is_dir() and pattern.fullmatch(p.name):
             shutil.rmtree(p, ignore_errors=True)
@@ -89,7 +96,7 @@ def _publish(stage_parent: Path, out_dir: Path, eid: str) -> None:
     """Replace ``out_dir/eid`` by the finished staging folder (claim.json already in it)."""
     target = out_dir / eid
     if target.exists():
-        old = out_dir / f".{eid}.old-{os.getpid()}"
+        old = _new_hidden(out_dir, eid, "old")
         os.replace(target, old)
         os.replace(stage_parent / eid, target)
         shutil.rmtree(old, ignore_errors=True)
@@ -123,8 +130,8 @@ def run_one(eid: str, out_dir: str | Path, quick: bool) -> dict:
     ------
     DownholeInputError
         If ``out_dir/eid`` exists and is not an experiment folder of a reproduction.
-    KeyboardInterrupt
-        Passed through.
+    KeyboardInterrupt, downhole._workers.StopRequested
+        Passed through (SIGINT; SIGTERM or SIGHUP): the experiment stays marked INCOMPLETE.
     """
     os.environ.setdefault("MPLBACKEND", "Agg")
     from downhole.experiments import get_experiment, run_experiment
@@ -135,35 +142,38 @@ def run_one(eid: str, out_dir: str | Path, quick: bool) -> dict:
     if not (out_dir / eid / MARKER).exists():  # called on its own, not from reproduce()
         _check_experiment_folder(out_dir, eid)
         _mark_experiment(out_dir, eid)
-    stage_parent = _staging(out_dir, eid)
-    shutil.rmtree(stage_parent, ignore_errors=True)
+    stage_parent = _new_hidden(out_dir, eid, "staging")
     target = stage_parent / eid
-    target.mkdir(parents=True)
-    t0 = time.perf_counter()
-    with open(target / "run.log", "w") as log, contextlib.redirect_stdout(log), \
-            contextlib.redirect_stderr(log):
-        try:
-            claim = run_experiment(eid, stage_parent, quick=quick)
-            error = None
-        except BaseException as exc:
-            if isinstance(exc, KeyboardInterrupt):
-                raise
-            error = f"{type(exc).__name__}: {exc}"
-            write_text_atomic(target / "error.log", traceback.format_exc())
+    target.mkdir()
+    try:
+        t0 = time.perf_counter()
+        with open(target / "run.log", "w") as log, contextlib.redirect_stdout(log), \
+                contextlib.redirect_stderr(log):
             try:
-                claim_text = get_experiment(eid).claim
-            except KeyError:
-                claim_text = ""
-            claim = {"id": eid, "claim": claim_text, "measured": {}, "passed": False}
-    seconds = time.perf_counter() - t0
-    claim = dict(claim)
-    claim["seconds"] = round(seconds, 3)
-    claim["quick"] = bool(quick)
-    if error:
-        claim["error"] = error
-        claim["log"] = "error.log"
-    _write_json(target / "claim.json", claim)
-    _publish(stage_parent, out_dir, eid)
+                claim = run_experiment(eid, stage_parent, quick=quick)
+                error = None
+            except BaseException as exc:
+                if isinstance(exc, (KeyboardInterrupt, StopRequested)):  # a stop signal: stop
+                    raise
+                error = f"{type(exc).__name__}: {exc}"
+                write_text_atomic(target / "error.log", traceback.format_exc())
+                try:
+                    claim_text = get_experiment(eid).claim
+                except KeyError:
+                    claim_text = ""
+                claim = {"id": eid, "claim": claim_text, "measured": {}, "passed": False}
+        seconds = time.perf_counter() - t0
+        claim = dict(claim)
+        claim["seconds"] = round(seconds, 3)
+        claim["quick"] = bool(quick)
+        if error:
+            claim["error"] = error
+            claim["log"] = "error.log"
+        _write_json(target / "claim.json", claim)
+        _publish(stage_parent, out_dir, eid)
+    except BaseException:  # stopped (or the disk is full): no half staging folder is left
+        shutil.rmtree(stage_parent, ignore_errors=True)
+        raise
     return claim
 
 
@@ -243,40 +253,44 @@ def reproduce(ids: list[str], out_dir: str | Path, quick: bool = False, jobs: in
     order = sorted(ids, key=lambda e: -_previous_seconds(out_dir, e))
     # the previous results go before anything runs: a killed run cannot leave them looking fresh
     top = OutputFolder(out_dir, ("reproduce.json", "index.html"), "reproduce").writing()
-    for eid in ids:
-        _remove_leftovers(out_dir, eid)
-        _mark_experiment(out_dir, eid)
-    t0 = time.perf_counter()
-    claims: dict[str, dict] = {}
+    try:
+        for eid in ids:
+            _remove_leftovers(out_dir, eid)
+            _mark_experiment(out_dir, eid)
+        t0 = time.perf_counter()
+        claims: dict[str, dict] = {}
 
-    def _done(eid, claim):
-        claims[eid] = claim
-        if progress:
-            progress(eid, claim)
+        def _done(eid, claim):
+            claims[eid] = claim
+            if progress:
+                progress(eid, claim)
 
-    timing = [e for e in order if is_timing(get_experiment(e))]
-    others = [e for e in order if e not in timing]
-    if jobs == 1:
-        for eid in others + timing:
-            if on_start:
-                on_start(eid)
-            _done(eid, run_one(eid, out_dir, quick))
-    else:
-        _run_pool(others, out_dir, quick, jobs, _done)
-        # speed claims are measured alone, after the pool, so parallel jobs do not distort them
-        _run_pool(timing, out_dir, quick, 1, _done)
-    wall = time.perf_counter() - t0
-    summary = {
-        "quick": bool(quick), "jobs": jobs, "wall_seconds": round(wall, 2),
-        "passed": sorted(e for e, c in claims.items() if c.get("passed")),
-        "failed": sorted(e for e, c in claims.items() if not c.get("passed")),
-        "errors": {e: c["error"] for e, c in claims.items() if c.get("error")},
-        "seconds": {e: c.get("seconds") for e, c in claims.items()},
-        "machine": machine_description(),
-        "finished": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
-    }
-    _write_json(out_dir / "reproduce.json", summary)
-    build_index(out_dir)
+        timing = [e for e in order if is_timing(get_experiment(e))]
+        others = [e for e in order if e not in timing]
+        if jobs == 1:
+            for eid in others + timing:
+                if on_start:
+                    on_start(eid)
+                _done(eid, run_one(eid, out_dir, quick))
+        else:
+            _run_pool(others, out_dir, quick, jobs, _done)
+            # speed claims are measured alone, after the pool, so parallel jobs do not distort them
+            _run_pool(timing, out_dir, quick, 1, _done)
+        wall = time.perf_counter() - t0
+        summary = {
+            "quick": bool(quick), "jobs": jobs, "wall_seconds": round(wall, 2),
+            "passed": sorted(e for e, c in claims.items() if c.get("passed")),
+            "failed": sorted(e for e, c in claims.items() if not c.get("passed")),
+            "errors": {e: c["error"] for e, c in claims.items() if c.get("error")},
+            "seconds": {e: c.get("seconds") for e, c in claims.items()},
+            "machine": machine_description(),
+            "finished": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        }
+        _write_json(out_dir / "reproduce.json", summary)
+        build_index(out_dir)
+    except BaseException as exc:  # a signal, a full disk, a broken pool: say why in the marker
+        top.fail(f"{type(exc).__name__}: {exc}")
+        raise
     top.commit()
     return summary
 

@@ -7,7 +7,10 @@ on disk, never in memory). :meth:`RingRecorder.to_result` returns the rows in me
 :class:`~downhole.sim.result.Result`; :func:`load_chunks` reassembles a chunked run.
 
 Chunk files are written atomically (temporary name, fsync, rename), so every ``chunk_*.npz``
-loads even after ``kill -9``. A recorder owns its chunk folder: when it starts it writes an
+loads even after ``kill -9``. A chunk that cannot be written (a full disk) raises its
+:class:`OSError` once: the chunks written before it stay readable, the folder keeps its
+``INCOMPLETE`` marker with the reason (when the disk still takes that much), and the recorder writes
+no further chunk (the ring goes on). A recorder owns its chunk folder: when it starts it writes an
 ``INCOMPLETE`` marker there and removes the previous run's chunks (they would otherwise be
 reassembled with the new ones); :meth:`RingRecorder.finish` flushes and removes the marker.
 :func:`load_chunks` of a folder still marked (a killed run) loads the rows on disk and sets the
@@ -53,6 +56,7 @@ class RingRecorder:
         self.chunk_dir = None if chunk_dir is None else Path(chunk_dir)
         self.chunk_rows = int(chunk_rows)
         self.chunks_written = 0
+        self.disk_error: OSError | None = None  # why chunk writing stopped (a full disk)
         self._folder = None
         if self.chunk_dir is not None:
             self._folder = OutputFolder(self.chunk_dir, ("chunk_*.npz", "channels.json"),
@@ -82,18 +86,26 @@ class RingRecorder:
     def flush(self) -> None:
         """Write the partial chunk (if any) to disk (atomically; without an fsync, which could
         cost a real-time loop its deadlines: :meth:`finish` makes the folder durable)."""
-        if self.chunk_dir is None or self._chunk_n == 0:
+        if self.chunk_dir is None or self._chunk_n == 0 or self.disk_error is not None:
             return
         path = self.chunk_dir / f"chunk_{self.chunks_written + 1:06d}.npz"
-        with atomic_path(path, durable=False) as tmp:
-            np.savez(tmp, data=self._chunk[:self._chunk_n])
+        try:
+            with atomic_path(path, durable=False) as tmp:
+                np.savez(tmp, data=self._chunk[:self._chunk_n])
+        except OSError as exc:  # a full disk: stop chunking, keep what is on disk readable
+            if exc.filename is None or ".part-" in str(exc.filename):
+                exc = OSError(exc.errno, exc.strerror or str(exc), str(path))
+            self.disk_error = exc
+            self._chunk_n = 0
+            self._folder.fail(f"OSError: {exc}; chunks 1 to {self.chunks_written} are complete")
+            raise exc from None
         self.chunks_written += 1
         self._chunk_n = 0
 
     def finish(self) -> None:
         """The recording is over: flush, sync the chunks to disk, mark the folder complete."""
         self.flush()
-        if self._folder is not None:
+        if self._folder is not None and self.disk_error is None:
             sync_files(sorted(self.chunk_dir.glob("chunk_*.npz")))
             self._folder.commit()
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from downhole._atomic import atomic_path
 from downhole.errors import DownholeInputError
 
 __all__ = ["NULL", "write_las"]
@@ -48,7 +49,7 @@ def write_las(result, path: str | os.PathLike, well: str = "downhole simulation"
     ----------
     result : Result
     path : path-like
-        Output file (written to a temporary name and renamed).
+        Output file (written to an exclusive temporary file in its folder, then renamed).
     well : str
         ``WELL`` entry of the ~Well section.
     channels : list of str, optional
@@ -138,12 +139,10 @@ def write_las(result, path: str | os.PathLike, well: str = "downhole simulation"
     las.other = ("Written by downhole from a simulation Result. Time-indexed (not depth): the "
                  "index curve TIME is the simulated time in seconds.")
     path = Path(path)
-    tmp = path.with_name(path.name + ".part")
-    try:
-        with open(tmp, "w") as fh:
+    # an exclusive, non-following temporary with a random name (never a fixed "path.part" that
+    # a planted link could redirect), filled through its descriptor, then renamed
+    with atomic_path(path) as tmp:
+        fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0))
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
             las.write(fh, version=2.0, wrap=False, fmt="%.10g")
-        tmp.replace(path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path

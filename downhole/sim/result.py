@@ -306,9 +306,7 @@ class Result:
         """
         from downhole.sim.las import write_las
 
-        with atomic_path(path) as tmp:
-            write_las(self, tmp, **kwargs)
-        return Path(path)
+        return write_las(self, path, **kwargs)  # atomic (temporary file, fsync, rename)
 
     def __repr__(self) -> str:
         t = self.time
