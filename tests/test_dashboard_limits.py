@@ -11,6 +11,7 @@ The checks are statuses, counters and what the server did; times are only hang g
 
 import http.client
 import json
+import re
 import select
 import socket
 import time
@@ -209,7 +210,10 @@ def _post_streaming(port, head: bytes, chunk: bytes, total: int) -> tuple[bytes,
                 break
             answer += data
             if b"\r\n\r\n" in answer and answer.startswith(b"HTTP/1.1 413"):
-                break
+                head, _, body = answer.partition(b"\r\n\r\n")
+                m = re.search(rb"content-length: *(\d+)", head, re.IGNORECASE)
+                if m is None or len(body) >= int(m.group(1)):
+                    break  # the whole answer, body included (it may come in two segments)
     except (TimeoutError, ConnectionResetError):
         pass
     s.close()
