@@ -58,7 +58,10 @@ from downhole.sim.wave import wave_read_at, wave_read_plan, wave_source_forces, 
 __all__ = [
     "CHANNELS",
     "RUN_STATE_DTYPE",
+    "KernelModel",
     "KernelParams",
+    "KernelState",
+    "kernel_state",
     "new_kernel_work",
     "new_run_state",
     "run_kernel",
@@ -185,6 +188,62 @@ def new_run_state(**values) -> np.ndarray:
 _WORK_ROWS = 27
 
 
+class KernelModel(NamedTuple):
+    """What a model is for the kernel (constant over runs): the field matrices ``mats`` (18,
+    n), the dense L per field ``Ldense`` (2, n, n) (modal damping, else unused), the elements
+    ``elem`` (n, 8), the nodal gravity and torque arm ``node`` (n, 2), the settings ``top``
+    (:class:`KernelParams`) and the bit law ``bit``
+    (:class:`~downhole.params.bit.BitKernelParams`). See :func:`run_kernel`."""
+
+    mats: np.ndarray
+    Ldense: np.ndarray
+    elem: np.ndarray
+    node: np.ndarray
+    top: object
+    bit: object
+
+
+class KernelState(NamedTuple):
+    """One run's state for the kernel (updated in place): nodal ``state`` (6, n), clocks and
+    references ``run`` (:data:`RUN_STATE_DTYPE`), the rock surface (``surf``, ``istate`` and
+    its parameters ``rock``), the wave segment of each field (ring buffer, clock and
+    :class:`~downhole.sim.wave.WaveParams`), the lag cascades ``lag`` (4, m) and the scratch
+    ``work`` (:func:`new_kernel_work`). See :func:`run_kernel`."""
+
+    state: np.ndarray
+    run: np.ndarray
+    surf: np.ndarray
+    istate: np.ndarray
+    rock: object
+    wave_a_hist: np.ndarray
+    wave_a_pos: np.ndarray
+    wave_a: object
+    wave_t_hist: np.ndarray
+    wave_t_pos: np.ndarray
+    wave_t: object
+    lag: np.ndarray
+    work: tuple
+
+
+def kernel_state(st: dict) -> KernelState:
+    """The :class:`KernelState` of a pack's run state ``st`` (a dict with ``state``, ``run``,
+    ``surf``, ``istate``, ``rp``, ``wa`` and ``wt`` (hist, pos, params), ``lag``, ``work``): the
+    same arrays, not copies.
+
+    Parameters
+    ----------
+    st : dict
+        The run state a pack's ``begin``/``start`` returned.
+
+    Returns
+    -------
+    KernelState
+    """
+    wa, wt = st["wa"], st["wt"]
+    return KernelState(st["state"], st["run"], st["surf"], st["istate"], st["rp"], wa[0], wa[1],
+                       wa[2], wt[0], wt[1], wt[2], st["lag"], st["work"])
+
+
 def new_kernel_work(n: int, dense: bool = False):
     """Scratch buffers for :func:`run_kernel` on ``n`` nodes (reused from call to call).
 
@@ -285,35 +344,28 @@ def _mid_torque(Ko, th, i):
 
 
 @njit(cache=True)
-def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
-               wa_hist, wa_pos, wa_wp, wt_hist, wt_pos, wt_wp, lag, cmd, top_ref, n_steps, dt,
-               rec, rec_every, rec_start, work):
+def run_kernel(model, ks, cmd, top_ref, n_steps, dt, rec, rec_every, rec_start):
     """Advance ``n_steps`` steps of ``dt``; record every ``rec_every`` steps into ``rec``.
 
     Parameters
     ----------
-    mats : (18, n)
-        Rows: M_a diag/off, K_a diag/off, L_a diag/off (L = M + dt/2 C + dt^2/4 K), then the
-        same for the torsional field, then C_a diag/off and C_t diag/off (for reporting).
-    Ldense : (2, n, n)
-        Dense L per field when ``top.dense`` (modal damping), else ignored.
-    elem : (n, 8)
-        Per element e (0..n-2): length, dt/ds (3), w g_perp (3), contact flag.
-    node : (n, 2)
-        Nodal gravity force (N, downward) and torque arm (m).
-    top : KernelParams
-        Hook, top drive, friction, depth-of-cut and wave-segment settings.
-    bt : BitKernelParams
-        The bit law's parameters.
-    state : (6, n)
-        u_a, v_a, a_a, theta, omega, alpha. Updated in place.
-    run : (1,) record of :data:`RUN_STATE_DTYPE`
-        Clocks and references. Updated in place.
-    surf, istate, rp : rock-surface memory (``rp`` a
-        :class:`~downhole.bit.rock_surface.RockSurfaceParams`).
-    wa_*, wt_* : wave-segment states (axial, torsional): ring buffers, clocks and
-        :class:`~downhole.sim.wave.WaveParams`; ignored unless hybrid.
-    lag : (4, m) lag-cascade states (rows: axial b_in, axial a_in, torsional b_in, a_in).
+    model : KernelModel
+        The model: ``mats`` (18, n), rows M_a diag/off, K_a diag/off, L_a diag/off (L = M +
+        dt/2 C + dt^2/4 K), then the same for the torsional field, then C_a diag/off and C_t
+        diag/off (for reporting); ``Ldense`` (2, n, n), the dense L per field when
+        ``top.dense`` (modal damping); ``elem`` (n, 8), per element e (0..n-2): length, dt/ds
+        (3), w g_perp (3), contact flag; ``node`` (n, 2), nodal gravity force (N, downward) and
+        torque arm (m); ``top`` (:class:`KernelParams`), hook, top drive, friction,
+        depth-of-cut and wave-segment settings; ``bit``, the bit law's parameters.
+    ks : KernelState
+        The run, updated in place: ``state`` (6, n), u_a, v_a, a_a, theta, omega, alpha;
+        ``run``, clocks and references; ``surf``, ``istate``, ``rock``, the rock-surface memory
+        (:class:`~downhole.bit.rock_surface.RockSurfaceParams`); ``wave_a_*``, ``wave_t_*``,
+        the wave segments (axial, torsional: ring buffers, clocks and
+        :class:`~downhole.sim.wave.WaveParams`; ignored unless hybrid); ``lag`` (4, m),
+        lag-cascade states (rows: axial b_in, axial a_in, torsional b_in, a_in); ``work``,
+        scratch buffers from :func:`new_kernel_work` (overwritten; the kernel allocates nothing,
+        so a caller that steps one step per call, a compiled closed loop, pays no allocation).
     cmd : (n_steps, 2) or (n_steps, 4)
         Per step: axial command (hook load N, or top axial velocity m/s) and torsional command
         (speed set-point rad/s, or top-drive torque N m); with ``top.bit_disturbance`` also the
@@ -323,9 +375,6 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
         axial position, angle, axial velocity, angular velocity (velocity hook), or hook load,
         surface torque (force hook, columns 0 and 1). Else ignored (any shape).
     rec : (n_rec, len(CHANNELS)) output; ``rec_start`` is the first row written.
-    work : tuple
-        Scratch buffers from :func:`new_kernel_work` (overwritten; the kernel allocates nothing,
-        so a caller that steps one step per call, a compiled closed loop, pays no allocation).
 
     Returns
     -------
@@ -342,6 +391,11 @@ def run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
     nodes above the first contact node, wave read offsets, lag factors); the rock-surface and
     wave ring buffers read and written inline; clocks in locals.
     """
+    mats, Ldense, elem, node, top, bt = model
+    state, run, surf, istate, rp = ks.state, ks.run, ks.surf, ks.istate, ks.rock
+    wa_hist, wa_pos, wa_wp = ks.wave_a_hist, ks.wave_a_pos, ks.wave_a
+    wt_hist, wt_pos, wt_wp = ks.wave_t_hist, ks.wave_t_pos, ks.wave_t
+    lag, work = ks.lag, ks.work
     n = state.shape[1]
     ib = n - 1
     iB = top.node_b

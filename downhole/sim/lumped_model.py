@@ -23,7 +23,14 @@ from downhole.bit.rock_surface import RockSurfaceSpec, rock_depth, rock_init, ro
 from downhole.errors import DownholeInputError
 from downhole.params import BitParams, LumpedParams, get_preset
 from downhole.sim.kernel import CHANNELS as KERNEL_CHANNELS
-from downhole.sim.kernel import KernelParams, new_kernel_work, new_run_state, run_kernel
+from downhole.sim.kernel import (
+    KernelModel,
+    KernelParams,
+    kernel_state,
+    new_kernel_work,
+    new_run_state,
+    run_kernel,
+)
 from downhole.sim.plant import check_start, steady_depth_of_cut
 from downhole.sim.wave import WaveParams
 
@@ -441,15 +448,12 @@ class ChainPack:
     def run(self, st, top_ref, rec, rec_every, rec_start=0):
         """Advance ``len(top_ref) - 1`` steps from ``st`` (updated in place); ``(status,
         rows written)``."""
-        wa = self._wave
-        work = st.get("work")
-        if work is None:
-            work = st["work"] = new_kernel_work(self.model.n)
-        return run_kernel(self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
-                          st["state"], st["run"], st["surf"], st["istate"], st["rp"],
-                          wa[0], wa[1], wa[2], wa[0], wa[1], wa[2], st["lag"], self._cmd,
-                          top_ref, top_ref.shape[0] - 1, self.dt, rec, rec_every, rec_start,
-                          work)
+        if st.get("work") is None:
+            st["work"] = new_kernel_work(self.model.n)
+        ks = kernel_state(dict(st, wa=self._wave, wt=self._wave))
+        return run_kernel(KernelModel(self.mats, self.Ldense, self.elem, self.node, self.top,
+                                      self.bitp), ks, self._cmd, top_ref,
+                          top_ref.shape[0] - 1, self.dt, rec, rec_every, rec_start)
 
 
 def _named_command(names, out, held, who: str) -> None:

@@ -32,7 +32,9 @@ from downhole.params.presets import get_preset
 from downhole.params.rig import DEFAULT_TOP_DRIVE_INERTIA, Hook, TopDrive
 from downhole.sim.kernel import (
     CHANNELS,
+    KernelModel,
     KernelParams,
+    kernel_state,
     new_kernel_work,
     new_run_state,
     run_kernel,
@@ -1032,14 +1034,11 @@ class _Packed:
         return self._kernel(st, np.ascontiguousarray(rows[1:, :2]), rec, rec_every, rec_start)
 
     def _kernel(self, st, cmd, rec, rec_every, rec_start):
-        wa, wt = st["wa"], st["wt"]
-        work = st.get("work")
-        if work is None:
-            work = st["work"] = new_kernel_work(self.model.n_nodes, self.top.dense)
-        return run_kernel(self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
-                          st["state"], st["run"], st["surf"], st["istate"], st["rp"],
-                          wa[0], wa[1], wa[2], wt[0], wt[1], wt[2], st["lag"], cmd,
-                          self._no_ref, cmd.shape[0], self.dt, rec, rec_every, rec_start, work)
+        if st.get("work") is None:
+            st["work"] = new_kernel_work(self.model.n_nodes, self.top.dense)
+        return run_kernel(KernelModel(self.mats, self.Ldense, self.elem, self.node, self.top,
+                                      self.bitp), kernel_state(st), cmd, self._no_ref,
+                          cmd.shape[0], self.dt, rec, rec_every, rec_start)
 
     def step(self, st, command, rec):
         """One step holding ``command``; ``(status, rows)``."""

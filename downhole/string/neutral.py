@@ -31,7 +31,15 @@ from downhole.bit.law import approx_depth_of_cut, bit_forces
 from downhole.bit.rock_surface import RockSurfaceSpec, rock_depth, rock_init, rock_init_helix
 from downhole.errors import DownholeInputError
 from downhole.params import BitParams, NeutralStringParams, get_preset
-from downhole.sim.kernel import CHANNELS, KernelParams, new_kernel_work, new_run_state, run_kernel
+from downhole.sim.kernel import (
+    CHANNELS,
+    KernelModel,
+    KernelParams,
+    kernel_state,
+    new_kernel_work,
+    new_run_state,
+    run_kernel,
+)
 from downhole.sim.plant import check_start, steady_depth_of_cut
 from downhole.sim.wave import (
     WaveSegment,
@@ -522,17 +530,14 @@ class NeutralPack:
                   work=new_kernel_work(2), cmd=np.zeros((1, self.n_cmd)))
         return st, rec0
 
-    def kernel_args(self, st) -> tuple:
-        """The arguments of :func:`~downhole.sim.kernel.run_kernel` before ``cmd``, in order,
-        for the state ``st`` (compiled closed loops call the kernel step by step with them)."""
-        wa, wt = st["wa"], st["wt"]
-        return (self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp,
-                st["state"], st["run"], st["surf"], st["istate"], st["rp"],
-                wa[0], wa[1], wa[2], wt[0], wt[1], wt[2], st["lag"])
+    def kernel_model(self) -> KernelModel:
+        """The model's part of the :func:`~downhole.sim.kernel.run_kernel` arguments (compiled
+        closed loops call the kernel step by step with it and :func:`kernel_state`)."""
+        return KernelModel(self.mats, self.Ldense, self.elem, self.node, self.top, self.bitp)
 
     def _kernel(self, st, cmd, rec, rec_every, rec_start):
-        return run_kernel(*self.kernel_args(st), cmd, self._no_ref, cmd.shape[0], self.dt,
-                          rec, rec_every, rec_start, st["work"])
+        return run_kernel(self.kernel_model(), kernel_state(st), cmd, self._no_ref,
+                          cmd.shape[0], self.dt, rec, rec_every, rec_start)
 
     def run(self, st, rows, rec, rec_every, rec_start=0):
         """Advance ``len(rows) - 1`` steps, step k holding ``rows[k + 1]`` (relative axial,

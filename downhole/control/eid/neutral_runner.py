@@ -23,7 +23,7 @@ from downhole.control.eid.damper import (
     damper_arrays,
     damper_step,
 )
-from downhole.sim.kernel import run_kernel
+from downhole.sim.kernel import kernel_state, run_kernel
 
 __all__ = ["EID_CHANNELS", "make_neutral_runner", "run_neutral_eid"]
 
@@ -35,13 +35,11 @@ EID_CHANNELS = ("command_axial", "command_angular",
 
 
 @njit(cache=True)
-def run_neutral_eid(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
-                    wa_hist, wa_pos, wa_wp, wt_hist, wt_pos, wt_wp, lag, work, cmd, no_ref,
-                    hang, cp, cs, ch, cpos, dp, dh, ds, xbuf, bpc, ref, noise, fnoise, nsteps,
-                    dt, every, rec, sigout):
-    """Closed loop from the kernel state (``mats`` ... ``lag`` as
-    :meth:`NeutralPack.kernel_args <downhole.string.neutral.NeutralPack.kernel_args>`, ``work``
-    its scratch, ``cmd`` a (1, 2) or (1, 4) command row, ``no_ref`` the unused top reference):
+def run_neutral_eid(model, ks, cmd, no_ref, hang, cp, cs, ch, cpos, dp, dh, ds, xbuf, bpc, ref,
+                    noise, fnoise, nsteps, dt, every, rec, sigout):
+    """Closed loop from the kernel's model and run state (``model`` a
+    :class:`~downhole.sim.kernel.KernelModel`, ``ks`` a :class:`~downhole.sim.kernel.KernelState`,
+    ``cmd`` a (1, 2) or (1, 4) command row, ``no_ref`` the unused top reference):
     ``nsteps`` steps of ``dt`` with the EID controller (parameters ``cp``, states ``cs``,
     ``ch``, ``cpos`` from :func:`~downhole.control.eid._kernel.eid_arrays`) and, when
     ``dp.k_d > 0``, the predictive bit damper added to its axial command
@@ -59,6 +57,7 @@ def run_neutral_eid(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
     row = 0
     off = cp[0].offset
     noisy = cmd.shape[1] > 2
+    state = ks.state
     for k in range(nsteps + 1):
         y[0] = state[1, 1] + noise[0, k]
         y[1] = state[4, 1] + noise[1, k]
@@ -86,9 +85,7 @@ def run_neutral_eid(mats, Ldense, elem, node, top, bt, state, run, surf, istate,
         if noisy:
             cmd[0, 2] = fnoise[k, 0]
             cmd[0, 3] = fnoise[k, 1]
-        status, _ = run_kernel(mats, Ldense, elem, node, top, bt, state, run, surf, istate, rp,
-                               wa_hist, wa_pos, wa_wp, wt_hist, wt_pos, wt_wp, lag, cmd, no_ref,
-                               1, dt, last, 1, 0, work)
+        status, _ = run_kernel(model, ks, cmd, no_ref, 1, dt, last, 1, 0)
         if status != 0:
             return 1, k
     return 0, nsteps
@@ -113,7 +110,7 @@ def make_neutral_runner(cp, damper=None):
         dh, ds, xbuf = damper_arrays(dp)
         sigout = np.zeros((rec.shape[0], len(EID_CHANNELS)))
         fn = np.ascontiguousarray(fnoise) if fnoise.shape[1] else np.zeros((1, 2))
-        status, kfail = run_neutral_eid(*pack.kernel_args(st), st["work"], st["cmd"],
+        status, kfail = run_neutral_eid(pack.kernel_model(), kernel_state(st), st["cmd"],
                                         np.zeros((1, 4)), pack.model.hang_command, cp, cs, ch,
                                         cpos, dp, dh, ds, xbuf, bpc, ref, mnoise, fn, nsteps,
                                         pack.dt, every, rec, sigout)
