@@ -180,7 +180,7 @@ def simulate(model, inputs=None, *, duration: float = 20.0, dt: float | None = N
     pk = model.run_pack(dt, depth_of_cut, None if closed else inputs, bit_noise, options)
     t = np.arange(nsteps + 1) * dt
     rng = np.random.default_rng(seed)
-    mnoise = np.zeros((2, nsteps + 1))
+    mnoise = np.zeros((2, nsteps + 1)) if closed else None
     for i, key in enumerate(("axial", "angular")):
         if sig[key] > 0:
             if not closed:

@@ -556,10 +556,12 @@ class NeutralPack:
     def rows(self, inputs, t) -> np.ndarray:
         """The relative commands (U_A - hang, U_T[, 0, 0]) at the step boundaries ``t`` from the
         seed's (U_A, U_T) ``inputs`` (default the nominal)."""
-        u = _open_loop_inputs(inputs, t)
-        out = np.zeros((len(t), self.n_cmd))
-        out[:, 0] = u[0] - self.model.hang_command
-        out[:, 1] = u[1]
+        ua, ut = _open_loop_inputs(inputs, t)
+        out = np.empty((len(t), self.n_cmd))
+        out[:, 0] = ua
+        out[:, 0] -= self.model.hang_command
+        out[:, 1] = ut
+        out[:, 2:] = 0.0
         return out
 
     def still_rows(self, t) -> np.ndarray:
@@ -594,8 +596,9 @@ class NeutralPack:
                                         "epsilon": m.bit.epsilon}
 
 
-def _open_loop_inputs(inputs, t) -> np.ndarray:
-    """The open-loop commands (U_A, U_T) sampled at ``t``, shape (2, len(t))."""
+def _open_loop_inputs(inputs, t) -> tuple:
+    """The open-loop commands (U_A, U_T) sampled at ``t``: two arrays like ``t``, or a number
+    for a constant."""
     if inputs is None:
         inputs = (NOMINAL_U_A, NOMINAL_U_T)
     if hasattr(inputs, "mode"):
@@ -611,8 +614,15 @@ def _open_loop_inputs(inputs, t) -> np.ndarray:
                                      f"pair of signals, got {inputs!r}") from None
         if len(sigs) != 2:
             raise DownholeInputError(f"inputs: expected (U_A, U_T), got {len(sigs)} items")
-    return np.vstack([_sample(sigs[0], t, "inputs axial (U_A)"),
-                      _sample(sigs[1], t, "inputs angular (U_T)")])
+    return tuple(_constant_or_sample(sig, t, name) for sig, name in
+                 zip(sigs, ("inputs axial (U_A)", "inputs angular (U_T)")))
+
+
+def _constant_or_sample(sig, t, name):
+    """A finite number as it is (numpy broadcasts it), any other signal sampled at ``t``."""
+    if isinstance(sig, (int, float)) and not isinstance(sig, bool) and math.isfinite(sig):
+        return float(sig)
+    return _sample(sig, t, name)
 
 
 def _relative_command(out, hang: float, who: str) -> tuple[float, float]:
