@@ -695,13 +695,14 @@ def test_sil_sigterm_writes_the_rows_recorded_so_far(tmp_path, procs, sig):
     res = load_result(out)
     assert res.attrs["stopped_by"] == sig.name
     n = res.time.size
-    assert 10_000 < n and 20.0 < res.time[-1] < 600
+    # at least the first chunk (the signal may land right after it: then it is all there is)
+    assert 10_000 <= n and 19.99 < res.time[-1] < 600
     np.testing.assert_allclose(np.diff(res.time), 0.002, rtol=1e-6)
     assert not (tmp_path / "run.nc.INCOMPLETE").exists()
-    # the chunk files hold every row (the partial chunk was flushed) and are marked complete
+    # the chunk files hold every row (a partial chunk was flushed) and are marked complete
     full = load_chunks(chunks)
-    assert sorted(q.name for q in chunks.glob("chunk_*.npz")) == ["chunk_000001.npz",
-                                                                  "chunk_000002.npz"]
+    expected = [f"chunk_{i:06d}.npz" for i in range(1, -(-n // 10_000) + 1)]
+    assert sorted(q.name for q in chunks.glob("chunk_*.npz")) == expected
     assert full.time.size == n and "incomplete" not in full.attrs
     np.testing.assert_array_equal(full.time, res.time)
 
