@@ -25,7 +25,7 @@ from downhole.control.eid.damper import (
 )
 from downhole.sim.kernel import kernel_state, run_kernel
 
-__all__ = ["EID_CHANNELS", "make_neutral_runner", "run_neutral_eid"]
+__all__ = ["EID_CHANNELS", "PIECE", "make_neutral_runner", "run_neutral_eid"]
 
 #: Channels the EID runner adds to the record (besides the reference, which the core adds).
 EID_CHANNELS = ("command_axial", "command_angular",
@@ -34,31 +34,36 @@ EID_CHANNELS = ("command_axial", "command_angular",
                 "eid_prediction_axial", "eid_prediction_angular")
 
 
+#: Steps per compiled call: between calls Python runs, so Ctrl-C (KeyboardInterrupt) and the
+#: CLI's stop signals end a long closed loop within one piece (about 0.1 s of work).
+PIECE = 200_000
+
+
 @njit(cache=True)
 def run_neutral_eid(model, ks, cmd, no_ref, hang, cp, cs, ch, cpos, dp, dh, ds, xbuf, bpc, ref,
-                    noise, fnoise, nsteps, dt, every, rec, sigout):
+                    noise, fnoise, k0, k1, nsteps, dt, every, rec, sigout, last, uvec, sig):
     """Closed loop from the kernel's model and run state (``model`` a
     :class:`~downhole.sim.kernel.KernelModel`, ``ks`` a :class:`~downhole.sim.kernel.KernelState`,
-    ``cmd`` a (1, 2) or (1, 4) command row, ``no_ref`` the unused top reference):
-    ``nsteps`` steps of ``dt`` with the EID controller (parameters ``cp``, states ``cs``,
-    ``ch``, ``cpos`` from :func:`~downhole.control.eid._kernel.eid_arrays`) and, when
-    ``dp.k_d > 0``, the predictive bit damper added to its axial command
-    (:func:`~downhole.control.eid.damper.damper_step`: parameters ``dp``, states ``dh``,
-    ``ds``, ``xbuf``, the controller's bit law ``bpc``). The command U_A is given to the kernel
-    relative to the hanging equilibrium (``U_A - hang``). ``rec`` holds the record of t = 0 in
-    row 0; rows every ``every`` steps and the last are written into ``rec`` and ``sigout``
-    (:data:`EID_CHANNELS`). Returns (status, step)."""
-    uvec = np.zeros(2)
+    ``cmd`` a (1, 2) or (1, 4) command row, ``no_ref`` the unused top reference): the steps
+    ``k0`` to ``k1 - 1`` of ``nsteps`` steps of ``dt`` (each: the controller at t_k, the record,
+    the kernel step; with ``k1 == nsteps`` also the controller and record of t_nsteps) with the
+    EID controller (parameters ``cp``, states ``cs``, ``ch``, ``cpos`` from
+    :func:`~downhole.control.eid._kernel.eid_arrays`) and, when ``dp.k_d > 0``, the predictive
+    bit damper added to its axial command (:func:`~downhole.control.eid.damper.damper_step`:
+    parameters ``dp``, states ``dh``, ``ds``, ``xbuf``, the controller's bit law ``bpc``). The
+    command U_A is given to the kernel relative to the hanging equilibrium (``U_A - hang``).
+    ``last`` (1, channels) holds the record of t_k0 (row 0 of ``rec`` at k0 = 0) and is carried
+    to the next call, as are ``uvec`` (2,) and ``sig`` (2, 4), the EID step's outputs; rows
+    every ``every`` steps and the last are written into ``rec`` and ``sigout``
+    (:data:`EID_CHANNELS`). Returns (status, step reached)."""
     y = np.zeros(2)
     r = np.zeros(2)
-    sig = np.zeros((2, 4))
-    last = np.empty((1, rec.shape[1]))
-    last[0, :] = rec[0, :]
-    row = 0
+    nrec = rec.shape[0]
     off = cp[0].offset
     noisy = cmd.shape[1] > 2
     state = ks.state
-    for k in range(nsteps + 1):
+    kend = k1 + 1 if k1 == nsteps else k1
+    for k in range(k0, kend):
         y[0] = state[1, 1] + noise[0, k]
         y[1] = state[4, 1] + noise[1, k]
         r[1] = ref[1, k]
@@ -67,7 +72,8 @@ def run_neutral_eid(model, ks, cmd, no_ref, hang, cp, cs, ch, cpos, dp, dh, ds, 
         ua = uvec[0]
         if dp.k_d > 0.0:
             ua += damper_step(dp, dh, ds, xbuf, bpc, y[0], y[1], r[0], uvec[0] - off)
-        if k % every == 0 or k == nsteps:
+        row = k // every if k % every == 0 else (nrec - 1 if k == nsteps else -1)
+        if row >= 0:
             rec[row, :] = last[0, :]
             sigout[row, 0] = ua
             sigout[row, 1] = uvec[1]
@@ -77,7 +83,6 @@ def run_neutral_eid(model, ks, cmd, no_ref, hang, cp, cs, ch, cpos, dp, dh, ds, 
             sigout[row, 5] = sig[1, 1]
             sigout[row, 6] = sig[0, 2]
             sigout[row, 7] = sig[1, 2]
-            row += 1
         if k == nsteps:
             break
         cmd[0, 0] = ua - hang
@@ -88,7 +93,7 @@ def run_neutral_eid(model, ks, cmd, no_ref, hang, cp, cs, ch, cpos, dp, dh, ds, 
         status, _ = run_kernel(model, ks, cmd, no_ref, 1, dt, last, 1, 0)
         if status != 0:
             return 1, k
-    return 0, nsteps
+    return 0, k1
 
 
 #: The damper switched off (the plain EID loop).
@@ -110,10 +115,19 @@ def make_neutral_runner(cp, damper=None):
         dh, ds, xbuf = damper_arrays(dp)
         sigout = np.zeros((rec.shape[0], len(EID_CHANNELS)))
         fn = np.ascontiguousarray(fnoise) if fnoise.shape[1] else np.zeros((1, 2))
-        status, kfail = run_neutral_eid(pack.kernel_model(), kernel_state(st), st["cmd"],
-                                        np.zeros((1, 4)), pack.model.hang_command, cp, cs, ch,
-                                        cpos, dp, dh, ds, xbuf, bpc, ref, mnoise, fn, nsteps,
-                                        pack.dt, every, rec, sigout)
+        model, ks = pack.kernel_model(), kernel_state(st)
+        last = rec[:1].copy()
+        uvec, sig = np.zeros(2), np.zeros((2, 4))
+        k0 = 0
+        while True:  # in pieces: Python runs between them (Ctrl-C, stop signals)
+            k1 = min(k0 + PIECE, nsteps)
+            status, kfail = run_neutral_eid(model, ks, st["cmd"], np.zeros((1, 4)),
+                                            pack.model.hang_command, cp, cs, ch, cpos, dp, dh,
+                                            ds, xbuf, bpc, ref, mnoise, fn, k0, k1, nsteps,
+                                            pack.dt, every, rec, sigout, last, uvec, sig)
+            if status != 0 or k1 == nsteps:
+                break
+            k0 = k1
         return status, kfail, {name: sigout[:, j] for j, name in enumerate(EID_CHANNELS)}
 
     return runner
