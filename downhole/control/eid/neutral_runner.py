@@ -41,7 +41,8 @@ PIECE = 200_000
 
 @njit(cache=True)
 def run_neutral_eid(model, ks, cmd, no_ref, hang, cp, cs, ch, cpos, dp, dh, ds, xbuf, bpc, ref,
-                    noise, fnoise, k0, k1, nsteps, dt, every, rec, sigout, last, uvec, sig):
+                    noise, fnoise, k0, k1, nsteps, dt, every, rec, sigout, last_io, uvec_io,
+                    sig_io):
     """Closed loop from the kernel's model and run state (``model`` a
     :class:`~downhole.sim.kernel.KernelModel`, ``ks`` a :class:`~downhole.sim.kernel.KernelState`,
     ``cmd`` a (1, 2) or (1, 4) command row, ``no_ref`` the unused top reference): the steps
@@ -52,12 +53,17 @@ def run_neutral_eid(model, ks, cmd, no_ref, hang, cp, cs, ch, cpos, dp, dh, ds, 
     bit damper added to its axial command (:func:`~downhole.control.eid.damper.damper_step`:
     parameters ``dp``, states ``dh``, ``ds``, ``xbuf``, the controller's bit law ``bpc``). The
     command U_A is given to the kernel relative to the hanging equilibrium (``U_A - hang``).
-    ``last`` (1, channels) holds the record of t_k0 (row 0 of ``rec`` at k0 = 0) and is carried
-    to the next call, as are ``uvec`` (2,) and ``sig`` (2, 4), the EID step's outputs; rows
+    ``last_io`` (1, channels) holds the record of t_k0 (row 0 of ``rec`` at k0 = 0) and is carried
+    to the next call, as are ``uvec_io`` (2,) and ``sig_io`` (2, 4), the EID step's outputs; rows
     every ``every`` steps and the last are written into ``rec`` and ``sigout``
     (:data:`EID_CHANNELS`). Returns (status, step reached)."""
     y = np.zeros(2)
     r = np.zeros(2)
+    # locals for the carried arrays (the compiler keeps them apart from the others), written
+    # back at the end of the piece
+    last = last_io.copy()
+    uvec = uvec_io.copy()
+    sig = sig_io.copy()
     nrec = rec.shape[0]
     off = cp[0].offset
     noisy = cmd.shape[1] > 2
@@ -93,6 +99,9 @@ def run_neutral_eid(model, ks, cmd, no_ref, hang, cp, cs, ch, cpos, dp, dh, ds, 
         status, _ = run_kernel(model, ks, cmd, no_ref, 1, dt, last, 1, 0)
         if status != 0:
             return 1, k
+    last_io[:, :] = last
+    uvec_io[:] = uvec
+    sig_io[:, :] = sig
     return 0, k1
 
 
