@@ -31,7 +31,7 @@ def test_exported_fmu_matches_simulate(tmp_path):
     for ch in ("bit_axial_velocity", "bit_angular_velocity"):
         a, b = res[ch], ref[ch]
         err = np.max(np.abs(a - b)) / np.max(np.abs(b))
-        print(f"\n{ch}: max relative difference FMPy vs simulate_directional {err:.1e}")
+        print(f"\n{ch}: max relative difference FMPy vs simulate {err:.1e}")
         assert err < 1e-6
     # the input really acts: 12 rad/s set-point reached at the surface
     assert res["top_drive_angular_velocity"][-1] == pytest.approx(12.0, rel=0.2)
