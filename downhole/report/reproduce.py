@@ -333,12 +333,13 @@ def _run_pool(ids: list[str], out_dir: Path, quick: bool, jobs: int, done) -> No
                 os.environ[v] = val
 
 
-_TIMING = re.compile(r"computation(al)? (time|expense)|training time|\bfaster\b|speed-?up",
-                     re.IGNORECASE)
+_TIMING = re.compile(r"computation(al)? (time|expense)|training time|\bfaster\b|speed-?up|"
+                     r"deadline", re.IGNORECASE)
 
 
 def is_timing(exp) -> bool:
-    """True for experiments whose claim is about speed (run alone, not beside other jobs).
+    """True for experiments whose claim is about speed or met deadlines (a paced real-time
+    run): they run alone, not beside other jobs.
 
     Parameters
     ----------
