@@ -87,10 +87,13 @@ __all__ = [
     "Scenario",
     "SimulationTable",
     "check_dialect",
+    "constant",
+    "only_keys",
     "parse",
     "profile_to_signal",
     "raise_validation",
     "read_scenario",
+    "refuse_keys",
     "register_controller",
 ]
 
@@ -111,6 +114,7 @@ RENAMES: dict[str, str] = {
     "model.bit": "[bit] (the bit law's parameters over the preset's, e.g. bit.epsilon)",
     "model.hybrid": "model.hybrid.preset",  # only when a string (see check_dialect)
     "model.elements": "model.fem.n_elements",
+    "model.mass": "model.fem.mass / model.hybrid.mass (per fidelity)",
     "model.nodes_ab": "model.hybrid.n_ab",
     "model.nodes_cd": "model.hybrid.n_cd",
     # one name in Python (DrillingSystem.build, fem_model, hybrid_model) and in files
@@ -1073,6 +1077,17 @@ def parse(data: dict, source: str) -> Scenario:
     """Validate a parsed scenario (after :func:`check_dialect`): the one :class:`Scenario`,
     with the controller type's own keys validated by its registered model.
 
+    Parameters
+    ----------
+    data : dict
+        The parsed file.
+    source : str
+        The file, for messages.
+
+    Returns
+    -------
+    Scenario
+
     Raises
     ------
     ScenarioError
@@ -1093,3 +1108,112 @@ def parse(data: dict, source: str) -> Scenario:
     except ValidationError as exc:
         raise_validation(source, exc, "controller.")
     return sc
+
+
+def refuse_keys(data: dict, source: str, keys: dict[str, str]) -> None:
+    """Refuse keys of the one schema that a command does not use, with one line each.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed file.
+    source : str
+        The file, for messages.
+    keys : dict
+        Dotted key -> why it does not apply (and what to use instead).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the first such key present in ``data``.
+    """
+    for dotted, why in keys.items():
+        if _lookup(data, dotted)[0]:
+            raise ScenarioError(source, dotted, why)
+
+
+def constant(value, source: str, field: str, default: float | None = None) -> float | None:
+    """``value`` (a parsed profile) as a constant, ``default`` when None.
+
+    Parameters
+    ----------
+    value : float, tuple or None
+        The parsed field (a float, or ``(times, values)`` for a profile).
+    source, field : str
+        The file and the dotted field, for messages.
+    default : float, optional
+        The value for None.
+
+    Raises
+    ------
+    ScenarioError
+        A profile (``[[t, value], ...]``) where the command takes a constant.
+    """
+    if value is None:
+        return default
+    if isinstance(value, tuple):
+        raise ScenarioError(source, field, "a constant here (this command does not take a "
+                            "[[t, value], ...] profile)")
+    return float(value)
+
+
+def _leaves(data: dict, prefix: str = ""):
+    for key, value in data.items():
+        dotted = f"{prefix}{key}"
+        if isinstance(value, dict) and value:
+            yield from _leaves(value, dotted + ".")
+        else:
+            yield dotted, isinstance(value, dict)
+
+
+def only_keys(data: dict, source: str, allowed: tuple[str, ...], what: str) -> None:
+    """Refuse every key of ``data`` a command does not read (the one schema holds the keys of
+    every command; each command reads some of them).
+
+    Parameters
+    ----------
+    data : dict
+        The parsed file.
+    source : str
+        The file, for messages.
+    allowed : tuple of str
+        The dotted keys the command reads; a key also allows every key below it.
+    what : str
+        The command or runner, for messages (``"a neutral preset"``).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the first key not read, and the keys of its table that are.
+    """
+    for dotted, table in _leaves(data):
+        if any(dotted == a or dotted.startswith(a + ".") or (table and a.startswith(dotted + "."))
+               for a in allowed):
+            continue
+        if not _known(dotted):
+            raise ScenarioError(source, dotted, "unknown key (check spelling; see "
+                                "docs/scenarios.md)")
+        parent = dotted.rsplit(".", 1)[0] if "." in dotted else ""
+        near = [a for a in allowed if parent and a.startswith(parent + ".")]
+        hint = f"; it reads {', '.join(near)}" if near else ""
+        raise ScenarioError(source, dotted, f"not used by {what}{hint} (see docs/scenarios.md)")
+
+
+def _known(dotted: str) -> bool:
+    """True when ``dotted`` names a key of the one schema (a registered controller's included)."""
+    model: Any = Scenario
+    for part in dotted.split("."):
+        if model is ControllerTable and part not in ControllerTable.model_fields:
+            known = [m for m in CONTROLLER_TYPES.values() if part in m.model_fields]
+            if not known:
+                return False
+            model = known[0].model_fields[part].annotation
+        elif isinstance(model, type) and issubclass(model, BaseModel):
+            if part not in model.model_fields:
+                return False
+            model = model.model_fields[part].annotation
+        else:
+            return True   # below a free table ([bit], model.string, [sweep], a dict)
+        model = next((a for a in (*getattr(model, "__args__", ()), model)
+                      if isinstance(a, type) and issubclass(a, BaseModel)), dict)
+    return True

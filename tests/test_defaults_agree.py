@@ -9,18 +9,19 @@ import math
 
 import pytest
 
-from downhole.errors import DownholeInputError
-from downhole.params.rig import Hook, TopDrive
-from downhole.scenario.system import (
+from downhole._schema import (
     FemOptions,
-    HookSettings,
+    HookTable,
     HybridOptions,
     LumpedOptions,
+    ModelTable,
     NeutralOptions,
-    SystemModelSettings,
-    TopDriveSettings,
-    TorqueDragSettings,
+    TopDriveTable,
+    TorqueDragTable,
 )
+from downhole.errors import DownholeInputError
+from downhole.params.rig import Hook, TopDrive
+from downhole.scenario.system import DESCRIBED
 from downhole.string.fem import fem_model
 from downhole.string.hybrid import hybrid_model
 from downhole.string.torque_drag import torque_drag
@@ -38,11 +39,13 @@ def _defaults(func):
 
 
 def _schema_defaults(model):
-    return {k: f.default for k, f in model.model_fields.items()}
+    """The one schema's defaults, None resolved as a described system resolves it."""
+    return {k: DESCRIBED.get(k) if f.default is None and k in DESCRIBED else f.default
+            for k, f in model.model_fields.items()}
 
 
 def test_drilling_system_defaults_are_the_model_table_defaults():
-    schema = _schema_defaults(SystemModelSettings)
+    schema = _schema_defaults(ModelTable)
     fields = {f.name: f.default for f in dataclasses.fields(DrillingSystem)
               if f.default is not dataclasses.MISSING}
     assert set(fields) == {"friction", "rayleigh_alpha", "rayleigh_beta", "lump_length",
@@ -53,7 +56,8 @@ def test_drilling_system_defaults_are_the_model_table_defaults():
 
 
 def test_rig_defaults_are_the_rig_table_defaults():
-    td, hook = _schema_defaults(TopDriveSettings), _schema_defaults(HookSettings)
+    td, hook = _schema_defaults(TopDriveTable), _schema_defaults(HookTable)
+    assert hook.pop("mode") is None   # decided by the set-point (rop: velocity, else force)
     assert set(td) == {"inertia", "kp", "ki"} and set(hook) == {"servo_stiffness",
                                                                 "servo_damping", "block_mass"}
     for name, value in td.items():
@@ -101,7 +105,7 @@ def test_a_described_well_has_no_wall_contact_unless_asked_for_in_the_builders_t
 
 
 def test_torque_drag_defaults_are_the_torque_drag_table_defaults():
-    schema = _schema_defaults(TorqueDragSettings)
+    schema = _schema_defaults(TorqueDragTable)
     for func in (DrillingSystem.torque_drag, torque_drag):
         d = _defaults(func)
         assert tuple(d["friction"]) == tuple(schema["friction_factors"])

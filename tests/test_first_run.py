@@ -54,10 +54,10 @@ def _second_half(res, ch):
 
 
 def test_demo_numbers_are_those_of_a_real_rig(demo):
-    from downhole.scenario.system import SystemScenario, build_system, parse_scenario
+    from downhole.scenario.system import build_system, parse_system
 
     data = demo_scenario("nominal")
-    system = build_system(parse_scenario(data, "<demo>", SystemScenario), "<demo>", "lumped4")
+    system = build_system(parse_system(data, "<demo>"), "<demo>", "lumped4")
     weight = system.hanging_weight()
     assert 800e3 < weight < 900e3  # 102 t of steel in 1200 kg/m^3 mud
     nom = load_result(demo / "nominal" / "result.nc")

@@ -189,13 +189,13 @@ def test_survey_csv_dogleg_and_header_units_name_the_line(tmp_path, capsys):
                    "the header says measured depth in metres, but units = 'oilfield' says "
                    'feet; did you mean units = "si"?'), err
     # without units in the file, the header decides: a 6000 m well
+    from downhole._schema import parse
     from downhole.scenario.directional import _well
-    from downhole.scenario.system import SystemScenario
 
     p = _edit(tmp_path, OIL, ('survey = "oilfield_survey_ft.csv"', 'survey = "ft.csv"'),
               ('units = "oilfield"\n', ""))
     data, source, _ = load_scenario(p)
-    sc = SystemScenario.model_validate(data)
+    sc = parse(data, source)
     assert _well(sc, source, None).total_depth == pytest.approx(6000.0)
 
 

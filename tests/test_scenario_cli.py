@@ -115,7 +115,7 @@ def test_diverging_run_reports_time_and_channel(tmp_path, capsys):
 
     text = GOOD.replace('fidelity = "lumped4"', 'fidelity = "lumped12"').replace(
         'dt = "0.5 ms"', 'dt = "50 ms"').replace('duration = "4 s"', 'duration = "60 s"').replace(
-        'record_dt = "10 ms"', 'record_dt = "50 ms"')
+        'record_dt = "10 ms"', 'record_dt = "50 ms"\nintegrator = "euler"')
     scen = write(tmp_path, text)
     out = tmp_path / "out"
     assert main(["simulate", str(scen), "--out", str(out)]) == 2

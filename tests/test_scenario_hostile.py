@@ -376,7 +376,8 @@ def test_euler_dt_just_below_the_bound_runs_and_well_above_is_refused():
 
 def test_undamped_string_with_euler_is_refused(tmp_path):
     p = write(tmp_path, GOOD.replace('preset = "table_2_1"',
-                                     'preset = "table_2_1"\nstring = { torsional_damping = 0 }'))
+                                     'preset = "table_2_1"\nstring = { torsional_damping = 0 }')
+              .replace("[simulation]", '[simulation]\nintegrator = "euler"'))
     expect_error(p, "simulation.dt", "undamped", "newmark")
 
 

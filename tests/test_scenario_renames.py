@@ -43,6 +43,7 @@ OLD_KEYS = {
     "model.bit": (LUMPED, {"epsilon": "60 MPa"}),
     "model.hybrid": (HYBRID, "hybrid68"),
     "model.elements": (FEM, 50),
+    "model.mass": (FEM, "lumped"),
     "model.nodes_ab": (HYBRID, 4),
     "model.nodes_cd": (HYBRID, 13),
     "model.fem.elements": (FEM, 50),

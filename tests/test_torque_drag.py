@@ -25,11 +25,11 @@ G = 9.81
 
 
 def _system(name: str):
-    from downhole.scenario import load_scenario, parse_scenario
-    from downhole.scenario.system import SystemScenario, build_system
+    from downhole.scenario import load_scenario
+    from downhole.scenario.system import build_system, parse_system
 
     data, source, _ = load_scenario(EXAMPLES / name)
-    sc = parse_scenario(data, source, SystemScenario)
+    sc = parse_system(data, source)
     return build_system(sc, source, sc.model.fidelity)
 
 

@@ -33,14 +33,14 @@ def load_eid_scenario(path: Path):
         raise ScenarioError(source, "model.fidelity", 'required field is missing (use '
                             '"neutral")')
     sc = load_neutral_scenario(data, source)
-    if sc.controller is None:
+    if sc.controller.type is None:
         raise ScenarioError(source, "controller", 'required table is missing ([controller] '
                             'type = "eid" with the design options)')
     if sc.controller.file is not None:
         raise ScenarioError(source, "controller.file", "design eid synthesizes a controller; "
                             "remove 'file' (it names an existing design)")
     model = build_neutral(sc, source)
-    return model, sc.controller.design_options(), build_reference(sc)
+    return model, sc.controller.options.design_options(), build_reference(sc)
 
 
 @design_app.command("eid")

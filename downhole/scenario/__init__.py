@@ -10,15 +10,14 @@ Model types are pluggable: :func:`register_model_type` adds a runner for ``[mode
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator
+from pydantic import ValidationError
 
+from downhole import _schema
 from downhole._reader import (  # noqa: F401
     MAX_DEPTH,
     MAX_FILE_BYTES,
@@ -34,12 +33,10 @@ from downhole._reader import (  # noqa: F401
 )
 from downhole._schema import raise_validation
 from downhole.errors import ScenarioError
-from downhole.params.quantity import Q
-from downhole.units import UnitError, to_si
 
 __all__ = [
     "MODEL_TYPES",
-    "LumpedScenario",
+    "Scenario",
     "build_lumped_model",
     "check_step_count",
     "check_values",
@@ -57,112 +54,15 @@ __all__ = [
     "validate_scenario",
 ]
 
-def _not_bool(value):
-    if isinstance(value, bool):
-        raise ValueError(f"expected a number, a quantity string or [[time, value], ...], got "
-                         f"boolean {value}")
-    return value
+#: The tables of every scenario file (:mod:`downhole._schema`, public as
+#: :mod:`downhole.scenario.schema`).
+Scenario = _schema.Scenario
+Profile = _schema.Profile
+profile_to_signal = _schema.profile_to_signal
+_Strict = _schema._Strict  # TRANSITIONAL: dhp.py until it reads the one schema
 
-
-#: A profile: a constant, or breakpoints [[t, value], ...] interpolated linearly.
-Profile = Annotated[float | int | str | list, BeforeValidator(_not_bool)]
-
-
-def profile_to_signal(value: Profile, dimension: str, field: str):
-    """Convert a scenario profile into a signal accepted by :class:`~downhole.sim.SurfaceInputs`."""
-    if isinstance(value, list):
-        if not value:
-            raise ValueError(f"{field}: empty profile; give a value or [[t, value], ...]")
-        ts, vs = [], []
-        for i, pair in enumerate(value):
-            if not (isinstance(pair, list) and len(pair) == 2):
-                raise ValueError(f"{field}[{i}]: expected [time, value], got {pair!r}")
-            ts.append(to_si(pair[0], "time"))
-            vs.append(to_si(pair[1], dimension))
-        if any(b < a for a, b in itertools.pairwise(ts)):
-            raise ValueError(f"{field}: breakpoint times must be non-decreasing, got {ts}")
-        return (np.array(ts), np.array(vs))
-    return to_si(value, dimension)
-
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-
-class SimulationSettings(_Strict):
-    """``[simulation]``: duration, step, depth-of-cut model, integrator, output sampling."""
-
-    duration: Q["time"] = Field(..., gt=0)
-    dt: Q["time"] = Field(5e-4, gt=0)
-    depth_of_cut: Literal["delayed", "approximate"] = "delayed"
-    integrator: Literal["euler", "newmark"] = "euler"
-    record_dt: Q["time"] | None = Field(None, gt=0)
-    rock_memory: bool = True
-    start: Literal["rest", "off_bottom", "steady"] = "rest"
-
-
-class SurfaceSettings(_Strict):
-    """``[operation]`` of a lumped preset: how the top drive drives the string (velocity mode:
-    block velocity ``rop`` and top-drive speed ``surface_speed``; force mode: ``hook_load`` and
-    ``surface_torque``)."""
-
-    mode: Literal["velocity", "force"] = "velocity"
-    rop: Profile = "10 mm/s"
-    surface_speed: Profile = "10 rad/s"
-    hook_load: Profile | None = None
-    surface_torque: Profile | None = None
-
-    @field_validator("rop", "surface_speed", "hook_load", "surface_torque", mode="after")
-    @classmethod
-    def _profile(cls, v, info):
-        if v is None:
-            return v
-        dim = {"rop": "velocity", "surface_speed": "angular_velocity",
-               "hook_load": "force", "surface_torque": "torque"}[info.field_name]
-        try:
-            return profile_to_signal(v, dim, info.field_name)
-        except UnitError as exc:
-            raise ValueError(str(exc)) from None
-
-    def model_post_init(self, __context) -> None:
-        if self.mode == "force" and (self.hook_load is None or self.surface_torque is None):
-            raise ValueError("mode 'force' needs both hook_load and surface_torque")
-
-
-class ReferenceSettings(_Strict):
-    """``[reference]``: desired bit velocities (recorded as reference channels)."""
-
-    axial_velocity: Profile = "10 mm/s"
-    angular_velocity: Profile = "10 rad/s"
-
-    @field_validator("axial_velocity", "angular_velocity", mode="after")
-    @classmethod
-    def _profile(cls, v, info):
-        dim = "velocity" if info.field_name == "axial_velocity" else "angular_velocity"
-        try:
-            return profile_to_signal(v, dim, info.field_name)
-        except UnitError as exc:
-            raise ValueError(str(exc)) from None
-
-
-class LumpedModelSettings(_Strict):
-    """``[model]`` for ``fidelity = "lumped4" | "lumped12"`` of a lumped preset."""
-
-    fidelity: Literal["lumped4", "lumped12"]
-    preset: str = "table_2_1"
-    string: dict[str, Any] = Field(default_factory=dict)
-
-
-class LumpedScenario(_Strict):
-    """A whole lumped-model scenario file."""
-
-    title: str = ""
-    description: str = ""
-    model: LumpedModelSettings
-    bit: dict[str, Any] = Field(default_factory=dict)
-    operation: SurfaceSettings = SurfaceSettings()
-    reference: ReferenceSettings | None = None
-    simulation: SimulationSettings
+#: Lumped presets: the operating point and reference of a file that gives none.
+LUMPED_DEFAULTS = {"rop": 0.01, "surface_speed": 10.0}
 
 
 #: The one error formatter of every scenario runner (:func:`downhole._schema.raise_validation`).
@@ -170,20 +70,21 @@ _raise_validation = raise_validation
 
 
 def preset_params(sc_model, source: str, kind: str, string_cls, example: str = "",
-                  bit: dict | None = None):
+                  bit: dict | None = None, default: str | None = None):
     """The ``[model]`` table's preset with its ``string`` overrides and the ``[bit]`` table
     (``bit``) applied: ``(string parameters, BitParams)``; errors name ``model.preset``,
     ``model.string.*`` or ``bit.*``. ``kind`` is the preset kind the model needs (``example``
     names one)."""
     from downhole.params import BitParams, get_preset
 
+    name = sc_model.preset or default or example
     try:
-        preset = get_preset(sc_model.preset)
+        preset = get_preset(name)
     except KeyError as exc:
         raise ScenarioError(source, "model.preset", exc.args[0]) from None
     if preset.kind != kind:
         hint = f" ({example})" if example else ""
-        raise ScenarioError(source, "model.preset", f"preset {sc_model.preset!r} is a "
+        raise ScenarioError(source, "model.preset", f"preset {name!r} is a "
                             f"{preset.kind} model, expected a {kind} one{hint}")
     try:
         string = string_cls(**{**preset.string.model_dump(), **sc_model.string})
@@ -194,7 +95,7 @@ def preset_params(sc_model, source: str, kind: str, string_cls, example: str = "
     try:
         over = dict(bit or {})
         if "preset" in over:
-            raise ScenarioError(source, "bit.preset", f"model.preset = {sc_model.preset!r} "
+            raise ScenarioError(source, "bit.preset", f"model.preset = {name!r} "
                                 "brings its bit; give only bit parameters here (epsilon, ...)")
         bit = BitParams(**{**preset.bit.model_dump(), **over})
     except ValidationError as exc:
@@ -202,12 +103,13 @@ def preset_params(sc_model, source: str, kind: str, string_cls, example: str = "
     return string, bit
 
 
-def build_lumped_model(sc: LumpedScenario, source: str):
+def build_lumped_model(sc: Scenario, source: str):
     """The lumped chain model of a parsed lumped scenario (raises :class:`ScenarioError`)."""
     from downhole.params import LumpedParams
     from downhole.string.lumped import lumped_model
 
-    string, bit = preset_params(sc.model, source, "lumped", LumpedParams, bit=sc.bit)
+    string, bit = preset_params(sc.model, source, "lumped", LumpedParams, "table_2_1",
+                                bit=sc.bit)
     order = 4 if sc.model.fidelity == "lumped4" else 12
     return lumped_model(string, bit, order=order)
 
@@ -268,27 +170,47 @@ def euler_stable_dt(model, force_mode: bool = False) -> tuple[float, dict]:
     return best, info
 
 
+#: The keys a lumped preset reads (:func:`downhole._schema.only_keys`).
+LUMPED_KEYS = ("title", "description", "model.fidelity", "model.preset", "model.string", "bit",
+               "operation.mode", "operation.rop", "operation.surface_speed",
+               "operation.hook_load", "operation.surface_torque", "reference.axial_velocity",
+               "reference.angular_velocity", "simulation.duration", "simulation.dt",
+               "simulation.record_dt", "simulation.depth_of_cut", "simulation.integrator",
+               "simulation.rock_memory", "simulation.start")
+
+
+def _lumped_simulation(sc: Scenario, source: str) -> tuple[float, float]:
+    """``(duration, dt)`` of a lumped preset's ``[simulation]`` (required, with duration)."""
+    if sc.simulation is None or sc.simulation.duration is None:
+        raise ScenarioError(source, "simulation.duration", "required field is missing")
+    return sc.simulation.duration, sc.simulation.step(sc.model.fidelity)
+
+
 def validate_lumped(data: dict, source: str):
     """Validate a lumped scenario for a run without running it: schema, model, step count and,
     for ``integrator = "euler"``, the explicit-Euler stability of the step
     (:func:`euler_stable_dt`). Returns ``(scenario, model)``; raises :class:`ScenarioError`."""
-    sc = parse_scenario(data, source, LumpedScenario)
+    _schema.only_keys(data, source, LUMPED_KEYS, "a lumped preset")
+    sc = parse_scenario(data, source)
+    if sc.model.fidelity not in ("lumped4", "lumped12"):
+        raise ScenarioError(source, "model.fidelity", "expected lumped4 or lumped12")
     model = build_lumped_model(sc, source)
     sim = sc.simulation
-    if sim.dt > sim.duration:
-        raise ScenarioError(source, "simulation.dt", f"dt ({sim.dt} s) exceeds duration "
-                            f"({sim.duration} s)")
-    check_step_count(source, sim.duration, sim.dt, sim.record_dt)
-    nsteps = round(sim.duration / sim.dt)
-    if abs(nsteps * sim.dt - sim.duration) > 1e-9 * max(1.0, sim.duration):
-        raise ScenarioError(source, "simulation.dt", f"dt = {sim.dt:g} s does not divide the "
-                            f"duration ({sim.duration:g} s) into whole steps")
-    if sim.record_dt is not None and sim.record_dt < sim.dt:
+    duration, dt = _lumped_simulation(sc, source)
+    if dt > duration:
+        raise ScenarioError(source, "simulation.dt", f"dt ({dt} s) exceeds duration "
+                            f"({duration} s)")
+    check_step_count(source, duration, dt, sim.record_dt)
+    nsteps = round(duration / dt)
+    if abs(nsteps * dt - duration) > 1e-9 * max(1.0, duration):
+        raise ScenarioError(source, "simulation.dt", f"dt = {dt:g} s does not divide the "
+                            f"duration ({duration:g} s) into whole steps")
+    if sim.record_dt is not None and sim.record_dt < dt:
         raise ScenarioError(source, "simulation.record_dt", f"record_dt ({sim.record_dt:g} s) "
-                            f"is below dt ({sim.dt:g} s)")
+                            f"is below dt ({dt:g} s)")
     if sim.integrator == "euler":
         bound, mode = euler_stable_dt(model, force_mode=sc.operation.mode == "force")
-        if sim.dt >= bound:
+        if dt >= bound:
             if bound == 0.0:
                 why = (f"the {mode['field']} mode at {mode['frequency']:.4g} rad/s is undamped, "
                        "so explicit Euler is unstable at any step")
@@ -296,7 +218,7 @@ def validate_lumped(data: dict, source: str):
                 why = (f"explicit Euler is stable only for dt < {bound:.4g} s (2 zeta / omega "
                        f"of the {mode['field']} mode at {mode['frequency']:.4g} rad/s, damping "
                        f"ratio {mode['damping_ratio']:.3g})")
-            raise ScenarioError(source, "simulation.dt", f"dt = {sim.dt:g} s is too large: "
+            raise ScenarioError(source, "simulation.dt", f"dt = {dt:g} s is too large: "
                                 f"{why}; use a smaller dt or integrator = 'newmark'")
     return sc, model
 
@@ -307,12 +229,16 @@ def _run_lumped(data: dict, source: str, text: str):
 
     sc, model = validate_lumped(data, source)
     s = sc.operation
-    if s.mode == "velocity":
-        inputs = SurfaceInputs.velocity(s.rop, s.surface_speed)
-    else:
+    if s.mode == "force":
         inputs = SurfaceInputs.force(s.hook_load, s.surface_torque)
+    else:
+        d = LUMPED_DEFAULTS
+        inputs = SurfaceInputs.velocity(d["rop"] if s.rop is None else s.rop,
+                                        d["surface_speed"] if s.surface_speed is None
+                                        else s.surface_speed)
     sim = sc.simulation
-    res = simulate(model, inputs, duration=sim.duration, dt=sim.dt,
+    duration, dt = _lumped_simulation(sc, source)
+    res = simulate(model, inputs, duration=duration, dt=dt,
                    depth_of_cut=sim.depth_of_cut, integrator=sim.integrator,
                    record_dt=sim.record_dt, rock_memory=sim.rock_memory, start=sim.start,
                    attrs={"scenario": text, "scenario_source": source, "title": sc.title})
@@ -321,9 +247,13 @@ def _run_lumped(data: dict, source: str, text: str):
         ds = res.dataset
         from downhole.sim.result import Result
 
+        r, d = sc.reference, LUMPED_DEFAULTS
         chans = {n: ds[n].values for n in ds.data_vars}
-        chans["reference_axial_velocity"] = sample_signal(sc.reference.axial_velocity, t, "reference")
-        chans["reference_angular_velocity"] = sample_signal(sc.reference.angular_velocity, t, "reference")
+        chans["reference_axial_velocity"] = sample_signal(
+            d["rop"] if r.axial_velocity is None else r.axial_velocity, t, "reference")
+        chans["reference_angular_velocity"] = sample_signal(
+            d["surface_speed"] if r.angular_velocity is None else r.angular_velocity, t,
+            "reference")
         res = Result(t, chans, attrs=dict(ds.attrs))
     return res
 
@@ -344,18 +274,16 @@ def _catalogue_od(name: str) -> float:
     return float(catalogue_section(name).outer_diameter)
 
 
-def parse_scenario(data: dict, source: str, schema=LumpedScenario):
-    """Validate ``data`` against ``schema``; raise :class:`ScenarioError` naming the field.
+def parse_scenario(data: dict, source: str) -> Scenario:
+    """Validate ``data`` against the one schema (:func:`downhole._schema.parse`); raise
+    :class:`ScenarioError` naming the field.
 
     The geometry is checked as a whole first (:func:`downhole.plausible.check_geometry`, with
     the catalogue's tubulars)."""
     from downhole.plausible import check_geometry
 
     check_geometry(data, source, catalogue=_catalogue_od)
-    try:
-        return schema.model_validate(data)
-    except ValidationError as exc:
-        _raise_validation(source, exc)
+    return _schema.parse(data, source)
 
 
 #: Most time steps one run may take.

@@ -96,369 +96,98 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field, field_validator, model_validator
 
+from downhole import _schema
 from downhole.errors import DownholeInputError, ScenarioError
-from downhole.params.quantity import Q
 from downhole.scenario import (
-    Profile,
-    _Strict,
+    Scenario,
     check_step_count,
     parse_scenario,
     preset_params,
-    profile_to_signal,
     read_scenario_text,
 )
-from downhole.units import UnitError
 
-__all__ = ["DirectionalScenario", "build_directional", "run_directional_scenario",
-           "validate_directional_scenario"]
-
-
-def _profile(value, dim, name):
-    try:
-        return profile_to_signal(value, dim, name)
-    except UnitError as exc:
-        raise ValueError(str(exc)) from None
-
-
-# ---------------------------------------------------------------------------------- schema
-class _MeshSettings(_Strict):
-    max_element_length: Q["length"] = Field(50.0, ge=0.1, le=1e4)
-    max_element_angle: Q["angle"] = Field(math.radians(2.0), gt=0, le=math.pi)
-
-
-class FemSettings(_MeshSettings):
-    """``[model.fem]``: the FEM's discretization (default: derived from the description)."""
-
-    n_elements: int | None = Field(None, ge=1, le=5000)
-
-
-class HybridSettings(_MeshSettings):
-    """``[model.hybrid]``: the hybrid's discretization (a preset, node counts, or derived)."""
-
-    preset: Literal["hybrid24", "hybrid68", "hybrid108"] | None = None
-    n_ab: int | None = Field(None, ge=2, le=2000)
-    n_cd: int | None = Field(None, ge=2, le=2000)
-    n_lags: int = Field(0, ge=0, le=8)
-
-
-class DirectionalModelSettings(_Strict):
-    """``[model]``: FEM or hybrid of a preset (and optionally a described well and string), and
-    the discretization."""
-
-    fidelity: Literal["fem", "hybrid"]
-    preset: str = "table_5_1"
-    fem: FemSettings | None = None
-    hybrid: HybridSettings | None = None
-    wave_section: list[Q["length"]] | None = Field(None, min_length=2, max_length=2)
-    damping: Literal["rayleigh", "modal"] = "rayleigh"
-    rayleigh_alpha: float | None = Field(None, ge=0)
-    rayleigh_beta: float | None = Field(None, ge=0)
-    modal_ratio: float = Field(0.03, gt=0, lt=1)
-    friction: float | None = Field(None, ge=0)
-    friction_velocity: Q["velocity"] = Field(1e-3, gt=0)
-    mass: Literal["consistent", "lumped"] = "consistent"
-    string: dict[str, Any] = Field(default_factory=dict)
-
-    @model_validator(mode="after")
-    def _kind_options(self):
-        if self.fidelity == "fem" and self.hybrid is not None:
-            raise ValueError("[model.hybrid]: hybrid options, but fidelity = 'fem' (use "
-                             "[model.fem] n_elements)")
-        if self.fidelity == "hybrid" and self.fem is not None:
-            raise ValueError("[model.fem]: a FEM option, but fidelity = 'hybrid' (use "
-                             "[model.hybrid] preset = 'hybrid68' or n_ab / n_cd)")
-        return self
-
-    @field_validator("wave_section", mode="after")
-    @classmethod
-    def _wave_section(cls, ws):
-        if ws is not None and not 0 < ws[0] < ws[1]:
-            raise ValueError(f"expected [B, C] with 0 < B < C (m), got {ws}")
-        return ws
-
-    # the discretization, flat (None where not given)
-    @property
-    def n_elements(self):
-        return self.fem.n_elements if self.fem is not None else None
-
-    @property
-    def mesh_sizes(self):
-        """``max_element_length`` and ``max_element_angle`` of the fidelity's table."""
-        t = (self.fem if self.fidelity == "fem" else self.hybrid) or _MeshSettings()
-        return {"max_element_length": t.max_element_length,
-                "max_element_angle": t.max_element_angle}
-
-    @property
-    def hybrid_preset(self):
-        return self.hybrid.preset if self.hybrid is not None else None
-
-    @property
-    def n_ab(self):
-        return self.hybrid.n_ab if self.hybrid is not None else None
-
-    @property
-    def n_cd(self):
-        return self.hybrid.n_cd if self.hybrid is not None else None
-
-    @property
-    def n_lags(self):
-        return self.hybrid.n_lags if self.hybrid is not None else 0
-
-    @property
-    def md_b(self):
-        return self.wave_section[0] if self.wave_section is not None else None
-
-    @property
-    def md_c(self):
-        return self.wave_section[1] if self.wave_section is not None else None
-
-
-class SectionSettings(_Strict):
-    """One ``[[well.sections]]`` entry."""
-
-    type: Literal["vertical", "tangent", "arc", "build_turn"]
-    length: Q["length"] | None = Field(None, gt=0)
-    radius: Q["length"] | None = Field(None, gt=0)
-    angle: Q["angle"] | None = Field(None, gt=0, lt=math.pi)
-    toolface: Q["angle"] = 0.0
-    azimuth: Q["angle"] | None = None
-    inclination: Q["angle"] | None = Field(None, ge=0, le=math.pi)
-
-    @model_validator(mode="after")
-    def _needs(self):
-        need = {"vertical": ("length",), "tangent": ("length",), "arc": ("radius", "angle"),
-                "build_turn": ("length", "inclination", "azimuth")}[self.type]
-        missing = [k for k in need if getattr(self, k) is None]
-        if missing:
-            raise ValueError(f"a {self.type!r} section needs {', '.join(missing)}")
-        return self
-
-    def build(self):
-        from downhole.well import Arc, BuildTurn, Tangent, Vertical
-
-        if self.type == "vertical":
-            return Vertical(self.length)
-        if self.type == "tangent":
-            return Tangent(self.length)
-        if self.type == "arc":
-            return Arc(self.radius, self.angle, self.toolface, self.azimuth)
-        return BuildTurn(self.length, self.inclination, self.azimuth)
-
-
-class WellSettings(_Strict):
-    """``[well]``: a survey CSV, survey columns or sections (exactly one), and the hole's
-    diameter (default: the bit's; checked against the bit and the string,
-    :func:`downhole.plausible.check_geometry`)."""
-
-    survey: str | None = None
-    units: Literal["si", "oilfield"] = "si"
-    hole_diameter: Q["length"] | None = Field(None, gt=0)
-    md: list[float] | None = None
-    inclination: list[float] | None = None
-    azimuth: list[float] | None = None
-    sections: list[SectionSettings] | None = None
-
-    @model_validator(mode="after")
-    def _one_source(self):
-        cols = [self.md, self.inclination, self.azimuth]
-        given = [self.survey is not None, any(c is not None for c in cols),
-                 self.sections is not None]
-        if sum(given) != 1:
-            raise ValueError("give exactly one of survey (a CSV file), md/inclination/azimuth "
-                             "(stations, m and deg) or [[well.sections]]")
-        if given[1] and any(c is None for c in cols):
-            raise ValueError("stations need all of md, inclination and azimuth")
-        if self.sections is not None and not self.sections:
-            raise ValueError("sections is empty")
-        return self
-
-
-class SegmentSettings(_Strict):
-    """One ``[[string.segments]]`` entry (a uniform tubular)."""
-
-    kind: Literal["pipe", "heavyweight", "collar", "bha"] = "pipe"
-    length: Q["length"] | None = Field(None, gt=0)
-    catalogue: str | None = None
-    outer_diameter: Q["length"] | None = Field(None, gt=0)
-    inner_diameter: Q["length"] | None = Field(None, ge=0)
-    young_modulus: Q["pressure"] = Field(2.1e11, gt=0)
-    shear_modulus: Q["pressure"] = Field(8.08e10, gt=0)
-    density: Q["density"] = Field(7850.0, gt=0)
-
-    @model_validator(mode="after")
-    def _diameters(self):
-        if self.catalogue is not None:
-            from downhole.string.catalogue import catalogue_section
-
-            if self.outer_diameter is not None or self.inner_diameter is not None:
-                raise ValueError("give either catalogue or outer_diameter/inner_diameter")
-            try:
-                catalogue_section(self.catalogue)
-            except Exception as exc:
-                raise ValueError(str(exc)) from None
-            return self
-        if self.outer_diameter is None or self.inner_diameter is None:
-            raise ValueError("give outer_diameter and inner_diameter, or a catalogue name "
-                             "(e.g. catalogue = \"5in 19.50 S135 NC50\")")
-        if self.inner_diameter >= self.outer_diameter:
-            raise ValueError(f"inner_diameter ({self.inner_diameter:g} m) must be smaller than "
-                             f"outer_diameter ({self.outer_diameter:g} m)")
-        return self
-
-
-class StabilizerSettings(_Strict):
-    """One ``[[string.stabilizers]]`` entry."""
-
-    distance_from_bit: Q["length"] = Field(..., ge=0)
-    outer_diameter: Q["length"] = Field(..., gt=0)
-
-
-class StringSettings(_Strict):
-    """``[string]``: segments (surface first), stabilizers, mud density."""
-
-    segments: list[SegmentSettings] | None = None
-    stabilizers: list[StabilizerSettings] = Field(default_factory=list)
-    mud_density: Q["density"] = Field(0.0, ge=0)
-
-    @field_validator("segments", mode="after")
-    @classmethod
-    def _lengths(cls, v):
-        if v is not None:
-            if not v:
-                raise ValueError("segments is empty")
-            for k, seg in enumerate(v[:-1]):
-                if seg.length is None:
-                    raise ValueError(f"segment {k + 1}: only the last segment may omit "
-                                     "length")
-        return v
-
-
-class ControllerSettings(_Strict):
-    """``[controller]``: the top drive's speed control (or a saved DHP controller)."""
-
-    type: Literal["pi", "soft_torque", "dhp"] = "pi"
-    soft_gain: float = Field(2e-4, ge=0)
-    soft_tau: Q["time"] = Field(2.0, gt=0)
-    file: str | None = None
-
-    @model_validator(mode="after")
-    def _file(self):
-        if self.type == "dhp" and not self.file:
-            raise ValueError("type 'dhp' needs file = a controller saved by `downhole design dhp`")
-        if self.type != "dhp" and self.file is not None:
-            raise ValueError(f"file is only used with type = 'dhp' (type is {self.type!r})")
-        return self
-
-
-class TopDriveSettings(_Strict):
-    """``[rig.top_drive]``: inertia and PI gains (default: the preset's)."""
-
-    inertia: Q["inertia"] | None = Field(None, gt=0)
-    kp: Q["torsional_damping"] | None = Field(None, ge=0)
-    ki: Q["torsional_stiffness"] | None = Field(None, ge=0)
-
-
-class HookSettings(_Strict):
-    """``[rig.hook]``: force-driven (hook load) or velocity-driven (block servo)."""
-
-    mode: Literal["force", "velocity"] = "force"
-    servo_stiffness: Q["stiffness"] = Field(1e7, gt=0)
-    servo_damping: Q["damping"] = Field(1e6, ge=0)
-    block_mass: Q["mass"] = Field(0.0, ge=0)
-
-
-class RigSettings(_Strict):
-    """``[rig]``."""
-
-    top_drive: TopDriveSettings = TopDriveSettings()
-    hook: HookSettings = HookSettings()
-
-
-class OperationSettings(_Strict):
-    """``[operation]``: top-drive speed set-point, WOB of the initial state, hook load (force
-    hook) or block velocity ``rop`` (velocity hook); each a constant or [[t, value], ...]."""
-
-    surface_speed: Profile = Field("10 rad/s", validate_default=True)
-    wob: Q["force"] = Field(120e3, ge=0)
-    hook_load: Profile | None = None
-    rop: Profile = Field(0.0, validate_default=True)
-
-    @field_validator("surface_speed", mode="after")
-    @classmethod
-    def _speed(cls, v):
-        return _profile(v, "angular_velocity", "surface_speed")
-
-    @field_validator("hook_load", mode="after")
-    @classmethod
-    def _load(cls, v):
-        return None if v is None else _profile(v, "force", "hook_load")
-
-    @field_validator("rop", mode="after")
-    @classmethod
-    def _vel(cls, v):
-        return _profile(v, "velocity", "rop")
-
-
-class ReferenceSettings(_Strict):
-    """``[reference]``: desired bit velocities, recorded as ``reference_*`` channels."""
-
-    axial_velocity: Profile | None = None
-    angular_velocity: Profile | None = None
-
-    @field_validator("axial_velocity", "angular_velocity", mode="after")
-    @classmethod
-    def _sig(cls, v, info):
-        if v is None:
-            return v
-        dim = "velocity" if info.field_name == "axial_velocity" else "angular_velocity"
-        return _profile(v, dim, info.field_name)
-
-
-class SimulationSettings(_Strict):
-    """``[simulation]``."""
-
-    duration: Q["time"] = Field(..., gt=0)
-    dt: Q["time"] = Field(1e-3, gt=0, le=0.01)
-    depth_of_cut: Literal["delayed", "approximate"] = "delayed"
-    record_dt: Q["time"] | None = Field(0.01, gt=0)
-    start: Literal["rest", "off_bottom", "steady"] = "rest"
-
-    @model_validator(mode="after")
-    def _steps(self):
-        if self.dt > self.duration:
-            raise ValueError(f"dt ({self.dt:g} s) exceeds duration ({self.duration:g} s)")
-        if self.record_dt is not None and self.record_dt < self.dt:
-            raise ValueError(f"record_dt ({self.record_dt:g} s) is shorter than dt "
-                             f"({self.dt:g} s)")
-        return self
-
-
-class DirectionalScenario(_Strict):
-    """A whole directional (FEM or hybrid) scenario file."""
-
-    title: str = ""
-    description: str = ""
-    model: DirectionalModelSettings
-    well: WellSettings | None = None
-    string: StringSettings | None = None
-    bit: dict[str, Any] = Field(default_factory=dict)
-    rig: RigSettings = RigSettings()
-    controller: ControllerSettings = ControllerSettings()
-    operation: OperationSettings = OperationSettings()
-    reference: ReferenceSettings | None = None
-    simulation: SimulationSettings
-
-    @model_validator(mode="after")
-    def _hook_mode(self):
-        if self.rig.hook.mode == "velocity" and self.operation.hook_load is not None:
-            raise ValueError("operation.hook_load is for rig.hook.mode = 'force'; a velocity "
-                             "hook takes operation.rop")
-        return self
+__all__ = ["DIRECTIONAL_KEYS", "build_directional", "parse_directional",
+           "run_directional_scenario", "validate_directional_scenario"]
+
+
+#: The keys a FEM / hybrid preset reads (:func:`downhole._schema.only_keys`).
+DIRECTIONAL_KEYS = (
+    "title", "description", "model.fidelity", "model.preset", "model.string", "model.fem",
+    "model.hybrid", "model.wave_section", "model.damping", "model.rayleigh_alpha",
+    "model.rayleigh_beta", "model.modal_ratio", "model.friction", "model.friction_velocity",
+    "well", "string", "bit", "rig", "controller.type", "controller.file",
+    "controller.soft_gain", "controller.soft_tau", "operation.surface_speed", "operation.wob",
+    "operation.hook_load", "operation.rop", "reference.axial_velocity",
+    "reference.angular_velocity", "simulation.duration", "simulation.dt",
+    "simulation.depth_of_cut", "simulation.record_dt", "simulation.start")
+
+#: The operating point of a FEM / hybrid preset without [operation]: top-drive speed (rad/s)
+#: and the WOB of the initial state (N); block velocity 0 (a force hook).
+OPERATION = {"surface_speed": 10.0, "wob": 120e3, "rop": 0.0}
+
+
+def _hook_mode(sc: Scenario) -> str:
+    """``rig.hook.mode``, or velocity with an ``operation.rop``, force otherwise."""
+    if sc.rig.hook.mode is not None:
+        return sc.rig.hook.mode
+    return "velocity" if sc.operation.rop is not None else "force"
+
+
+def _simulation(sc: Scenario, source: str):
+    """``(duration, dt, record_dt)``: duration required, dt 1 ms and record_dt 10 ms by
+    default."""
+    sim = sc.simulation
+    if sim is None or sim.duration is None:
+        raise ScenarioError(source, "simulation.duration", "required field is missing")
+    dt = sim.step(sc.model.fidelity)
+    rec = sim.record_dt if sim.record_dt is not None else max(dt, 0.01)
+    if dt > sim.duration:
+        raise ScenarioError(source, "simulation.dt", f"dt ({dt:g} s) exceeds duration "
+                            f"({sim.duration:g} s)")
+    if rec < dt:
+        raise ScenarioError(source, "simulation.record_dt", f"record_dt ({rec:g} s) is shorter "
+                            f"than dt ({dt:g} s)")
+    return sim.duration, dt, rec
+
+
+def parse_directional(data: dict, source: str) -> Scenario:
+    """Validate a FEM / hybrid preset: the keys it reads, the one schema and its rules (a
+    controller pi, soft_torque or a saved dhp ``file``; a velocity hook takes ``rop``).
+
+    Parameters
+    ----------
+    data : dict
+        The parsed file.
+    source : str
+        The file, for messages.
+
+    Returns
+    -------
+    Scenario
+    """
+    _schema.only_keys(data, source, DIRECTIONAL_KEYS, "a FEM / hybrid preset")
+    sc = parse_scenario(data, source)
+    if sc.model.fidelity not in ("fem", "hybrid"):
+        raise ScenarioError(source, "model.fidelity", "expected fem or hybrid")
+    c = sc.controller
+    kind = c.type or "pi"
+    if kind not in ("pi", "soft_torque", "dhp"):
+        raise ScenarioError(source, "controller.type", f"a FEM / hybrid preset runs pi, "
+                            f"soft_torque or a saved dhp controller, got {kind!r}")
+    if kind == "dhp" and not c.file:
+        raise ScenarioError(source, "controller", "type 'dhp' needs file = a controller saved "
+                            "by `downhole design dhp`")
+    if kind != "dhp" and c.file is not None:
+        raise ScenarioError(source, "controller", f"file is only used with type = 'dhp' (type "
+                            f"is {kind!r})")
+    if _hook_mode(sc) == "velocity" and sc.operation.hook_load is not None:
+        raise ScenarioError(source, "operation.hook_load", "operation.hook_load is for "
+                            "rig.hook.mode = 'force'; a velocity hook takes operation.rop")
+    _schema.constant(sc.operation.wob, source, "operation.wob")
+    return sc
 
 
 # ---------------------------------------------------------------------------------- build
@@ -483,7 +212,7 @@ def _base_dir(source: str) -> Path:
     return p.parent if p.suffix else Path.cwd()
 
 
-def _params(sc: DirectionalScenario, source: str):
+def _params(sc: Scenario, source: str):
     from downhole.params import DirectionalWellParams
 
     return preset_params(sc.model, source, "directional", DirectionalWellParams, "table_5_1",
@@ -524,7 +253,7 @@ def _check_stations(source: str, prefix: str, md, inc, azi, length_unit: str) ->
                             f"{bad[0] + 1}: {bad[1]}")
 
 
-def _well(sc: DirectionalScenario, source: str, params):
+def _well(sc: Scenario, source: str, params):
     from downhole.well import WellPath, read_survey_csv
 
     w = sc.well
@@ -562,9 +291,22 @@ def _well(sc: DirectionalScenario, source: str, params):
                      "well.azimuth" if "azimuth" in msg else "well.md")
             raise ScenarioError(source, field, msg) from None
     with _wrap(source, "well.sections"):
-        well = WellPath.from_sections([s.build() for s in w.sections])
+        well = WellPath.from_sections([_section(s) for s in w.sections])
     _check_sections(source, w.sections, well)
     return well
+
+
+def _section(s):
+    """The well-path section of a ``[[well.sections]]`` entry."""
+    from downhole.well import Arc, BuildTurn, Tangent, Vertical
+
+    if s.type == "vertical":
+        return Vertical(s.length)
+    if s.type == "tangent":
+        return Tangent(s.length)
+    if s.type == "arc":
+        return Arc(s.radius, s.angle, s.toolface, s.azimuth)
+    return BuildTurn(s.length, s.inclination, s.azimuth)
 
 
 def _check_sections(source: str, sections, well) -> None:
@@ -590,7 +332,7 @@ def _check_sections(source: str, sections, well) -> None:
                 "and its units (a radius of R m curves 1719 / R deg/30m)"))
 
 
-def _string(sc: DirectionalScenario, source: str, params, well):
+def _string(sc: Scenario, source: str, params, well):
     from downhole.string.drillstring import DrillString, Stabilizer, StringSegment, pipe_section
 
     st = sc.string
@@ -636,7 +378,7 @@ def _string(sc: DirectionalScenario, source: str, params, well):
     return ds
 
 
-def build_directional(sc: DirectionalScenario, source: str = "<dict>"):
+def build_directional(sc: Scenario, source: str = "<dict>"):
     """The :class:`~downhole.string.fem.DirectionalModel` a validated scenario describes.
 
     Raises
@@ -653,25 +395,29 @@ def build_directional(sc: DirectionalScenario, source: str = "<dict>"):
     well = _well(sc, source, params)
     string = _string(sc, source, params, well)
     m = sc.model
+    opts = m.options()
+    ws = m.wave_section or (None, None)
+    friction = m.friction_at()
     common = dict(damping=m.damping, rayleigh_alpha=m.rayleigh_alpha,
-                  rayleigh_beta=m.rayleigh_beta, modal_ratio=m.modal_ratio, friction=m.friction,
-                  v_eps=m.friction_velocity, mass=m.mass, md_b=m.md_b, md_c=m.md_c)
+                  rayleigh_beta=m.rayleigh_beta, modal_ratio=m.modal_ratio, friction=friction,
+                  v_eps=m.friction_velocity, mass=opts.mass, md_b=ws[0], md_c=ws[1])
+    mesh = {"max_element_length": opts.max_element_length,
+            "max_element_angle": opts.max_element_angle}
     if m.rayleigh_alpha is None:
         common["rayleigh_alpha"] = params.rayleigh_alpha
     if m.rayleigh_beta is None:
         common["rayleigh_beta"] = params.rayleigh_beta
-    if m.friction is None:
+    if friction is None:
         common["friction"] = params.wellbore_friction
     if m.fidelity == "fem":
-        if m.md_b is None:
+        if ws[0] is None:
             common["md_b"] = min(params.length_ab, well.total_depth)
-        if m.md_c is None:
+        if ws[1] is None:
             common["md_c"] = min(params.length_ab + params.length_bc, well.total_depth)
         field = "model.fem.n_elements"
         with _wrap(source, field):
-            return fem_model(well, string, bit, n_elements=m.n_elements, **m.mesh_sizes,
-                             **common)
-    preset = m.hybrid_preset
+            return fem_model(well, string, bit, n_elements=opts.n_elements, **mesh, **common)
+    preset = opts.preset
     if sc.well is not None and m.wave_section is None:
         # a described well: B and C in its vertical part above the kick-off point, as the
         # system dialect (DrillingSystem.wave_points)
@@ -683,14 +429,14 @@ def build_directional(sc: DirectionalScenario, source: str = "<dict>"):
     if common["md_c"] is None:
         common["md_c"] = params.length_ab + params.length_bc
     try:
-        return hybrid_model(preset, n_ab=m.n_ab, n_cd=m.n_cd, well=well, string=string,
-                            bit=bit, n_lags=m.n_lags, **m.mesh_sizes, **common)
+        return hybrid_model(preset, n_ab=opts.n_ab, n_cd=opts.n_cd, well=well, string=string,
+                            bit=bit, n_lags=opts.n_lags, **mesh, **common)
     except DownholeInputError as exc:
         msg = str(exc)
         if msg.startswith("n_ab"):
-            field = "model.hybrid.n_ab" if m.n_ab is not None else "model.hybrid.preset"
+            field = "model.hybrid.n_ab" if opts.n_ab is not None else "model.hybrid.preset"
         elif msg.startswith("n_cd"):
-            field = "model.hybrid.n_cd" if m.n_cd is not None else "model.hybrid.preset"
+            field = "model.hybrid.n_cd" if opts.n_cd is not None else "model.hybrid.preset"
         elif "section BC" in msg or "md_b" in msg:
             field = "model.wave_section"
         elif "lags" in msg:
@@ -700,24 +446,29 @@ def build_directional(sc: DirectionalScenario, source: str = "<dict>"):
         raise ScenarioError(source, field, msg) from None
 
 
-def _top_drive(sc: DirectionalScenario, params):
+def _top_drive(sc: Scenario, params):
     from downhole.control.topdrive import TopDrive
 
-    c, r, sp = sc.controller, sc.rig.top_drive, sc.operation.surface_speed
+    c, r = sc.controller, sc.rig.top_drive
+    sp = OPERATION["surface_speed"] if sc.operation.surface_speed is None \
+        else sc.operation.surface_speed
     speed = sp if not isinstance(sp, tuple) else float(sp[1][-1])
+    soft = c.options if c.type == "soft_torque" else _schema.SoftTorqueOptions()
     return TopDrive(inertia=r.inertia if r.inertia is not None else params.top_drive_inertia,
                     mode="soft_torque" if c.type == "soft_torque" else "pi", speed=speed,
                     kp=r.kp if r.kp is not None else params.top_drive_kp,
                     ki=r.ki if r.ki is not None else params.top_drive_ki,
-                    soft_gain=c.soft_gain, soft_tau=c.soft_tau)
+                    soft_gain=soft.soft_gain, soft_tau=soft.soft_tau)
 
 
-def _hook(sc: DirectionalScenario):
+def _hook(sc: Scenario):
     from downhole.control.topdrive import Hook
 
     h, op = sc.rig.hook, sc.operation
-    vel = op.rop if not isinstance(op.rop, tuple) else float(op.rop[1][0])
-    return Hook(mode=h.mode, wob=op.wob, velocity=vel, block_mass=h.block_mass,
+    rop = OPERATION["rop"] if op.rop is None else op.rop
+    vel = rop if not isinstance(rop, tuple) else float(rop[1][0])
+    wob = OPERATION["wob"] if op.wob is None else op.wob
+    return Hook(mode=_hook_mode(sc), wob=wob, velocity=vel, block_mass=h.block_mass,
                 servo_stiffness=h.servo_stiffness, servo_damping=h.servo_damping)
 
 
@@ -758,9 +509,10 @@ def _run_dhp(sc, source, text, model, attrs):
         raise ScenarioError(source, "controller.file",
                             f"cannot load a DHP controller from {str(path)!r}: {exc}") from None
     sim = sc.simulation
-    if abs(ctrl.dt - sim.dt) > 1e-12:
+    duration, dt, rec = _simulation(sc, source)
+    if abs(ctrl.dt - dt) > 1e-12:
         raise ScenarioError(source, "simulation.dt", f"the DHP controller runs at dt = "
-                            f"{ctrl.dt:g} s; set simulation.dt to it (got {sim.dt:g} s)")
+                            f"{ctrl.dt:g} s; set simulation.dt to it (got {dt:g} s)")
     n_design = ctrl.n_states // 4
     if ctrl.n_states % 4 or n_design < 2 or not ctrl.state_names or \
             ctrl.state_names[0] != "x_1":
@@ -768,9 +520,9 @@ def _run_dhp(sc, source, text, model, attrs):
                             "(designed with `downhole design dhp`, model kind fem24 / fem)")
     design = SimpleNamespace(node_depths=_dhp_design_depths(ctrl, model, n_design))
     with _wrap(source, "controller"):
-        plant = DirectionalStatePlant(model, design, sim.dt, depth_of_cut=sim.depth_of_cut)
-        every = max(1, int(round((sim.record_dt or sim.dt) / sim.dt)))
-        res = run_on_plant(ctrl, plant, sim.duration, record_every=every, attrs=attrs)
+        plant = DirectionalStatePlant(model, design, dt, depth_of_cut=sim.depth_of_cut)
+        every = max(1, int(round(rec / dt)))
+        res = run_on_plant(ctrl, plant, duration, record_every=every, attrs=attrs)
     return res
 
 
@@ -783,10 +535,11 @@ def validate_directional_scenario(data: dict, source: str):
     ScenarioError
         Naming the file and the dotted field.
     """
-    sc = parse_scenario(data, source, DirectionalScenario)
+    sc = parse_directional(data, source)
     params, _ = _params(sc, source)
+    duration, dt, rec = _simulation(sc, source)
     model = build_directional(sc, source)
-    check_step_count(source, sc.simulation.duration, sc.simulation.dt, sc.simulation.record_dt)
+    check_step_count(source, duration, dt, rec)
     return sc, params, model
 
 
@@ -799,6 +552,7 @@ def run_directional_scenario(data: dict, source: str, text: str):
 
     sc, params, model = validate_directional_scenario(data, source)
     sim = sc.simulation
+    duration, dt, rec = _simulation(sc, source)
     attrs = {"scenario": text, "scenario_source": source, "title": sc.title}
     if sc.controller.type == "dhp":
         res = _run_dhp(sc, source, text, model, attrs)
@@ -815,8 +569,8 @@ def run_directional_scenario(data: dict, source: str, text: str):
         if hook.mode == "velocity" and isinstance(op.rop, tuple):
             inputs["top_drive_axial_velocity"] = op.rop
         try:
-            res = simulate(model, inputs, duration=sim.duration, dt=sim.dt, top_drive=td,
-                           hook=hook, depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,
+            res = simulate(model, inputs, duration=duration, dt=dt, top_drive=td,
+                           hook=hook, depth_of_cut=sim.depth_of_cut, record_dt=rec,
                            attrs=attrs, start=sim.start)
         except ScenarioError:
             raise

@@ -48,183 +48,72 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import Annotated, Any, Literal
 
-from pydantic import BeforeValidator, Field, field_validator, model_validator
-
+from downhole import _schema
 from downhole.errors import DownholeInputError, ScenarioError
-from downhole.params.quantity import Q
-from downhole.scenario import (
-    Profile,
-    _Strict,
-    check_step_count,
-    parse_scenario,
-    preset_params,
-    profile_to_signal,
-)
-from downhole.units import UnitError
+from downhole.scenario import Scenario, check_step_count, parse_scenario, preset_params
 
 __all__ = [
-    "NeutralScenario",
+    "NEUTRAL_KEYS",
     "build_controller",
     "build_neutral",
     "build_reference",
+    "has_controller",
     "load_neutral_scenario",
     "run_neutral_scenario",
     "validate_neutral_scenario",
 ]
 
 
-def _profile(value, dim, name):
-    try:
-        return profile_to_signal(value, dim, name)
-    except UnitError as exc:
-        raise ValueError(str(exc)) from None
+#: The keys a neutral preset reads (:func:`downhole._schema.only_keys`).
+NEUTRAL_KEYS = ("title", "description", "model.fidelity", "model.preset", "model.string", "bit",
+                "operation.axial_command", "operation.surface_speed", "controller.type",
+                "controller.file", *(f"controller.{k}" for k in _schema.EIDOptions.model_fields),
+                "reference.type", "reference.axial_velocity", "reference.angular_velocity",
+                "reference.v", "reference.omega", "reference.max_depth_of_cut",
+                "simulation.duration", "simulation.dt", "simulation.depth_of_cut",
+                "simulation.record_dt", "simulation.seed", "simulation.noise", "simulation.start")
+
+#: The open-loop commands of a neutral preset without [operation]: U_A (m/s, the seed's
+#: convention, M_S g / alpha_A included) and U_T (rad/s): 10 mm/s and 20 rad/s at the bit.
+OPEN_LOOP = {"axial_command": 1.147224, "surface_speed": 22.5196}
 
 
-class NeutralModelSettings(_Strict):
-    """``[model]``: preset plus parameter overrides."""
+def has_controller(sc: Scenario) -> bool:
+    """True when the file names a controller (``[controller] type``).
 
-    fidelity: Literal["neutral"]
-    preset: str = "table_3_1"
-    string: dict[str, Any] = Field(default_factory=dict)
-
-
-class NeutralSurface(_Strict):
-    """``[operation]``: open-loop commands, the top's axial velocity U_A (``axial_command``,
-    m/s, the seed's convention: it includes M_S g / alpha_A) and the top-drive speed U_T
-    (``surface_speed``, rad/s)."""
-
-    axial_command: Profile = 1.147224
-    surface_speed: Profile = 22.5196
-
-    @field_validator("axial_command", "surface_speed", mode="after")
-    @classmethod
-    def _sig(cls, v, info):
-        dim = "velocity" if info.field_name == "axial_command" else "angular_velocity"
-        return _profile(v, dim, info.field_name)
+    Parameters
+    ----------
+    sc : Scenario
+        The parsed file.
+    """
+    return sc.controller.type not in (None, "none")
 
 
-def _pair(v):
-    if not (isinstance(v, (list, tuple)) and len(v) == 2
-            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
-        raise ValueError(f"expected two numbers [axial, torsional], got {v!r}")
-    return tuple(float(x) for x in v)
+def load_neutral_scenario(data: dict, source: str) -> Scenario:
+    """Validate ``data`` (a parsed TOML file) as a neutral preset: the keys it reads
+    (:data:`NEUTRAL_KEYS`), the one schema, then the neutral model's own rules (an EID
+    controller, its file or its design options, the reference types of Ch. 3)."""
+    _schema.only_keys(data, source, NEUTRAL_KEYS, "a neutral preset")
+    sc = parse_scenario(data, source)
+    c = sc.controller
+    if has_controller(sc):
+        if c.type != "eid":
+            raise ScenarioError(source, "controller.type", f"the neutral model runs the EID "
+                                f"controller (type = \"eid\"), got {c.type!r}")
+        if c.file is not None and c.options.design_options():
+            raise ScenarioError(source, "controller", "give either 'file' (a saved design) or "
+                                "design options, not both (found "
+                                f"{sorted(c.options.design_options())})")
+    r = sc.reference
+    if r is not None and r.type not in (None, "constant", "eq3.34-3.35", "seed_tracking",
+                                        "breakpoints"):
+        raise ScenarioError(source, "reference.type", f"the neutral model takes constant, "
+                            f"breakpoints, eq3.34-3.35 or seed_tracking, got {r.type!r}")
+    return sc
 
 
-Pair = Annotated[tuple[float, float], BeforeValidator(_pair)]
-
-
-class EIDSettings(_Strict):
-    """``[controller]`` with ``type = "eid"``: a saved design (``file``) or design options."""
-
-    type: Literal["eid"]
-    file: str | None = None
-    internal_model_gain: Pair | None = None
-    filter_bandwidth: Pair | None = None
-    observer_gain: Pair | None = None
-    gain_bound: float | None = Field(None, gt=0)
-    predictor: bool | None = None
-    delayed_input_observer: bool | None = None
-
-    @field_validator("internal_model_gain", "filter_bandwidth", "observer_gain", mode="after")
-    @classmethod
-    def _positive_pair(cls, v):
-        if v is not None and not all(x > 0 for x in v):
-            raise ValueError(f"expected two positive numbers [axial, torsional], got {list(v)}")
-        return v
-
-    @model_validator(mode="after")
-    def _file_or_options(self):
-        if self.file is not None and self.design_options():
-            raise ValueError("give either 'file' (a saved design) or design options, not both "
-                             f"(found {sorted(self.design_options())})")
-        return self
-
-    def design_options(self) -> dict:
-        """The design keyword arguments that were set."""
-        return {k: getattr(self, k) for k in ("internal_model_gain", "filter_bandwidth",
-                                              "observer_gain", "gain_bound", "predictor",
-                                              "delayed_input_observer")
-                if getattr(self, k) is not None}
-
-
-class NeutralReference(_Strict):
-    """``[reference]``: desired bit velocities."""
-
-    type: Literal["constant", "eq3.34-3.35", "seed_tracking", "breakpoints"] = "constant"
-    axial_velocity: Profile | None = None
-    angular_velocity: Profile | None = None
-    v: Q["velocity"] = Field(0.005, gt=0)
-    omega: Q["angular_velocity"] = Field(20.0, gt=0)
-    max_depth_of_cut: Q["length"] | bool = 6e-3
-
-    @field_validator("axial_velocity", "angular_velocity", mode="after")
-    @classmethod
-    def _sig(cls, v, info):
-        if v is None:
-            return v
-        dim = "velocity" if info.field_name == "axial_velocity" else "angular_velocity"
-        return _profile(v, dim, info.field_name)
-
-    @model_validator(mode="after")
-    def _consistent(self):
-        sigs = (self.axial_velocity, self.angular_velocity)
-        if self.type == "constant":
-            if any(isinstance(s, tuple) for s in sigs):
-                raise ValueError("type 'constant' takes numbers; use type = 'breakpoints' for "
-                                 "[[t, value], ...]")
-        elif self.type == "breakpoints":
-            if any(s is None for s in sigs):
-                raise ValueError("type 'breakpoints' needs axial_velocity and angular_velocity")
-        elif any(s is not None for s in sigs):
-            raise ValueError(f"type {self.type!r} is fixed by Eqs. 3.34/3.35 (set v, omega, "
-                             "max_depth_of_cut); axial_velocity/angular_velocity do not apply")
-        if self.max_depth_of_cut is True:
-            raise ValueError("max_depth_of_cut: give a length or false")
-        return self
-
-
-class NoiseSettings(_Strict):
-    """``[simulation.noise]``: white noise standard deviations."""
-
-    axial_velocity: Q["velocity"] = Field(0.0, ge=0)
-    angular_velocity: Q["angular_velocity"] = Field(0.0, ge=0)
-    wob: Q["force"] = Field(0.0, ge=0)
-    tob: Q["torque"] = Field(0.0, ge=0)
-
-
-class NeutralSimulation(_Strict):
-    """``[simulation]``: duration, step, depth of cut, output sampling, noise."""
-
-    duration: Q["time"] = Field(..., gt=0)
-    dt: Q["time"] = Field(1e-4, gt=0)
-    depth_of_cut: Literal["delayed", "approximate"] = "delayed"
-    record_dt: Q["time"] | None = Field(None, gt=0)
-    seed: int = 0
-    noise: NoiseSettings = NoiseSettings()
-    start: Literal["rest", "off_bottom", "steady"] = "rest"
-
-
-class NeutralScenario(_Strict):
-    """A whole neutral-model scenario file (``simulation`` is needed to run, not to design)."""
-
-    title: str = ""
-    description: str = ""
-    model: NeutralModelSettings
-    bit: dict[str, Any] = Field(default_factory=dict)
-    operation: NeutralSurface | None = None
-    controller: EIDSettings | None = None
-    reference: NeutralReference | None = None
-    simulation: NeutralSimulation | None = None
-
-
-def load_neutral_scenario(data: dict, source: str) -> NeutralScenario:
-    """Validate ``data`` (a parsed TOML file) as a :class:`NeutralScenario`."""
-    return parse_scenario(data, source, NeutralScenario)
-
-
-def build_neutral(sc: NeutralScenario, source: str):
+def build_neutral(sc: Scenario, source: str):
     """The :class:`~downhole.string.neutral.NeutralModel` of a scenario (preset + overrides)."""
     from downhole.params import NeutralStringParams
     from downhole.string.neutral import neutral_model
@@ -237,7 +126,7 @@ def build_neutral(sc: NeutralScenario, source: str):
         raise ScenarioError(source, "model.string", str(exc)) from None
 
 
-def build_reference(sc: NeutralScenario):
+def build_reference(sc: Scenario):
     """The :class:`~downhole.control.eid.references.Reference` of a scenario (default constant
     10 mm/s, 20 rad/s)."""
     from downhole.control.eid.references import (
@@ -249,7 +138,7 @@ def build_reference(sc: NeutralScenario):
     r = sc.reference
     if r is None:
         return constant_reference()
-    if r.type == "constant":
+    if r.type in (None, "constant"):
         return constant_reference(0.01 if r.axial_velocity is None else r.axial_velocity,
                                   20.0 if r.angular_velocity is None else r.angular_velocity)
     if r.type == "breakpoints":
@@ -259,13 +148,13 @@ def build_reference(sc: NeutralScenario):
     return seed_tracking_reference(r.v, r.omega, dmax)
 
 
-def build_controller(sc: NeutralScenario, source: str, model, reference=None):
+def build_controller(sc: Scenario, source: str, model, reference=None):
     """The EID controller of a scenario: loaded from ``file`` (relative to the scenario file) or
     designed from the inline options (LMI). ``None`` without ``[controller]``."""
     from downhole.control.eid import design_eid, load_eid
 
     c = sc.controller
-    if c is None:
+    if not has_controller(sc):
         return None
     if c.file is not None:
         path = Path(c.file)
@@ -291,7 +180,7 @@ def build_controller(sc: NeutralScenario, source: str, model, reference=None):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            return design_eid(model, reference=reference, **c.design_options())
+            return design_eid(model, reference=reference, **c.options.design_options())
         except DownholeInputError as exc:
             raise ScenarioError(source, "controller", str(exc)) from None
 
@@ -303,24 +192,27 @@ def validate_neutral_scenario(data: dict, source: str):
     if sc.simulation is None:
         raise ScenarioError(source, "simulation", "required table is missing (duration, dt, ...)")
     sim = sc.simulation
-    if sim.dt > sim.duration:
-        raise ScenarioError(source, "simulation.dt", f"dt ({sim.dt} s) exceeds duration "
+    if sim.duration is None:
+        raise ScenarioError(source, "simulation.duration", "required field is missing")
+    dt = sim.step("neutral")
+    if dt > sim.duration:
+        raise ScenarioError(source, "simulation.dt", f"dt ({dt} s) exceeds duration "
                             f"({sim.duration} s)")
     model = build_neutral(sc, source)
-    if sim.dt > model.tau1:
-        raise ScenarioError(source, "simulation.dt", f"dt ({sim.dt} s) exceeds the axial wave "
+    if dt > model.tau1:
+        raise ScenarioError(source, "simulation.dt", f"dt ({dt} s) exceeds the axial wave "
                             f"delay tau1 = {model.tau1:.6g} s")
-    if sim.record_dt is not None and sim.record_dt < sim.dt:
+    if sim.record_dt is not None and sim.record_dt < dt:
         raise ScenarioError(source, "simulation.record_dt", f"record_dt ({sim.record_dt} s) is "
-                            f"below dt ({sim.dt} s)")
-    if sc.controller is None and sc.reference is not None:
+                            f"below dt ({dt} s)")
+    if not has_controller(sc) and sc.reference is not None:
         raise ScenarioError(source, "reference", "a reference needs a [controller]; open loop "
                             "is driven by [operation]")
-    if sc.controller is not None and sc.operation is not None:
+    if has_controller(sc) and "operation" in data:
         raise ScenarioError(source, "operation", "the [controller] sets U_A/U_T; remove "
                             "[operation] "
                             "(open-loop commands) or [controller]")
-    check_step_count(source, sim.duration, sim.dt, sim.record_dt)
+    check_step_count(source, sim.duration, dt, sim.record_dt)
     return sc, model
 
 
@@ -331,16 +223,18 @@ def run_neutral_scenario(data: dict, source: str, text: str):
 
     sc, model = validate_neutral_scenario(data, source)
     sim = sc.simulation
-    reference = build_reference(sc) if sc.controller is not None else None
+    reference = build_reference(sc) if has_controller(sc) else None
     ctrl = build_controller(sc, source, model, reference)
-    surface = sc.operation or NeutralSurface()
+    op = sc.operation
+    commands = (OPEN_LOOP["axial_command"] if op.axial_command is None else op.axial_command,
+                OPEN_LOOP["surface_speed"] if op.surface_speed is None else op.surface_speed)
     noise = sim.noise.model_dump()
     noise["axial"] = noise.pop("axial_velocity")
     noise["angular"] = noise.pop("angular_velocity")
     attrs = {"scenario": text, "scenario_source": source, "title": sc.title}
     try:
-        return simulate(model, duration=sim.duration, dt=sim.dt, controller=ctrl,
-                                inputs=(surface.axial_command, surface.surface_speed),
+        return simulate(model, duration=sim.duration, dt=sim.step("neutral"), controller=ctrl,
+                                inputs=commands,
                                 reference=reference, noise=noise,
                                 depth_of_cut=sim.depth_of_cut, record_dt=sim.record_dt,
                                 seed=sim.seed, attrs=attrs, start=sim.start)

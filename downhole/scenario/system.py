@@ -63,37 +63,25 @@ the lumped and neutral models, a ``rop`` into the steady WOB as the FEM's initia
 
 from __future__ import annotations
 
-import math
 from types import SimpleNamespace
-from typing import Any, Literal
 
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import ValidationError
 
+from downhole import _schema
+from downhole._schema import DEFAULT_DT  # noqa: F401 -- re-exported (sil.fmu)
 from downhole.errors import DownholeInputError, ScenarioError
-from downhole.params.quantity import Q
-from downhole.scenario import (
-    _raise_validation,
-    _Strict,
-    check_step_count,
-    euler_stable_dt,
-    parse_scenario,
-)
-from downhole.scenario.directional import (
-    SegmentSettings,
-    StabilizerSettings,
-    WellSettings,
-    _string,
-    _well,
-)
+from downhole.scenario import _raise_validation, check_step_count, euler_stable_dt
+from downhole.scenario.directional import _string, _well
 from downhole.system import steady_bit_state
 
 __all__ = [
     "FIDELITY_NAMES",
     "RENAMED",
-    "SystemScenario",
+    "SYSTEM_KEYS",
     "build_system",
     "check_fidelity",
     "is_system_dialect",
+    "parse_system",
     "run_system_scenario",
     "steady_bit_state",
     "validate_system_scenario",
@@ -101,9 +89,6 @@ __all__ = [
 
 #: The fidelities a system scenario can run at (:data:`downhole.system.FIDELITIES`).
 FIDELITY_NAMES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
-
-#: Default step per fidelity, s.
-DEFAULT_DT = {"lumped4": 5e-4, "lumped12": 5e-4, "neutral": 1e-4, "fem": 1e-3, "hybrid": 1e-3}
 
 #: Keys of a preset file that a described system replaces (the older dialects' keys are
 #: refused for every file by :func:`downhole.scenario.schema.check_dialect`).
@@ -128,177 +113,70 @@ def is_system_dialect(data: dict) -> bool:
     return isinstance(model, dict) and "fidelity" in model
 
 
-# ---------------------------------------------------------------------------------- schema
-class _Options(_Strict):
-    friction: float | None = Field(None, ge=0, le=10)
+#: The keys a described system reads (:func:`downhole._schema.only_keys`).
+SYSTEM_KEYS = (
+    "title", "description", "model.fidelity", "model.friction", "model.rayleigh_alpha",
+    "model.rayleigh_beta", "model.lump_length", "model.wave_section", "model.lumped4",
+    "model.lumped12", "model.neutral", "model.fem", "model.hybrid", "well", "string", "bit",
+    "rig.top_drive", "rig.hook.servo_stiffness", "rig.hook.servo_damping",
+    "rig.hook.block_mass", "operation.surface_speed", "operation.rop", "operation.wob",
+    "simulation.duration", "simulation.dt", "simulation.record_dt", "simulation.depth_of_cut",
+    "simulation.start", "simulation.integrator", "torque_drag")
+
+#: A described system's values where the file gives none: Rayleigh damping (1/s, s), wall
+#: friction, the top drive (kg m^2, N m s/rad, N m/rad), the speed set-point (rad/s) and the
+#: output sampling (s).
+DESCRIBED = {"rayleigh_alpha": 0.05, "rayleigh_beta": 0.03, "friction": 0.0,
+             "inertia": 500.0, "kp": 1e4, "ki": 2e3, "surface_speed": 10.0, "record_dt": 0.01}
 
 
-class LumpedOptions(_Options):
-    """``[model.lumped4]`` / ``[model.lumped12]``."""
-
-    reference_elements: int = Field(400, ge=20, le=2000)
+def _or(value, key):
+    return DESCRIBED[key] if value is None else value
 
 
-class NeutralOptions(_Options):
-    """``[model.neutral]``: segment kinds lumped into the bit besides collars and "bha"."""
+def parse_system(data: dict, source: str):
+    """Validate a described system: the keys it reads, the one schema and its own rules
+    (``[well]`` and ``[string]`` segments, ``[simulation]`` duration, exactly one of rop and
+    wob, each a constant).
 
-    lump: list[Literal["pipe", "heavyweight"]] = Field(default_factory=list, max_length=2)
+    Parameters
+    ----------
+    data : dict
+        The parsed file.
+    source : str
+        The file, for messages.
 
+    Returns
+    -------
+    Scenario
+    """
+    from downhole.scenario import parse_scenario
 
-class _MeshOptions(_Options):
-    max_element_length: Q["length"] = Field(50.0, ge=0.1, le=1e4)
-    max_element_angle: Q["angle"] = Field(math.radians(2.0), gt=0, le=math.pi)
-    mass: Literal["consistent", "lumped"] = "consistent"
-
-
-class FemOptions(_MeshOptions):
-    """``[model.fem]``: the keywords of ``DrillingSystem.build("fem", ...)``."""
-
-    n_elements: int | None = Field(None, ge=1, le=5000)
-
-
-class HybridOptions(_MeshOptions):
-    """``[model.hybrid]``: the keywords of ``DrillingSystem.build("hybrid", ...)``."""
-
-    preset: Literal["hybrid24", "hybrid68", "hybrid108"] | None = None
-    n_ab: int | None = Field(None, ge=2, le=2000)
-    n_cd: int | None = Field(None, ge=2, le=2000)
-    n_lags: int = Field(0, ge=0, le=8)
-
-
-class SystemModelSettings(_Strict):
-    """``[model]``: the fidelity and the constants of the description."""
-
-    fidelity: str
-    friction: float = Field(0.0, ge=0, le=10)
-    rayleigh_alpha: float = Field(0.05, ge=0, le=1e3)
-    rayleigh_beta: float = Field(0.03, ge=0, le=1e3)
-    lump_length: Q["length"] = Field(10.0, gt=0)
-    wave_section: list[Q["length"]] | None = Field(None, min_length=2, max_length=2)
-    lumped4: LumpedOptions = LumpedOptions()
-    lumped12: LumpedOptions = LumpedOptions()
-    neutral: NeutralOptions = NeutralOptions()
-    fem: FemOptions = FemOptions()
-    hybrid: HybridOptions = HybridOptions()
-
-    @field_validator("fidelity")
-    @classmethod
-    def _fidelity(cls, v):
-        if v not in FIDELITY_NAMES:
-            raise ValueError(f"unknown fidelity {v!r}; expected one of "
-                             f"{', '.join(FIDELITY_NAMES)}")
-        return v
-
-    @field_validator("wave_section")
-    @classmethod
-    def _section(cls, v):
-        if v is not None and not v[0] < v[1]:
-            raise ValueError(f"expected [B, C] with B < C (m), got {v}")
-        return v
-
-
-class SystemStringSettings(_Strict):
-    """``[string]``: segments from surface to bit (required), stabilizers, mud."""
-
-    segments: list[SegmentSettings] = Field(..., min_length=1, max_length=1000)
-    stabilizers: list[StabilizerSettings] = Field(default_factory=list, max_length=1000)
-    mud_density: Q["density"] = Field(0.0, ge=0)
-
-
-class TopDriveSettings(_Strict):
-    """``[rig.top_drive]``: inertia and PI speed controller."""
-
-    inertia: Q["inertia"] = Field(500.0, gt=0)
-    kp: Q["torsional_damping"] = Field(1e4, gt=0)
-    ki: Q["torsional_stiffness"] = Field(2e3, ge=0)
-
-
-class HookSettings(_Strict):
-    """``[rig.hook]``: hook / drawworks velocity servo."""
-
-    servo_stiffness: Q["stiffness"] = Field(1e7, gt=0)
-    servo_damping: Q["damping"] = Field(1e6, gt=0)
-    block_mass: Q["mass"] = Field(0.0, ge=0)
-
-
-class RigSettings(_Strict):
-    """``[rig]``."""
-
-    top_drive: TopDriveSettings = TopDriveSettings()
-    hook: HookSettings = HookSettings()
-
-
-class OperationSettings(_Strict):
-    """``[operation]``: the set-points (constants)."""
-
-    surface_speed: Q["angular_velocity"] = Field(10.0, gt=0)
-    rop: Q["velocity"] | None = Field(None, gt=0, le=1.0)
-    wob: Q["force"] | None = Field(None, gt=0)
-
-    @field_validator("surface_speed", mode="before")
-    @classmethod
-    def _plausible_speed(cls, v):
-        from downhole.units import check_rotary_speed
-
-        return check_rotary_speed(v)
-
-    @model_validator(mode="after")
-    def _one(self):
-        if (self.rop is None) == (self.wob is None):
-            raise ValueError("give exactly one of rop and wob (the axial set-point)")
-        return self
-
-
-class SystemSimulation(_Strict):
-    """``[simulation]``."""
-
-    duration: Q["time"] = Field(..., gt=0)
-    dt: Q["time"] | None = Field(None, gt=0, le=0.01)
-    record_dt: Q["time"] | None = Field(0.01, gt=0)
-    depth_of_cut: Literal["delayed", "approximate"] = "delayed"
-    start: Literal["rest", "off_bottom", "steady"] = "rest"
-    integrator: Literal["euler", "newmark"] = "newmark"
-
-
-class TorqueDragSettings(_Strict):
-    """``[torque_drag]`` (optional): settings of ``downhole torque-drag``
-    (:mod:`downhole.scenario.torque_drag`)."""
-
-    friction_factors: list[float] = Field([0.1, 0.2, 0.3], min_length=1, max_length=20)
-    step: Q["length"] = Field(10.0, ge=0.1, le=1000.0)
-    vertical_section_azimuth: Q["angle"] | None = None
-    wob: Q["force"] | None = Field(None, gt=0)
-    tob: Q["torque"] | None = Field(None, ge=0)
-
-    @field_validator("friction_factors", mode="before")
-    @classmethod
-    def _no_bools(cls, v):
-        if isinstance(v, list) and any(isinstance(f, bool) for f in v):
-            raise ValueError(f"expected numbers (friction factors), got {v!r}")
-        return v
-
-    @field_validator("friction_factors")
-    @classmethod
-    def _factors(cls, v):
-        for f in v:
-            if not (math.isfinite(f) and 0.0 <= f <= 10.0):
-                raise ValueError(f"friction factors must be between 0 and 10, got {f!r}")
-        return v
-
-
-class SystemScenario(_Strict):
-    """A whole system-description scenario."""
-
-    title: str = ""
-    description: str = ""
-    model: SystemModelSettings
-    well: WellSettings
-    string: SystemStringSettings
-    bit: dict[str, Any] = Field(default_factory=dict)
-    rig: RigSettings = RigSettings()
-    operation: OperationSettings
-    simulation: SystemSimulation
-    torque_drag: TorqueDragSettings = TorqueDragSettings()
+    _schema.only_keys(data, source, SYSTEM_KEYS, "a described system")
+    sc = parse_scenario(data, source)
+    check_fidelity(sc.model.fidelity, source)
+    if sc.well is None:
+        raise ScenarioError(source, "well", "required table is missing (sections, stations or "
+                            "a survey CSV)")
+    if sc.string is None or sc.string.segments is None:
+        raise ScenarioError(source, "string.segments", "required field is missing")
+    if sc.simulation is None or sc.simulation.duration is None:
+        raise ScenarioError(source, "simulation.duration", "required field is missing")
+    op = sc.operation
+    rop = _schema.constant(op.rop, source, "operation.rop")
+    wob = _schema.constant(op.wob, source, "operation.wob")
+    _schema.constant(op.surface_speed, source, "operation.surface_speed")
+    if (rop is None) == (wob is None):
+        raise ScenarioError(source, "operation", "give exactly one of rop and wob (the axial "
+                            "set-point)")
+    if rop is not None and not 0 < rop <= 1.0:
+        raise ScenarioError(source, "operation.rop", f"expected 0 < rop <= 1 m/s, got {rop:g}")
+    if wob is not None and wob <= 0:
+        raise ScenarioError(source, "operation.wob", f"expected a WOB > 0, got {wob:g}")
+    td = sc.rig.top_drive
+    if td.kp is not None and td.kp <= 0:
+        raise ScenarioError(source, "rig.top_drive.kp", f"expected kp > 0, got {td.kp:g}")
+    return sc
 
 
 def _check_renames(data: dict, source: str) -> None:
@@ -314,7 +192,7 @@ def _check_renames(data: dict, source: str) -> None:
 
 
 # ---------------------------------------------------------------------------------- build
-def _bit(sc: SystemScenario, source: str):
+def _bit(sc, source: str):
     from downhole.params import BitParams, get_preset
 
     over = dict(sc.bit)
@@ -332,12 +210,7 @@ def _bit(sc: SystemScenario, source: str):
         raise ScenarioError(source, "bit", str(exc)) from None
 
 
-def _friction(sc: SystemScenario, fidelity: str) -> float:
-    own = getattr(sc.model, fidelity).friction
-    return sc.model.friction if own is None else own
-
-
-def build_system(sc: SystemScenario, source: str, fidelity: str):
+def build_system(sc, source: str, fidelity: str):
     """The :class:`~downhole.system.DrillingSystem` a parsed system scenario describes, with the
     friction that applies at ``fidelity`` (raises :class:`ScenarioError` naming the field)."""
     from downhole.params.rig import Hook, TopDrive
@@ -349,8 +222,9 @@ def build_system(sc: SystemScenario, source: str, fidelity: str):
                      SimpleNamespace(pipe=None, g=9.81), well)
     td, hk = sc.rig.top_drive, sc.rig.hook
     try:
-        rig = Rig(TopDrive(inertia=td.inertia, speed=sc.operation.surface_speed, kp=td.kp,
-                           ki=td.ki),
+        rig = Rig(TopDrive(inertia=_or(td.inertia, "inertia"),
+                           speed=_or(sc.operation.surface_speed, "surface_speed"),
+                           kp=_or(td.kp, "kp"), ki=_or(td.ki, "ki")),
                   Hook(servo_stiffness=hk.servo_stiffness, servo_damping=hk.servo_damping,
                        block_mass=hk.block_mass))
     except DownholeInputError as exc:
@@ -365,16 +239,16 @@ def build_system(sc: SystemScenario, source: str, fidelity: str):
     ws = sc.model.wave_section
     try:
         return DrillingSystem(well=well, string=string, bit=bit, rig=rig,
-                              friction=_friction(sc, fidelity),
-                              rayleigh_alpha=sc.model.rayleigh_alpha,
-                              rayleigh_beta=sc.model.rayleigh_beta,
+                              friction=_or(sc.model.friction_at(fidelity), "friction"),
+                              rayleigh_alpha=_or(sc.model.rayleigh_alpha, "rayleigh_alpha"),
+                              rayleigh_beta=_or(sc.model.rayleigh_beta, "rayleigh_beta"),
                               lump_length=sc.model.lump_length,
                               wave_section=tuple(ws) if ws is not None else None)
     except DownholeInputError as exc:
         raise ScenarioError(source, "string", str(exc)) from None
 
 
-def _build_options(sc: SystemScenario, fidelity: str) -> dict:
+def _build_options(sc, fidelity: str) -> dict:
     """The keywords of ``DrillingSystem.build(fidelity, ...)``: the keys of the file's
     ``[model.<fidelity>]`` table, by the same names (:data:`downhole.system.BUILD_OPTIONS`;
     ``friction`` and the neutral model's ``lump`` change the description instead)."""
@@ -411,7 +285,7 @@ def validate_system_scenario(data: dict, source: str, fidelity: str | None = Non
     _check_renames(data, source)
     if fidelity is not None:
         check_fidelity(fidelity, source, "--fidelity")
-    sc = parse_scenario(data, source, SystemScenario)
+    sc = parse_system(data, source)
     fid = fidelity or sc.model.fidelity
     system = build_system(sc, source, fid)
     try:
@@ -421,13 +295,14 @@ def validate_system_scenario(data: dict, source: str, fidelity: str | None = Non
                                                else "--fidelity")
         raise ScenarioError(source, field, f"{fid}: {exc}") from None
     sim = sc.simulation
-    dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]
+    dt = sim.step(fid)
     if dt > sim.duration:
         raise ScenarioError(source, "simulation.dt", f"dt ({dt:g} s) exceeds duration "
                             f"({sim.duration:g} s)")
-    check_step_count(source, sim.duration, dt, sim.record_dt)
-    if sim.record_dt is not None and sim.record_dt < dt:
-        raise ScenarioError(source, "simulation.record_dt", f"record_dt ({sim.record_dt:g} s) "
+    rec = _or(sim.record_dt, "record_dt")
+    check_step_count(source, sim.duration, dt, rec)
+    if rec < dt:
+        raise ScenarioError(source, "simulation.record_dt", f"record_dt ({rec:g} s) "
                             f"is below dt ({dt:g} s)")
     if fid in ("lumped4", "lumped12") and sim.integrator == "euler":
         bound, mode = euler_stable_dt(model)
@@ -441,8 +316,8 @@ def validate_system_scenario(data: dict, source: str, fidelity: str | None = Non
         raise ScenarioError(source, "simulation.dt", f"dt = {dt:g} s exceeds the neutral "
                             f"model's wave delay {min(model.tau1, model.tau2):.4g} s")
     try:
-        steady_bit_state(system.bit, sc.operation.surface_speed, sc.operation.rop,
-                         sc.operation.wob)
+        steady_bit_state(system.bit, _or(sc.operation.surface_speed, "surface_speed"),
+                         sc.operation.rop, sc.operation.wob)
     except DownholeInputError as exc:
         raise ScenarioError(source, "operation.wob", str(exc)) from None
     return sc, fid, system, model
@@ -455,24 +330,25 @@ def run_system_scenario(data: dict, source: str, text: str, fidelity: str | None
 
     sc, fid, system, model = validate_system_scenario(data, source, fidelity)
     sim, op = sc.simulation, sc.operation
-    dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]
+    dt = sim.step(fid)
+    speed = _or(op.surface_speed, "surface_speed")
     attrs = {"scenario": text, "scenario_source": source, "title": sc.title, "fidelity": fid}
-    rop, wob, tob = steady_bit_state(system.bit, op.surface_speed, op.rop, op.wob)
+    rop, wob, tob = steady_bit_state(system.bit, speed, op.rop, op.wob)
     from downhole.sim import simulate
 
     kw = dict(duration=sim.duration, dt=dt, depth_of_cut=sim.depth_of_cut,
-              record_dt=sim.record_dt, attrs=attrs, start=sim.start)
+              record_dt=_or(sim.record_dt, "record_dt"), attrs=attrs, start=sim.start)
     try:
         if fid in ("lumped4", "lumped12"):
             from downhole.sim import SurfaceInputs
 
-            return simulate(model, SurfaceInputs.velocity(rop, op.surface_speed),
+            return simulate(model, SurfaceInputs.velocity(rop, speed),
                             integrator=sim.integrator, **kw)
         if fid == "neutral":
-            return simulate(model, model.steady_inputs(rop, op.surface_speed, wob, tob), **kw)
+            return simulate(model, model.steady_inputs(rop, speed, wob, tob), **kw)
         td = sc.rig.top_drive
-        top = TopDrive(inertia=td.inertia, mode="pi", speed=op.surface_speed, kp=td.kp,
-                       ki=td.ki)
+        top = TopDrive(inertia=_or(td.inertia, "inertia"), mode="pi", speed=speed,
+                       kp=_or(td.kp, "kp"), ki=_or(td.ki, "ki"))
         hk = sc.rig.hook
         if op.rop is not None:
             hook = Hook(mode="velocity", wob=wob, velocity=rop, block_mass=hk.block_mass,

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from downhole.errors import DownholeInputError, ScenarioError
-from downhole.scenario import check_values, model_type, parse_scenario
+from downhole.scenario import check_values, model_type
 
 __all__ = ["TorqueDragCase", "run_torque_drag", "torque_drag_case"]
 
@@ -45,9 +45,10 @@ def torque_drag_case(data: dict, source: str, friction=None) -> TorqueDragCase:
         not reach from surface to the bit, a WOB that the bit law cannot reach.
     """
     from downhole.scenario.system import (
-        SystemScenario,
+        DESCRIBED,
         _check_renames,
         build_system,
+        parse_system,
         steady_bit_state,
     )
 
@@ -58,7 +59,7 @@ def torque_drag_case(data: dict, source: str, friction=None) -> TorqueDragCase:
                             f"system ([model] fidelity with [well] and [string], no preset or "
                             f"[controller]; docs/scenarios.md); this one runs {mtype!r}")
     _check_renames(data, source)
-    sc = parse_scenario(data, source, SystemScenario)
+    sc = parse_system(data, source)
     system = build_system(sc, source, sc.model.fidelity)
     span = system.well.total_depth - system.well.top_depth
     if abs(system.string.length - span) > 1e-6 * max(1.0, span):
@@ -71,12 +72,13 @@ def torque_drag_case(data: dict, source: str, friction=None) -> TorqueDragCase:
     wob = td.wob if td.wob is not None else op.wob
     field = "torque_drag.wob" if td.wob is not None else "operation.wob"
     tob = td.tob
+    speed = DESCRIBED["surface_speed"] if op.surface_speed is None else op.surface_speed
     try:
         if wob is None:
-            _, wob, tob_law = steady_bit_state(system.bit, op.surface_speed, rop=op.rop)
+            _, wob, tob_law = steady_bit_state(system.bit, speed, rop=op.rop)
             tob = tob_law if tob is None else tob
         elif tob is None:
-            _, _, tob = steady_bit_state(system.bit, op.surface_speed, wob=wob)
+            _, _, tob = steady_bit_state(system.bit, speed, wob=wob)
     except (DownholeInputError, ValueError) as exc:
         raise ScenarioError(source, field, f"no steady cutting state of the bit law at this "
                             f"set-point: {exc}") from None

@@ -136,27 +136,31 @@ def _fidelity_of_file(fid: str, fidelity: str | None, source: str) -> None:
 
 
 def _lumped_plant(data: dict, source: str, fidelity):
-    from downhole.scenario import validate_lumped
+    from downhole.scenario import LUMPED_DEFAULTS, validate_lumped
     from downhole.string.fem import DirectionalPlant
 
     sc, model = validate_lumped(data, source)
     _fidelity_of_file(sc.model.fidelity, fidelity, source)
     sim, s = sc.simulation, sc.operation
+    mode = s.mode or "velocity"
+    if mode == "velocity":
+        s = s.model_copy(update={k: LUMPED_DEFAULTS[k] for k in ("rop", "surface_speed")
+                                 if getattr(s, k) is None})
     if not sim.rock_memory:
         raise ScenarioError(source, "simulation.rock_memory", "false is not supported by the "
                             "FMU plant (it keeps the rock-surface memory)")
-    plant = DirectionalPlant(model, dt=sim.dt, mode=s.mode, depth_of_cut=sim.depth_of_cut,
-                             integrator=sim.integrator)
+    plant = DirectionalPlant(model, dt=sim.step(sc.model.fidelity), mode=mode,
+                             depth_of_cut=sim.depth_of_cut, integrator=sim.integrator)
     names = plant.command_names
-    fields = ("rop", "surface_speed") if s.mode == "velocity" else ("hook_load",
-                                                                    "surface_torque")
+    fields = ("rop", "surface_speed") if mode == "velocity" else ("hook_load",
+                                                                  "surface_torque")
     cmd = {n: _constant(getattr(s, f), source, f"operation.{f}", n)
            for n, f in zip(names, fields)}
     return plant, _settings(sim.start, cmd, sim.duration), sc.model.fidelity
 
 
 def _neutral_plant(data: dict, source: str, fidelity):
-    from downhole.scenario.neutral import NeutralSurface, validate_neutral_scenario
+    from downhole.scenario.neutral import OPEN_LOOP, validate_neutral_scenario
     from downhole.string.fem import DirectionalPlant
 
     sc, model = validate_neutral_scenario(data, source)
@@ -166,12 +170,12 @@ def _neutral_plant(data: dict, source: str, fidelity):
     if noisy:
         raise ScenarioError(source, f"simulation.noise.{noisy[0]}", "noise is not part of the "
                             "FMU plant; remove [simulation.noise] to export it")
-    surface = sc.operation or NeutralSurface()
-    ua = _constant(surface.axial_command, source, "operation.axial_command",
-                   "top_drive_axial_velocity")
-    ut = _constant(surface.surface_speed, source, "operation.surface_speed",
-                   "top_drive_angular_velocity")
-    plant = DirectionalPlant(model, dt=sim.dt, depth_of_cut=sim.depth_of_cut)
+    op = sc.operation
+    ua = _constant(OPEN_LOOP["axial_command"] if op.axial_command is None else op.axial_command,
+                   source, "operation.axial_command", "top_drive_axial_velocity")
+    ut = _constant(OPEN_LOOP["surface_speed"] if op.surface_speed is None else op.surface_speed,
+                   source, "operation.surface_speed", "top_drive_angular_velocity")
+    plant = DirectionalPlant(model, dt=sim.step("neutral"), depth_of_cut=sim.depth_of_cut)
     # the plant's axial command is relative to the hanging equilibrium (U_A - M_S g / alpha_A)
     cmd = {"top_drive_axial_velocity": ua - model.hang_command,
            "top_drive_angular_velocity": ut}
@@ -190,11 +194,13 @@ def _directional_plant(data: dict, source: str, fidelity):
                             "saved DHP controller (torque-driven top drive, slack-off hook) is "
                             "exported from a SIL scenario with [model] interface = 'state'")
     op, sim = sc.operation, sc.simulation
-    _constant(op.surface_speed, source, "operation.surface_speed", "top_drive_angular_velocity")
+    if op.surface_speed is not None:
+        _constant(op.surface_speed, source, "operation.surface_speed",
+                  "top_drive_angular_velocity")
     hook = _hook(sc)
-    if hook.mode == "velocity":
+    if hook.mode == "velocity" and op.rop is not None:
         _constant(op.rop, source, "operation.rop", "top_drive_axial_velocity")
-    plant = DirectionalPlant(model, sim.dt, top_drive=_top_drive(sc, params), hook=hook,
+    plant = DirectionalPlant(model, sim.step(fid), top_drive=_top_drive(sc, params), hook=hook,
                              depth_of_cut=sim.depth_of_cut)
     cmd = plant.default_command()
     if hook.mode == "force" and op.hook_load is not None:
@@ -203,20 +209,21 @@ def _directional_plant(data: dict, source: str, fidelity):
 
 
 def _system_plant(data: dict, source: str, fidelity):
-    from downhole.scenario.system import DEFAULT_DT, steady_bit_state, validate_system_scenario
+    from downhole.scenario.system import DESCRIBED, steady_bit_state, validate_system_scenario
 
     sc, fid, system, model = validate_system_scenario(data, source, fidelity)
     sim, op = sc.simulation, sc.operation
-    dt = sim.dt if sim.dt is not None else DEFAULT_DT[fid]
-    rop, wob, tob = steady_bit_state(system.bit, op.surface_speed, op.rop, op.wob)
-    plant = system_plant(system, model, fid, dt, surface_speed=op.surface_speed, rop=rop,
+    dt = sim.step(fid)
+    speed = DESCRIBED["surface_speed"] if op.surface_speed is None else op.surface_speed
+    rop, wob, tob = steady_bit_state(system.bit, speed, op.rop, op.wob)
+    plant = system_plant(system, model, fid, dt, surface_speed=speed, rop=rop,
                          depth_of_cut=sim.depth_of_cut, integrator=sim.integrator)
     if fid == "neutral":  # the commands of the steady state, as `downhole simulate` drives it
-        ua, ut = model.steady_inputs(rop, op.surface_speed, wob, tob)
+        ua, ut = model.steady_inputs(rop, speed, wob, tob)
         cmd = {"top_drive_axial_velocity": ua - model.hang_command,
                "top_drive_angular_velocity": ut}
     else:
-        cmd = {"top_drive_axial_velocity": rop, "top_drive_angular_velocity": op.surface_speed}
+        cmd = {"top_drive_axial_velocity": rop, "top_drive_angular_velocity": speed}
     return plant, _settings(sim.start, cmd, sim.duration), fid
 
 

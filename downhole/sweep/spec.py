@@ -497,13 +497,13 @@ def validate_path(base: dict, source: str, spec: ParamSpec) -> None:
                 f"{spec.path!r} (for model type {mtype!r} only keys written in the scenario "
                 "can be swept)")
         return
-    from downhole.scenario import LumpedScenario, build_lumped_model, parse_scenario
+    from downhole.scenario import build_lumped_model, parse_scenario
 
     for value in probe_values:
         data = copy.deepcopy(base)
         set_path(data, spec.path, value)
         try:
-            sc = parse_scenario(data, source, LumpedScenario)
+            sc = parse_scenario(data, source)
             build_lumped_model(sc, source)
         except ScenarioError as exc:
             if "unknown key" in exc.message and spec.path.startswith(exc.field):
