@@ -25,6 +25,7 @@ axial_velocity = "10 mm/s"
 angular_velocity = 20.0
 [simulation]
 duration = 8.0
+depth_of_cut = "approximate"
 """
 
 

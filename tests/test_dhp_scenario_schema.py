@@ -109,6 +109,7 @@ type = "{type}"
 {reference}
 [simulation]
 duration = 2.0
+depth_of_cut = "approximate"
 """
 UNITS = {"epsilon = 45e6": 'epsilon = "45 MPa"', "dt = 0.002": 'dt = "2 ms"',
          "input_limits = [[-40e3, 250e3], [-50e3, 50e3]]":
@@ -261,3 +262,53 @@ def test_a_described_system_with_a_dhp_controller_is_not_a_dhp_design():
                                "well": {}, "string": {}, "operation": {}})
     assert not is_dhp_dialect({"controller": {"type": "pi"}})
     assert not is_dhp_dialect({"controller": {"type": "dhp"}, "model": {"type": "hybrid"}})
+
+
+# ------------------------------------------------------------------------------ one schema
+@pytest.mark.parametrize("text, field, msg", [
+    ('[simulation]\ndt = "1 ms"\n', "simulation.dt",
+     "not used by a DHP design (the design's step is controller.dhp.dt)"),
+    ('[simulation]\nrecord_dt = "10 ms"\n', "simulation.record_dt", "not used by a DHP design"),
+    ('[simulation]\nintegrator = "euler"\n', "simulation.integrator", "not used by a DHP"),
+    ('[model]\ninterface = "state"\n', "model.interface", "not used by a DHP design"),
+    ("[controller]\nenabled = false\n", "controller.enabled", "not used by a DHP design"),
+    ("[reference]\nv = 0.01\n", "reference.v", "not used by a DHP design"),
+    ("[realtime]\npaced = false\n", "realtime", "not used by a DHP design scenario"),
+    ('[controller.dhp]\ndesign = "hybrid24"\n', "controller.dhp.design", "a SIL design"),
+    ('[model]\nfidelity = "lumped12"\n', "model.fidelity", "fem | hybrid | lumped4"),
+    ('[reference]\ntype = "breakpoints"\naxial_velocity = [[0, 0.01], [1, 0.02]]\n'
+     'angular_velocity = 20.0\n', "reference.axial_velocity", "takes a constant"),
+    ('[reference]\ntype = "ramp"\nangular_velocity = [[0, 10.0], [1, 20.0]]\n',
+     "reference.angular_velocity", "takes a constant"),
+    ('[reference]\ntype = "constant"\n', "reference.type", "step | ramp | sine | user"),
+    ("[controller]\ntype = \"eid\"\n", "controller.type", "type = 'dhp'"),
+    ('[simulation]\nduration = "2e5 s"\n', "simulation.duration", "at most 100000 s"),
+])
+def test_keys_of_the_one_schema_a_dhp_design_does_not_read_are_refused(tmp_path, text, field,
+                                                                        msg):
+    """The one schema has more keys than a DHP design reads: each is refused with one line
+    naming it (never silently ignored)."""
+    with pytest.raises(ScenarioError) as info:
+        load_dhp_scenario(write(tmp_path, text))
+    assert info.value.field == field, str(info.value)
+    assert msg in info.value.message, str(info.value)
+
+
+def test_the_one_schemas_none_defaults_take_the_dhp_defaults():
+    """No [model], [controller] type, design, horizon, reference type: the DHP's (fem plant of
+    the fem24 design, 40 s, a step); n_samples left to DHPSettings; the depth of cut is the one
+    schema's default (delayed) unless the file says approximate."""
+    from downhole.control.dhp import DHPSettings
+
+    sc = parse_dhp_scenario({"controller": {"dhp": {"design": "lumped"}},
+                             "simulation": {"duration": 1.0}})
+    assert sc["plant"]["fidelity"] == "lumped4" and sc["horizon"] == 40.0
+    assert sc["reference"].kind == "step"
+    assert sc["settings"].n_samples == DHPSettings().n_samples
+    assert sc["simulation"]["depth_of_cut"] == "delayed"
+    sc = parse_dhp_scenario({"controller": {"dhp": {"design": "lumped", "training": {
+        "n_samples": 30}}}, "simulation": {"depth_of_cut": "approximate"}})
+    assert sc["settings"].n_samples == 30 and sc["simulation"]["depth_of_cut"] == "approximate"
+    assert sc["simulation"]["duration"] == 40.0
+    assert parse_dhp_scenario({"controller": {"dhp": {"design": "lumped"}}})["simulation"] \
+        is None

@@ -1,4 +1,5 @@
-"""DHP design scenarios (``[controller] type = "dhp"``): schema, design and closed-loop runner.
+"""DHP design scenarios (``[controller] type = "dhp"``): reading (through the one scenario
+schema), design and closed-loop runner.
 
 The command ``downhole design dhp SCENARIO.toml --out DIR`` (:mod:`downhole.cli.design_dhp`)
 trains a DHP (SNAC) tracking controller from such a file and writes
@@ -12,9 +13,11 @@ The same file runs with ``downhole simulate SCENARIO.toml --out DIR``: ``[contro
 It trains the controller (or loads ``[controller] file``) and returns the closed loop on the
 ``[model]`` plant as the run's Result.
 
-The file uses the tables and key names of every scenario (:mod:`downhole.scenario.schema`,
-``docs/scenarios.md``). Every table and key is optional; numbers are SI, and every physical
-value also takes a unit string (``"10 mm/s"``, ``"1 ms"``, ``"60 kN*m"``)::
+The file is validated by the one scenario schema (:func:`downhole.scenario.schema.parse`,
+``docs/scenarios.md``); its None defaults take the DHP's values below, and a key of the schema
+a DHP design does not read (``simulation.dt``, ``[operation]``, ...) is refused with a line
+naming it. Every table and key is optional; numbers are SI, and every physical value also takes
+a unit string (``"10 mm/s"``, ``"1 ms"``, ``"60 kN*m"``)::
 
     title = "..."                 # optional, shown by downhole simulate
 
@@ -94,9 +97,10 @@ value also takes a unit string (``"10 mm/s"``, ``"1 ms"``, ``"60 kN*m"``)::
     axial_velocity_values = ["10 mm/s", "20 mm/s"]     # user
     angular_velocity_values = ["20 rad/s", "30 rad/s"] # user
 
-    [simulation]                  # optional closed-loop check after training
+    [simulation]                  # optional closed-loop check after training (only these
+                                  #   two keys: dt, record_dt, ... are refused)
     duration = "20 s"             # default: the training horizon
-    depth_of_cut = "approximate"  # or "delayed" (the true plant)
+    depth_of_cut = "approximate"  # or "delayed" (the true plant; the default)
 
 Keys of the older DHP dialect (``[model] type = "dhp"``, ``kind``, ``n_elements``, ``[weights]``,
 ``[training]``, ``[plan]``, ``simulation.plant``, ``reference.axial``, ...) are refused with one
@@ -107,18 +111,13 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Annotated, Any, Literal
 
-from pydantic import BeforeValidator, Field, StrictInt, ValidationError
+from pydantic import ValidationError
 
+from downhole._schema import ReferenceTable, Scenario, SimulationTable, parse, raise_validation
 from downhole.errors import DownholeInputError, ScenarioError
-from downhole.params.quantity import Q
-from downhole.scenario import _raise_validation, _Strict
 
 __all__ = [
-    "DHPDesignSettings",
-    "DHPScenario",
-    "DHPTrainingSettings",
     "design_from_scenario",
     "is_dhp_dialect",
     "load_dhp_scenario",
@@ -130,100 +129,44 @@ __all__ = [
 #: Most training steps (horizon / dt) and closed-loop steps (duration / dt) of one file.
 MAX_TRAINING_STEPS = 1_000_000
 MAX_SIMULATION_STEPS = 20_000_000
+#: Longest closed-loop check, s.
+MAX_DURATION = 1e5
 
 #: Keys valid elsewhere in the scenario vocabulary whose DHP meaning moved (the global renames
 #: are in :data:`downhole.scenario.schema.RENAMES`).
 _LOCAL_RENAMES = {"model.friction": "controller.dhp.friction (a coefficient; the design's)"}
 
+#: The DHP's resolution of the one schema's None defaults (docs/dhp.md).
+DEFAULT_DESIGN = "fem24"
+DEFAULT_HORIZON = 40.0
+DEFAULT_REFERENCE = "step"
 
-def _no_bool(value):
-    if isinstance(value, bool):
-        raise ValueError(f"expected a friction coefficient (a number >= 0: omit it for the "
-                         f"well's own, 0 for none), got boolean {str(value).lower()}")
-    return value
+#: What a DHP design takes of the one schema's choices.
+_DESIGNS = ("fem24", "fem", "lumped")
+_PLANT_FIDELITIES = ("fem", "hybrid", "lumped4")
+_REFERENCE_TYPES = ("step", "ramp", "sine", "user")
 
-
-_Velocity = Annotated[Q["velocity"], Field(ge=-1.0, le=1.0)]
-_Angular = Annotated[Q["angular_velocity"], Field(ge=-200.0, le=200.0)]
-
-
-class DHPPlantSettings(_Strict):
-    """``[model]``: the plant the closed loop runs on."""
-
-    fidelity: Literal["fem", "hybrid", "lumped4"] | None = None
-    preset: str | None = Field(None, max_length=64)
-
-
-class DHPTrainingSettings(_Strict):
-    """``[controller.dhp.training]``: the training horizon and the DHPSettings."""
-
-    horizon: Q["time"] = Field(40.0, gt=0, le=1e5)
-    method: str = Field("riccati", max_length=64)
-    n_samples: StrictInt | None = Field(None, ge=1, le=100_000)
-    n_iterations: StrictInt = Field(20, ge=1, le=10_000)
-    threshold: float = Field(1e-6, gt=0)
-    sample_radius: float | list[float] = 0.02
-    warm_start: bool = True
-    seed: StrictInt = Field(0, ge=0)
-    resample_every: StrictInt = Field(1, ge=1, le=100_000)
-    threads: StrictInt = Field(1, ge=1, le=1024)
-    use_feed_forward: bool = True
-    past_horizon: Literal["stationary", "error"] = "stationary"
-
-
-class DHPDesignSettings(_Strict):
-    """``[controller.dhp]``: the design model, the weights, the training and the plan."""
-
-    design: Literal["fem24", "fem", "lumped"] = "fem24"
-    elements: StrictInt | None = Field(None, ge=3, le=500)
-    preset: str | None = Field(None, max_length=64)
-    dt: Q["time"] = Field(1e-3, gt=0, le=0.1)
-    input_limits: tuple[tuple[Q["force"], Q["force"]], tuple[Q["torque"], Q["torque"]]] = (
-        (-50e3, 300e3), (-60e3, 60e3))
-    friction: Annotated[float, BeforeValidator(_no_bool)] | None = Field(None, ge=0, le=10)
-    weights: str | dict[str, Any] | None = None
-    training: DHPTrainingSettings = DHPTrainingSettings()
-    plan: dict[str, Any] | None = None
-
-
-class DHPControllerSettings(_Strict):
-    """``[controller]`` of a DHP scenario."""
-
-    type: Literal["dhp"] = "dhp"
-    file: str | None = Field(None, min_length=1, max_length=4096)
-    dhp: DHPDesignSettings = DHPDesignSettings()
-
-
-class DHPReferenceSettings(_Strict):
-    """``[reference]``: the bit-velocity reference the controller tracks."""
-
-    type: Literal["step", "ramp", "sine", "user"] = "step"
-    axial_velocity: _Velocity | None = None
-    angular_velocity: _Angular | None = None
-    t_final: Q["time"] | None = Field(None, gt=0, le=1e5)
-    frequency: Q["angular_velocity"] | None = Field(None, ge=0, le=1e3)
-    time: list[Q["time"]] = Field(default_factory=list, max_length=100_000)
-    axial_velocity_values: list[_Velocity] = Field(default_factory=list, max_length=100_000)
-    angular_velocity_values: list[_Angular] = Field(default_factory=list, max_length=100_000)
-
-
-class DHPSimulationSettings(_Strict):
-    """``[simulation]``: the closed-loop check."""
-
-    duration: Q["time"] | None = Field(None, gt=0, le=1e5)
-    depth_of_cut: Literal["approximate", "delayed"] = "approximate"
-
-
-class DHPScenario(_Strict):
-    """A whole DHP design scenario file."""
-
-    title: str = ""
-    description: str = ""
-    model: DHPPlantSettings = DHPPlantSettings()
-    bit: dict[str, Any] = Field(default_factory=dict)
-    controller: DHPControllerSettings = DHPControllerSettings()
-    reference: DHPReferenceSettings = DHPReferenceSettings()
-    simulation: DHPSimulationSettings | None = None
+#: The tables and keys a DHP design reads (a key of the one schema beyond these is refused
+#: with a line naming it, not ignored).
+_TABLES = ("title", "description", "model", "bit", "controller", "reference", "simulation")
+_USED = {
+    "model": ("fidelity", "preset"),
+    "controller": ("type", "file"),
+    "reference": ("type", "axial_velocity", "angular_velocity", "t_final", "frequency", "time",
+                  "axial_velocity_values", "angular_velocity_values"),
+    "simulation": ("duration", "depth_of_cut"),
+}
+_UNUSED_WHY = {
+    "model": "[model] is the plant the closed loop runs on (fidelity, preset); the design is "
+             "[controller.dhp]",
+    "controller": "a DHP design scenario has [controller] type = 'dhp', file and "
+                  "[controller.dhp]",
+    "reference": "a DHP reference is step | ramp | sine | user (type, axial_velocity, "
+                 "angular_velocity, t_final, frequency, time, *_velocity_values)",
+    "simulation": "the closed-loop check takes simulation.duration and "
+                  "simulation.depth_of_cut",
+    "simulation.dt": "the design's step is controller.dhp.dt",
+}
 
 
 def is_dhp_dialect(data: dict) -> bool:
@@ -267,9 +210,92 @@ def _check_local_renames(data: dict, src: str) -> None:
                                 "(see docs/dhp.md)")
 
 
+def _with_implied(data: dict, src: str) -> dict:
+    """``data`` with what a DHP file may leave out and the one schema requires: ``[controller]
+    type = "dhp"`` and ``[model] fidelity`` (the design's: fem, or lumped4 for the lumped
+    design). A shallow copy; ``data`` is not changed. Refuses another controller type and a
+    reference profile ``[[t, value], ...]`` (the DHP tracks constants, ramps, sines or a
+    ``user`` table), naming the field."""
+    out = dict(data)
+    ctl = data.get("controller")
+    if ctl is None:
+        out["controller"] = {"type": "dhp"}
+    elif isinstance(ctl, dict):
+        if "type" not in ctl:
+            out["controller"] = {"type": "dhp", **ctl}
+        elif ctl["type"] != "dhp":
+            raise ScenarioError(src, "controller.type", f"a DHP design scenario has type = "
+                                f"'dhp', got {ctl['type']!r}")
+    ctl = out.get("controller")
+    dhp = ctl.get("dhp") if isinstance(ctl, dict) else None
+    design = dhp.get("design") if isinstance(dhp, dict) else None
+    own = "lumped4" if design == "lumped" else "fem"
+    model = data.get("model")
+    if model is None:
+        out["model"] = {"fidelity": own}
+    elif isinstance(model, dict) and "fidelity" not in model:
+        out["model"] = {**model, "fidelity": own}
+    ref = data.get("reference")
+    if isinstance(ref, dict):
+        for name in ("axial_velocity", "angular_velocity"):
+            if isinstance(ref.get(name), list):
+                raise ScenarioError(src, f"reference.{name}", "a DHP reference takes a constant "
+                                    "(the step value, the ramp's low level, the sine's mean); "
+                                    "for a profile use type = 'user' with time and "
+                                    f"{name}_values")
+    return out
+
+
+def _refuse_unused(sc: Scenario, src: str) -> None:
+    """Refuse the keys of the one schema a DHP design does not read (one line naming each)."""
+    for key in sorted(sc.model_fields_set - set(_TABLES)):
+        raise ScenarioError(src, key, "not used by a DHP design scenario (it reads title, "
+                            "description, [model], [bit], [controller], [reference] and "
+                            "[simulation]; see docs/dhp.md)")
+    tables = {"model": sc.model, "controller": sc.controller, "reference": sc.reference,
+              "simulation": sc.simulation}
+    for name, table in tables.items():
+        if table is None:
+            continue
+        # the declared keys only: the controller type's own keys ([controller.dhp]) are
+        # validated by its registered model (DHPOptions)
+        given = table.model_fields_set & set(type(table).model_fields)
+        for key in sorted(given - set(_USED[name])):
+            why = _UNUSED_WHY.get(f"{name}.{key}", _UNUSED_WHY[name])
+            raise ScenarioError(src, f"{name}.{key}", f"not used by a DHP design ({why})")
+
+
+def _checked_choices(sc: Scenario, src: str) -> tuple[str, str]:
+    """The design and the reference type, their None resolved to the DHP's defaults; the
+    plant's fidelity checked."""
+    fid = sc.model.fidelity
+    if fid not in _PLANT_FIDELITIES:
+        raise ScenarioError(src, "model.fidelity", f"a DHP design's plant is "
+                            f"{' | '.join(_PLANT_FIDELITIES)}, got {fid!r}")
+    design = sc.controller.options.dhp.design or DEFAULT_DESIGN
+    if design not in _DESIGNS:
+        raise ScenarioError(src, "controller.dhp.design", f"{design!r} is a SIL design "
+                            f"(downhole sil); downhole design dhp trains "
+                            f"{' | '.join(_DESIGNS)}")
+    rtype = DEFAULT_REFERENCE if sc.reference is None or sc.reference.type is None \
+        else sc.reference.type
+    if rtype not in _REFERENCE_TYPES:
+        raise ScenarioError(src, "reference.type", f"a DHP reference is "
+                            f"{' | '.join(_REFERENCE_TYPES)}, got {rtype!r}")
+    s = sc.simulation
+    if s is not None and s.duration is not None and s.duration > MAX_DURATION:
+        raise ScenarioError(src, "simulation.duration", f"expected at most {MAX_DURATION:g} s "
+                            f"(got {s.duration:g} s)")
+    return design, rtype
+
+
 def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
                        base: Path | None = None) -> dict:
     """Validate an already-parsed DHP scenario (see :func:`load_dhp_scenario`).
+
+    The file is validated by the one scenario schema (:func:`downhole._schema.parse`); the
+    schema's None defaults take the DHP's (design ``fem24``, horizon 40 s, reference ``step``,
+    the plant of the design) and a key of the schema a DHP design does not read is refused.
 
     Raises
     ------
@@ -282,11 +308,10 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
 
     check_dialect(data, src)
     _check_local_renames(data, src)
-    try:
-        sc = DHPScenario.model_validate(data)
-    except ValidationError as exc:
-        _raise_validation(src, exc)
-    d = sc.controller.dhp
+    sc = parse(_with_implied(data, src), src)
+    _refuse_unused(sc, src)
+    design, rtype = _checked_choices(sc, src)
+    d = sc.controller.options.dhp
     controller_file = None
     if sc.controller.file is not None:
         controller_file = Path(sc.controller.file)
@@ -295,13 +320,14 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
 
     # --------------------------------------------------------------------- training
     tr = d.training
-    horizon = tr.horizon
+    horizon = DEFAULT_HORIZON if tr.horizon is None else tr.horizon
     if horizon / d.dt > MAX_TRAINING_STEPS:
         raise ScenarioError(src, "controller.dhp.training.horizon", f"horizon / dt = "
                             f"{horizon / d.dt:.3g} training steps; at most {MAX_TRAINING_STEPS} "
                             f"(horizon <= {MAX_TRAINING_STEPS * d.dt:g} s at dt = {d.dt:g} s)")
-    kw = tr.model_dump(exclude_unset=True, exclude={"horizon", "use_feed_forward",
-                                                    "past_horizon"})
+    # only the keys the file sets: the rest are DHPSettings' defaults
+    kw = {k: v for k, v in tr.model_dump(exclude_unset=True, exclude={
+        "horizon", "use_feed_forward", "past_horizon"}).items() if v is not None}
     if isinstance(kw.get("sample_radius"), list):
         kw["sample_radius"] = tuple(kw["sample_radius"])
     try:
@@ -310,11 +336,11 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
         raise ScenarioError(src, "controller.dhp.training", str(exc)) from None
 
     # --------------------------------------------------------------------- model
-    model, plant_source = _build_design(src, sc)
-    plant = _resolve_plant(src, sc, plant_source)
+    model, plant_source = _build_design(src, sc, design)
+    plant = _resolve_plant(src, sc, design, plant_source)
 
     # --------------------------------------------------------------------- reference
-    ref = _reference(src, sc.reference, horizon)
+    ref = _reference(src, sc.reference or ReferenceTable(), rtype, horizon)
     weights = _weights(src, d.weights)
 
     # --------------------------------------------------------------------- plan
@@ -334,7 +360,7 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
             "controller_file": controller_file, "plan": plan, "title": sc.title}
 
 
-def _simulation(src, s, horizon, dt, plant) -> dict:
+def _simulation(src, s: SimulationTable, horizon, dt, plant) -> dict:
     duration = horizon if s.duration is None else s.duration
     if duration / dt > MAX_SIMULATION_STEPS:
         raise ScenarioError(src, "simulation.duration", f"duration / dt = {duration / dt:.3g} "
@@ -344,7 +370,7 @@ def _simulation(src, s, horizon, dt, plant) -> dict:
             "fidelity": plant["fidelity"], "preset": plant["preset"], "plant": plant["kind"]}
 
 
-def _reference(src, r, horizon):
+def _reference(src, r: ReferenceTable, rtype: str, horizon):
     from downhole.control.dhp import BitReference
 
     ax, an = r.axial_velocity, r.angular_velocity
@@ -352,21 +378,21 @@ def _reference(src, r, horizon):
                  "angular_velocity_values"):
         used = name in r.model_fields_set
         wanted = {"t_final": "ramp", "frequency": "sine"}.get(name, "user")
-        if used and r.type != wanted:
+        if used and rtype != wanted:
             raise ScenarioError(src, f"reference.{name}", f"used by type = '{wanted}' only; "
-                                f"this reference is type = {r.type!r}")
-    if r.type == "user":
+                                f"this reference is type = {rtype!r}")
+    if rtype == "user":
         for name in ("axial_velocity", "angular_velocity"):
             if name in r.model_fields_set:
                 raise ScenarioError(src, f"reference.{name}", "type = 'user' takes "
                                     f"reference.{name}_values (with reference.time)")
     try:
-        if r.type == "step":
+        if rtype == "step":
             return BitReference.step(0.01 if ax is None else ax, 20.0 if an is None else an)
-        if r.type == "ramp":
+        if rtype == "ramp":
             return BitReference.ramp(horizon if r.t_final is None else r.t_final,
                                      0.01 if ax is None else ax, 20.0 if an is None else an)
-        if r.type == "sine":
+        if rtype == "sine":
             return BitReference.sine(0.02 if ax is None else ax, 40.0 if an is None else an,
                                      0.1 * 3.141592653589793 if r.frequency is None
                                      else r.frequency)
@@ -436,7 +462,7 @@ def _bit_with(src, base, over: dict):
     try:
         return BitParams(**{**base.model_dump(), **over})
     except ValidationError as exc:
-        _raise_validation(src, exc, "bit.")
+        raise_validation(src, exc, "bit.")
     except (ValueError, TypeError) as exc:
         raise ScenarioError(src, "bit", str(exc)) from None
 
@@ -454,22 +480,22 @@ def _lumped_preset(src, name, field):
     return pre
 
 
-def _build_design(src, sc: DHPScenario):
+def _build_design(src, sc: Scenario, design: str):
     """The control-affine design model and what the plants are built from."""
     from downhole.control.dhp import lumped_affine_model
     from downhole.control.dhp.directional import directional_affine_model, table_5_1_models
 
-    d = sc.controller.dhp
+    d = sc.controller.options.dhp
     given = d.model_fields_set
-    if d.elements is not None and d.design != "fem":
+    if d.elements is not None and design != "fem":
         raise ScenarioError(src, "controller.dhp.elements", f"used by design = 'fem' only; "
-                            f"this design is {d.design!r}")
-    if d.preset is not None and d.design != "lumped":
+                            f"this design is {design!r}")
+    if d.preset is not None and design != "lumped":
         raise ScenarioError(src, "controller.dhp.preset", f"used by design = 'lumped' only "
                             f"(the FEM designs are the Table 5.1 well); this design is "
-                            f"{d.design!r}")
+                            f"{design!r}")
     for name in ("input_limits", "friction"):
-        if name in given and d.design == "lumped":
+        if name in given and design == "lumped":
             raise ScenarioError(src, f"controller.dhp.{name}", "used by the FEM designs "
                                 "(fem24, fem) only; the lumped design has none")
     for (lo, hi), name in zip(d.input_limits, ("force", "torque")):
@@ -477,13 +503,13 @@ def _build_design(src, sc: DHPScenario):
             raise ScenarioError(src, "controller.dhp.input_limits", f"{name} limits "
                                 f"[{lo:g}, {hi:g}] are empty; expected min < max")
     try:
-        if d.design == "lumped":
+        if design == "lumped":
             pre = _lumped_preset(src, d.preset or "table_2_1", "controller.dhp.preset")
             bit = _bit_with(src, pre.bit, sc.bit)
             return (lumped_affine_model(pre.string, bit, dt=d.dt),
                     ("lumped", pre.string, bit))
         fem24, hyb68 = table_5_1_models()
-        if d.design == "fem":
+        if design == "fem":
             from downhole.string.fem import fem_model
 
             dm = fem_model(n_elements=5 if d.elements is None else d.elements)
@@ -505,18 +531,18 @@ def _build_design(src, sc: DHPScenario):
         raise ScenarioError(src, "controller.dhp", str(exc)) from None
 
 
-def _resolve_plant(src, sc: DHPScenario, plant_source) -> dict:
+def _resolve_plant(src, sc: Scenario, design: str, plant_source) -> dict:
     """``[model]``: the plant's fidelity and preset, checked against the design."""
-    d = sc.controller.dhp
+    d = sc.controller.options.dhp
     lumped = plant_source[0] == "lumped"
     own = "lumped4" if lumped else "fem"
-    fid = sc.model.fidelity or own
+    fid = sc.model.fidelity  # a file without it has the design's (_with_implied)
     preset = sc.model.preset
     if lumped and fid != "lumped4":
         raise ScenarioError(src, "model.fidelity", f"the lumped design runs on the 4th-order "
                             f"lumped plant (fidelity = 'lumped4'), got {fid!r}")
     if not lumped and fid == "lumped4":
-        raise ScenarioError(src, "model.fidelity", f"a {d.design!r} design has the FEM's "
+        raise ScenarioError(src, "model.fidelity", f"a {design!r} design has the FEM's "
                             f"states: it runs on fidelity 'fem' or 'hybrid', got 'lumped4'")
     if preset == "design":
         if fid != own:
@@ -537,7 +563,7 @@ def _resolve_plant(src, sc: DHPScenario, plant_source) -> dict:
                                 f"68-state Ch. 6 hybrid of the Table 5.1 well) or 'design', "
                                 f"got {preset!r}")
         return {"fidelity": fid, "preset": "hybrid68", "kind": "hybrid68"}
-    if d.design == "fem24":
+    if design == "fem24":
         if preset not in (None, "fem24"):
             raise ScenarioError(src, "model.preset", f"the FEM plant of design 'fem24' is "
                                 f"'fem24' (the 24-state FEM of Table 5.1) or 'design', got "
@@ -605,14 +631,14 @@ def run_scenario_simulation(sc: dict, ctrl):
 
 def run_dhp_scenario(data: dict, source: str = "<dict>", text: str = ""):
     """``downhole simulate`` runner for a DHP scenario: train (or load ``[controller] file``)
-    and run the closed loop on the ``[model]`` plant (``[simulation]``; default: over the
-    training horizon, approximate depth of cut); returns the Result."""
+    and run the closed loop on the ``[model]`` plant (``[simulation]``; without it the one
+    schema's defaults: over the training horizon, delayed depth of cut); returns the Result."""
     from downhole.control.dhp import load_controller
 
     base = Path(source).parent if not source.startswith("<") else None
     sc = parse_dhp_scenario(data, source, text, base=base)
     if sc["simulation"] is None:
-        sc["simulation"] = _simulation(source, DHPSimulationSettings(), sc["horizon"],
+        sc["simulation"] = _simulation(source, SimulationTable(), sc["horizon"],
                                        sc["model"].dt, sc["plant"])
     if sc["controller_file"] is not None:
         try:

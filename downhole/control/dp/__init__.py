@@ -9,7 +9,17 @@ on the discrete, continuous, 4th- and 12th-order models (:mod:`downhole.control.
 
 from downhole.control.dp.baseline import best_constant_velocities, constant_velocity_cost
 from downhole.control.dp.customized import solve_customized
-from downhole.control.dp.problem import DPProblem, GridSpec, load_problem, problem_from_dict
+from downhole.control.dp.problem import (
+    BoundSpec,
+    DPProblem,
+    GridSpec,
+    RobustSpec,
+    StandardSpec,
+    TargetSpec,
+    WeightSpec,
+    load_problem,
+    problem_from_dict,
+)
 from downhole.control.dp.replay import (
     ensemble_costs,
     replay_discrete,
@@ -23,9 +33,14 @@ from downhole.control.dp.standard import solve_standard
 
 __all__ = [
     "METHODS",
+    "BoundSpec",
     "DPProblem",
     "DPSolution",
     "GridSpec",
+    "RobustSpec",
+    "StandardSpec",
+    "TargetSpec",
+    "WeightSpec",
     "best_constant_velocities",
     "constant_velocity_cost",
     "ensemble_costs",

@@ -21,21 +21,40 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, StrictInt, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+# the specs of [optimize] are the one scenario schema's (defined once there; DPProblem holds
+# them, and they stay importable from here)
+from downhole._schema import (
+    MAX_GRID_POINTS,
+    BoundSpec,
+    OptimizeTable,
+    RobustSpec,
+    Scenario,
+    StandardSpec,
+    TargetSpec,
+    WeightSpec,
+    check_dialect,
+    parse,
+)
 from downhole.errors import DownholeInputError, ScenarioError
 from downhole.params import BitParams, LumpedParams, get_preset
 from downhole.params.quantity import Q
 
 __all__ = [
     "METHOD_NAMES",
+    "BoundSpec",
     "DPProblem",
-    "DPScenario",
     "GridSpec",
     "ModelArrays",
+    "ModelSpec",
+    "RobustSpec",
+    "StandardSpec",
+    "TargetSpec",
+    "WeightSpec",
     "dp_problem_of",
     "load_dp_scenario",
     "load_problem",
@@ -48,8 +67,7 @@ METHOD_NAMES = ("customized", "standard", "robust")
 _TOL = 1e-9
 
 
-#: Largest DP grid (points per state axis, input levels per axis) and most DP steps / substeps.
-MAX_GRID_POINTS = 2001
+#: Most DP steps / substeps (the largest grid, MAX_GRID_POINTS, is the schema's).
 MAX_DP_STEPS = 100_000
 
 
@@ -81,69 +99,6 @@ class GridSpec(BaseModel):
     def values(self) -> np.ndarray:
         """The grid values (``points`` floats from ``min`` to ``max``)."""
         return np.linspace(self.min, self.max, self.points)
-
-
-class TargetSpec(BaseModel):
-    """Targets of Eq. 2.13: mean (v_m, w_m) and final (v_d, w_d) bit velocities."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    v_m: Q["velocity"] = 0.01
-    w_m: Q["angular_velocity"] = 10.0
-    v_d: Q["velocity"] = 0.01
-    w_d: Q["angular_velocity"] = 10.0
-
-
-class WeightSpec(BaseModel):
-    """Weights lambda1..lambda4 of Eq. 2.13 (s^-1 m^-2 s^2, ..., see docs/dp.md)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    lambda1: float = Field(1.0e4, ge=0)
-    lambda2: float = Field(1.0e-2, ge=0)
-    lambda3: float = Field(1.0e5, ge=0)
-    lambda4: float = Field(1.0e-1, ge=0)
-
-
-class BoundSpec(BaseModel):
-    """Admissible inputs, expressed as string loads (seed: the feasible set U_f of Eq. 2.14).
-
-    ``force`` bounds the string force K_a (u1 - x1) (N, slack-off relative to the hanging
-    equilibrium), ``torque`` the string torque K_t (u2 - x3) (N m); both are checked at both ends
-    of every DP step. ``top_speed`` / ``rotary_speed`` (optional) bound the mean top-drive axial
-    speed (m/s) and rotary speed (rad/s) over each step of the replayed input (the input rates).
-    """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    force: tuple[Q["force"], Q["force"]] = (0.0, 200.0e3)
-    torque: tuple[Q["torque"], Q["torque"]] = (0.0, 30.0e3)
-    top_speed: tuple[Q["velocity"], Q["velocity"]] | None = None
-    rotary_speed: tuple[Q["angular_velocity"], Q["angular_velocity"]] | None = None
-
-
-class RobustSpec(BaseModel):
-    """Robust DP (Eq. 2.25): the ensemble of epsilon scale factors and the integration substep.
-
-    The cost is averaged over the models with epsilon multiplied by each factor. The seed states
-    the ensemble three ways (+/-10 %, 150-250 %, 50/150/200 %), hence a parameter.
-    """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    epsilon_scales: tuple[float, ...] = Field((0.9, 1.0, 1.1), max_length=100)
-    substep: Q["time"] = Field(5e-3, gt=0)
-
-
-class StandardSpec(BaseModel):
-    """Standard DP baseline: the input grid (string force x torque levels) and the substep of the
-    forward projection (explicit Euler of the 4th-order model, input held over the DP step)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    force_levels: int = Field(21, ge=2, le=MAX_GRID_POINTS)
-    torque_levels: int = Field(21, ge=2, le=MAX_GRID_POINTS)
-    substep: Q["time"] = Field(5e-3, gt=0)
 
 
 class ModelSpec(BaseModel):
@@ -507,79 +462,36 @@ def problem_from_dict(data: dict, source: str = "<dict>") -> DPProblem:
 
 
 # ------------------------------------------------------------------------------ problem files
-class _FileStrict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+#: The tables a problem file has (the one schema's other tables are not the DP's).
+_TABLES = ("title", "description", "model", "bit", "optimize")
+#: The DP's model: the 4th-order lumped model of Eq. 2.1 (``[model]`` may be left out).
+_FIDELITY = "lumped4"
+_DEFAULT_PRESET = "table_2_1"
 
 
-class _VelocityGrid(_FileStrict):
-    """``[optimize.x2]``: bit axial velocity grid (m/s, or unit strings)."""
-
-    min: Q["velocity"]
-    max: Q["velocity"]
-    points: StrictInt = Field(..., ge=2, le=MAX_GRID_POINTS)
-
-
-class _AngularGrid(_FileStrict):
-    """``[optimize.x4]``: bit angular velocity grid (rad/s, or unit strings)."""
-
-    min: Q["angular_velocity"]
-    max: Q["angular_velocity"]
-    points: StrictInt = Field(..., ge=2, le=MAX_GRID_POINTS)
+def _with_model(data: dict) -> dict:
+    """``data`` with the ``[model] fidelity`` the one schema requires and a problem file may
+    leave out (the DP's, lumped4); a shallow copy."""
+    model = data.get("model")
+    if model is None:
+        return {**data, "model": {"fidelity": _FIDELITY}}
+    if isinstance(model, dict) and "fidelity" not in model:
+        return {**data, "model": {**model, "fidelity": _FIDELITY}}
+    return data
 
 
-class DPOptimizeSettings(_FileStrict):
-    """``[optimize]``: the problem (the fields of :class:`DPProblem` but ``model``) and the
-    solver (``method``; ``--method`` on the command line overrides it)."""
-
-    method: Literal["customized", "standard", "robust"] | None = None
-    horizon: Q["time"] = Field(20.0, gt=0)
-    step: Q["time"] = Field(0.25, gt=0)
-    x1_regions: StrictInt | None = Field(None, le=MAX_GRID_POINTS)
-    x3_regions: StrictInt | None = Field(None, le=MAX_GRID_POINTS)
-    x2: _VelocityGrid = _VelocityGrid(min=0.0, max=0.02, points=21)
-    x4: _AngularGrid = _AngularGrid(min=0.0, max=20.0, points=21)
-    targets: TargetSpec = TargetSpec()
-    weights: WeightSpec = WeightSpec()
-    bounds: BoundSpec = BoundSpec()
-    robust: RobustSpec = RobustSpec()
-    standard: StandardSpec = StandardSpec()
-
-
-class DPModelSettings(_FileStrict):
-    """``[model]`` of a problem file: the DP's model (the 4th-order lumped model of Eq. 2.1)."""
-
-    fidelity: str = "lumped4"
-    preset: str = Field("table_2_1", max_length=64)
-
-    @field_validator("fidelity")
-    @classmethod
-    def _lumped4(cls, v):
-        if v != "lumped4":
-            raise ValueError(f"the DP optimizes the 4th-order lumped model (Eqs. 2.12-2.14): "
-                             f"expected 'lumped4', got {v!r}")
-        return v
-
-
-class DPScenario(_FileStrict):
-    """A whole problem file (``downhole optimize dp``).
-
-    Parameters
-    ----------
-    title, description : str
-        Free text.
-    model : DPModelSettings
-        ``[model]``: ``fidelity = "lumped4"`` and the ``preset``.
-    bit : dict
-        ``[bit]``: bit parameters over the preset's (e.g. ``epsilon``).
-    optimize : DPOptimizeSettings
-        ``[optimize]``: the problem and the solver.
-    """
-
-    title: str = ""
-    description: str = ""
-    model: DPModelSettings = DPModelSettings()
-    bit: dict[str, Any] = Field(default_factory=dict)
-    optimize: DPOptimizeSettings = DPOptimizeSettings()
+def _check_dp_tables(sc: Scenario, source: str) -> None:
+    """Refuse what the one schema holds and a problem file does not (one line naming it)."""
+    for key in sorted(sc.model_fields_set - set(_TABLES)):
+        raise ScenarioError(source, key, "unknown key in a DP problem file (it has title, "
+                            "description, [model], [bit] and [optimize]; see docs/dp.md)")
+    for key in sorted(sc.model.model_fields_set - {"fidelity", "preset"}):
+        raise ScenarioError(source, f"model.{key}", "unknown key in a DP problem file ([model] "
+                            "has fidelity = 'lumped4' and preset; see docs/dp.md)")
+    if sc.model.fidelity != _FIDELITY:
+        raise ScenarioError(source, "model.fidelity", f"the DP optimizes the 4th-order lumped "
+                            f"model (Eqs. 2.12-2.14): expected 'lumped4', got "
+                            f"{sc.model.fidelity!r}")
 
 
 def _file_field(field: str) -> str:
@@ -595,6 +507,11 @@ def _file_field(field: str) -> str:
 
 def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, str | None]:
     """Validate a parsed problem file: ``(problem, method or None)``.
+
+    The file is validated by the one scenario schema (:func:`downhole._schema.parse`) and read
+    from its ``[optimize]`` (absent: the table's defaults), ``[model]`` (absent, or without
+    ``fidelity``: lumped4; ``preset`` None: table_2_1) and ``[bit]``; the schema's other
+    tables are refused.
 
     Parameters
     ----------
@@ -616,21 +533,18 @@ def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, str | 
         ``bit.epsilon``, ...) and what was expected; a key of the older DP dialect (top-level
         ``horizon``, ``[x2]``, ``[dp]``, ``model.epsilon``, ...) gets the key to use instead.
     """
-    from downhole._schema import check_dialect
-    from downhole._schema import raise_validation as _raise_validation
-
     check_dialect(data, source)
-    try:
-        sc = DPScenario.model_validate(data)
-    except ValidationError as exc:
-        _raise_validation(source, exc)
+    sc = parse(_with_model(data), source)
+    _check_dp_tables(sc, source)
+    preset = sc.model.preset or _DEFAULT_PRESET
     bit = dict(sc.bit)
     if "preset" in bit:
-        raise ScenarioError(source, "bit.preset", f"model.preset = {sc.model.preset!r} brings "
+        raise ScenarioError(source, "bit.preset", f"model.preset = {preset!r} brings "
                             "its bit; give only bit parameters here (epsilon, ...)")
     epsilon = bit.pop("epsilon", None)
-    opt = sc.optimize.model_dump(exclude={"method"})
-    opt["model"] = {"preset": sc.model.preset, "epsilon": epsilon, "bit": bit}
+    optimize = sc.optimize or OptimizeTable()
+    opt = optimize.model_dump(exclude={"method"})
+    opt["model"] = {"preset": preset, "epsilon": epsilon, "bit": bit}
     try:
         problem = DPProblem.model_validate(opt)
     except ValidationError as exc:
@@ -642,7 +556,7 @@ def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, str | 
         raise ScenarioError(source, _file_field(exc.field), str(exc)) from None
     except DownholeInputError as exc:
         raise ScenarioError(source, "", str(exc)) from None
-    return problem, sc.optimize.method
+    return problem, optimize.method
 
 
 def load_dp_scenario(path: str | Path) -> tuple[DPProblem, str | None]:
