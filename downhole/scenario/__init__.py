@@ -59,7 +59,6 @@ __all__ = [
 Scenario = _schema.Scenario
 Profile = _schema.Profile
 profile_to_signal = _schema.profile_to_signal
-_Strict = _schema._Strict  # TRANSITIONAL: dhp.py until it reads the one schema
 
 #: Lumped presets: the operating point and reference of a file that gives none.
 LUMPED_DEFAULTS = {"rop": 0.01, "surface_speed": 10.0}
