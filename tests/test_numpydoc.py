@@ -169,8 +169,6 @@ PENDING: set[tuple[str, str]] = {
     ("sil/protocol.py", "unpack_layout"),
     ("sil/scenario.py", "check_code_allowed"),
     ("sil/scenario.py", "dashboard_token"),
-    ("sil/scenario.py", "load_sil_scenario"),
-    ("sil/scenario.py", "parse_sil_scenario"),
     ("sil/scheduling.py", "elevate_priority"),
     ("sil/scheduling.py", "sleep_until"),
     ("sil/testing.py", "ch6_dhp"),

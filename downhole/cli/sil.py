@@ -53,7 +53,7 @@ def _positive_seconds(value: float | None, option: str) -> float | None:
 def _design_note(sc, what: str) -> None:
     """Say that a long design starts (the trainer's rich bars follow on a terminal)."""
     if sc.controller.type == "dhp" and not sc.controller.file:
-        d = sc.controller.dhp
+        d = sc.controller.options.dhp
         typer.echo(f"{what}: designing the DHP controller ({d.training.n_samples} samples, "
                    f"horizon {d.training.horizon:g} s, weights {d.weights}); this can take a "
                    "minute or more",

@@ -6,7 +6,8 @@
   :class:`PlantLink` (plant end) and :class:`ControllerClient` (client library);
 - :mod:`~downhole.sil.plants`: :func:`build_plant`, any plant as a fixed named-signal layout;
 - :mod:`~downhole.sil.hil`: hardware-in-the-loop string and a software rig;
-- :mod:`~downhole.sil.scenario`: the SIL scenario TOML schema;
+- :mod:`~downhole.sil.scenario`: SIL scenario files, read with the one scenario schema
+  (:mod:`downhole._schema`) and the SIL's defaults;
 - :mod:`~downhole.sil.dashboard`: the FastAPI + WebSocket live dashboard;
 - :mod:`~downhole.sil.fmu`: FMI 2.0 co-simulation export (pythonfmu).
 

@@ -1,6 +1,7 @@
 """SIL scenario files (TOML): the plant, the real-time runtime, the controller, the reference,
-the link, the safety policy and the dashboard, in the tables every scenario uses
-(:mod:`downhole.scenario.schema`).
+the link, the safety policy and the dashboard, read with the one scenario schema
+(:mod:`downhole.scenario.schema`: :func:`~downhole._schema.parse` and its
+:class:`~downhole._schema.Scenario`).
 
 Every table is optional; numbers may carry units ("1 ms", "10 rad/s", "120 kN"). Unknown keys
 are errors naming the file and the dotted field; a key of the older SIL dialect (``[plant]``,
@@ -45,29 +46,49 @@ Example (``examples/sil_dhp_hybrid68.toml``)::
     [link]
     port = 47600
 
-See ``docs/sil.md`` for every field.
+:func:`parse_sil_scenario` returns the one schema's :class:`~downhole._schema.Scenario` with
+what that schema leaves to the reading command (its None defaults) resolved to the SIL's:
+
+- ``model.fidelity``: a file without ``[model]``, or whose ``[model]`` gives no fidelity, is
+  read as ``fidelity = "hybrid"`` (filled in before parsing: the one schema requires it);
+  ``model.preset``: the hybrid's is one of hybrid24 | hybrid68 | hybrid108 (None: hybrid68),
+  the fem and neutral plants take none (the seed's), a lumped plant's is a lumped preset (None:
+  table_2_1); ``model.fem.n_elements``: 23;
+- ``[operation]``: ``wob`` 120 kN, ``surface_speed`` 10 rad/s, ``surface_torque`` 0, ``rop``
+  10 mm/s; constants only (a ``[[t, value], ...]`` profile is refused naming the key);
+- ``[simulation]``: ``dt`` 1 ms (the real-time period), ``duration`` 20 s, ``record_dt`` 10 ms;
+- ``controller.type``: "pi" (the SIL runs none | pi | dhp | file); ``[controller.dhp]``:
+  ``design`` hybrid24 (hybrid24 | hybrid68), ``weights`` "robust" (robust | design | planned),
+  ``training.horizon`` 8 s, ``training.n_samples`` 50 (at least 2);
+- ``[reference]``: ``type`` "step" (step | sine | ramp), ``axial_velocity`` 10 mm/s,
+  ``angular_velocity`` 20 rad/s (constants); the ``*_min`` / ``*_max`` bounds the one schema's;
+- ``title``: "sil".
+
+A key of the one schema that the SIL does not read (``[well]``, ``[rig]``, ``model.friction``,
+``simulation.integrator``, ``controller.dhp.plan``, ...) is refused naming it, not ignored
+(:data:`SIL_KEYS` lists what the SIL reads). See ``docs/sil.md`` for every field.
 """
 
 from __future__ import annotations
 
 import math
-from pathlib import Path, PurePosixPath
-from typing import Any, Literal
+from pathlib import Path
 
-from pydantic import (
-    BaseModel,
-    ConfigDict,
-    Field,
-    ValidationError,
-    field_validator,
-    model_validator,
+from pydantic import ValidationError
+
+from downhole._schema import (
+    FIDELITIES,
+    ReferenceTable,
+    Scenario,
+    SimulationTable,
+    check_dialect,
+    parse,
+    raise_validation,
 )
-
 from downhole.errors import ScenarioError
-from downhole.params.quantity import Q
 
 __all__ = [
-    "SilScenario",
+    "SIL_KEYS",
     "build_from_scenario",
     "check_code_allowed",
     "dashboard_token",
@@ -75,201 +96,169 @@ __all__ = [
     "parse_sil_scenario",
 ]
 
+#: The tables and keys the SIL reads (dotted table -> its keys; "" the top level). A key of the
+#: one schema outside these is refused: the SIL would ignore it.
+SIL_KEYS: dict[str, tuple[str, ...]] = {
+    "": ("title", "description", "model", "bit", "operation", "simulation", "realtime",
+         "controller", "reference", "link", "safety", "dashboard"),
+    "model": ("fidelity", "preset", "interface", "fem"),
+    "model.fem": ("n_elements",),
+    "operation": ("wob", "surface_speed", "surface_torque", "rop"),
+    "simulation": ("dt", "duration", "record_dt", "depth_of_cut", "start"),
+    "controller.dhp": ("design", "weights", "training"),
+    "controller.dhp.training": ("horizon", "n_samples"),
+    "reference": ("type", "axial_velocity", "angular_velocity", "axial_velocity_min",
+                  "axial_velocity_max", "angular_velocity_min", "angular_velocity_max"),
+}
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-
-class FemSection(_Strict):
-    """``[model.fem]``."""
-
-    n_elements: int = Field(23, ge=1, le=5000)
-
-
-class ModelSection(_Strict):
-    """``[model]``: the plant."""
-
-    fidelity: Literal["lumped4", "lumped12", "neutral", "fem", "hybrid"] = "hybrid"
-    preset: str | None = None   # hybrid: hybrid24 | hybrid68 | hybrid108; lumped: table_2_1
-    interface: Literal["surface", "state"] = "surface"
-    fem: FemSection = FemSection()
-
-    @model_validator(mode="after")
-    def _preset(self):
-        from downhole.string.hybrid import HYBRID_PRESETS
-
-        p = self.preset
-        if self.fidelity == "hybrid" and p is not None and p not in HYBRID_PRESETS:
-            raise ValueError(f"preset: the hybrid's preset is one of {', '.join(HYBRID_PRESETS)}"
-                             f", got {p!r}")
-        if self.fidelity in ("fem", "neutral") and p is not None:
-            raise ValueError(f"preset: the {self.fidelity} plant is the seed's (Table "
-                             f"{'5.1' if self.fidelity == 'fem' else '3.1'}); no preset here")
-        return self
-
-    @property
-    def plant_name(self) -> str:
-        """The name :func:`downhole.sil.plants.build_plant` takes."""
-        if self.fidelity == "hybrid":
-            return self.preset or "hybrid68"
-        if self.fidelity.startswith("lumped"):
-            return "lumped"
-        return self.fidelity
+#: The SIL's values for what the one schema leaves to the reading command (None there).
+_OPERATION = {"wob": 120e3, "surface_speed": 10.0, "surface_torque": 0.0, "rop": 0.01}
+_SIMULATION = {"dt": 1e-3, "duration": 20.0, "record_dt": 0.01}
+_REFERENCE = {"axial_velocity": 0.01, "angular_velocity": 20.0}
+_CONTROLLERS = ("none", "pi", "dhp", "file")
+_DHP_DESIGNS = ("hybrid24", "hybrid68")
+_DHP_WEIGHTS = ("robust", "design", "planned")
+_REFERENCES = ("step", "sine", "ramp")
 
 
-class OperationSection(_Strict):
-    """``[operation]``: the plant's initial commands (set-points)."""
-
-    wob: Q["force"] = Field(120e3, ge=0)
-    surface_speed: Q["angular_velocity"] = 10.0
-    surface_torque: Q["torque"] = 0.0
-    rop: Q["velocity"] = 0.01
-
-    @field_validator("surface_speed", mode="before")
-    @classmethod
-    def _plausible_speed(cls, v):
-        from downhole.units import check_rotary_speed
-
-        return check_rotary_speed(v)
+def _with_fidelity(data: dict) -> dict:
+    """``data`` with ``model.fidelity = "hybrid"`` when the file gives none (a copy; the SIL's
+    default plant, which the one schema leaves to no command)."""
+    model = data.get("model", {})
+    if not isinstance(model, dict) or "fidelity" in model:
+        return data
+    return {**data, "model": {"fidelity": "hybrid", **model}}
 
 
-class SimulationSection(_Strict):
-    """``[simulation]``: step, duration, output sampling, depth of cut, start."""
-
-    dt: Q["time"] = Field(1e-3, gt=0)
-    duration: Q["time"] = Field(20.0, gt=0)
-    record_dt: Q["time"] = Field(0.01, gt=0)
-    depth_of_cut: Literal["delayed", "approximate"] = "delayed"
-    start: Literal["rest", "off_bottom", "steady"] = "rest"
-
-
-class RealtimeSection(_Strict):
-    """``[realtime]``: the real-time runtime."""
-
-    enabled: bool = True
-    paced: bool = True
-    ring_seconds: Q["time"] = Field(3600.0, gt=0)
-    ring_memory_mib: float = Field(256.0, gt=0, le=65536)
-    chunk_dir: str | None = None
-    max_lag: Q["time"] = Field(0.05, gt=0)
-    wait_fraction: float = Field(0.7, gt=0, lt=1)
-
-    @field_validator("chunk_dir")
-    @classmethod
-    def _chunk_dir_under_the_output(cls, v):
-        # the recorder owns its chunk folder (it removes the previous run's chunks there): it
-        # may only be a folder beside the run's --out, never any folder of the host
-        if v is None:
-            return v
-        parts = PurePosixPath(v.replace("\\", "/")).parts
-        if not v.strip() or "\x00" in v or v.startswith(("/", "~")) or ".." in parts \
-                or (len(v) > 1 and v[1] == ":"):
-            raise ValueError(f"{v!r} is not a folder name relative to the run's --out (e.g. "
-                             "\"chunks\"): the chunk folder lives beside the result")
-        return v
+def _refuse_unread(sc: Scenario, source: str) -> None:
+    """Refuse a key of the one schema that the SIL does not read (:data:`SIL_KEYS`)."""
+    tables = {"": sc, "model": sc.model, "model.fem": sc.model.fem,
+              "operation": sc.operation, "simulation": sc.simulation, "reference": sc.reference}
+    if sc.controller.type == "dhp":
+        tables["controller.dhp"] = sc.controller.options.dhp
+        tables["controller.dhp.training"] = sc.controller.options.dhp.training
+    for path, table in tables.items():
+        if table is None:
+            continue
+        reads = SIL_KEYS[path]
+        for key in type(table).model_fields:  # in the schema's order
+            if key in table.model_fields_set and key not in reads:
+                where = f"[{path}]" if path else "the top level"
+                raise ScenarioError(source, f"{path}.{key}" if path else key,
+                                    f"not read by the SIL (it reads {', '.join(reads)} at "
+                                    f"{where}; see docs/sil.md)")
 
 
-class TrainingSection(_Strict):
-    """``[controller.dhp.training]``."""
-
-    horizon: Q["time"] = Field(8.0, gt=0)
-    n_samples: int = Field(50, ge=2, le=100_000)
-
-
-class DHPSection(_Strict):
-    """``[controller.dhp]``: the DHP design (used when ``type = "dhp"`` and no ``file``)."""
-
-    design: Literal["hybrid24", "hybrid68"] = "hybrid24"
-    weights: Literal["robust", "design", "planned"] = "robust"
-    training: TrainingSection = TrainingSection()
+def _constant(table, key: str, default: float, source: str, path: str) -> None:
+    """Resolve ``table.key`` (None: ``default``); a ``[[t, value], ...]`` profile is refused."""
+    value = getattr(table, key)
+    if isinstance(value, tuple):
+        raise ScenarioError(source, f"{path}.{key}", "a constant here: the SIL takes one value "
+                            "(a [[t, value], ...] profile is not supported)")
+    if value is None:
+        setattr(table, key, default)
 
 
-class ControllerSection(_Strict):
-    """``[controller]``."""
+def _resolve(sc: Scenario, source: str) -> None:
+    """Check what the SIL takes of the one schema and resolve its None defaults to the SIL's
+    (the module docstring lists them), in place."""
+    from downhole.string.hybrid import HYBRID_PRESETS
 
-    type: Literal["none", "pi", "dhp", "file"] = "pi"
-    file: str | None = None
-    enabled: bool = True
-    remote: bool = False
-    dhp: DHPSection = DHPSection()
-
-
-class ReferenceSection(_Strict):
-    """``[reference]``: bit-velocity reference passed to the controller, and the admissible
-    range of a set-point changed while running (the dashboard refuses anything outside)."""
-
-    type: Literal["step", "sine", "ramp"] = "step"
-    axial_velocity: Q["velocity"] = 0.01
-    angular_velocity: Q["angular_velocity"] = 20.0
-    axial_velocity_min: Q["velocity"] = 0.0
-    axial_velocity_max: Q["velocity"] = 0.05
-    angular_velocity_min: Q["angular_velocity"] = 0.0
-    angular_velocity_max: Q["angular_velocity"] = 40.0
-
-
-class LinkSection(_Strict):
-    """``[link]``: the UDP address the plant binds."""
-
-    host: str = "127.0.0.1"
-    port: int = Field(47600, ge=0, le=65535)
-    connect_timeout: Q["time"] = Field(300.0, gt=0)  # the plant waits this long (countdown)
-    mode: Literal["sil", "hil"] = "sil"
-
-
-class SafetySection(_Strict):
-    """``[safety]``: controller-timeout action."""
-
-    timeout: Q["time"] = Field(0.1, ge=0)
-    hold: Q["time"] = Field(0.2, ge=0)
-    ramp: Q["time"] = Field(2.0, ge=0)
-    resume: Literal["manual", "auto"] = "manual"
-
-
-class DashboardSection(_Strict):
-    """``[dashboard]``."""
-
-    host: str = "127.0.0.1"
-    port: int = Field(8765, ge=0, le=65535)
-    token: str | None = None
-    token_file: str | None = None
-    publish_hz: float = Field(20.0, gt=0, le=100)
-    allowed_origins: list[str] = []
-    allowed_hosts: list[str] = []
-    units: Literal["metric", "field", "oilfield", "si"] = "metric"  # trends and set-points
-
-
-class SilScenario(_Strict):
-    """A whole SIL scenario (the tables of every scenario, :mod:`downhole.scenario.schema`)."""
-
-    title: str = "sil"
-    description: str = ""
-    model: ModelSection = ModelSection()
-    bit: dict[str, Any] = Field(default_factory=dict)
-    operation: OperationSection = OperationSection()
-    simulation: SimulationSection = SimulationSection()
-    realtime: RealtimeSection = RealtimeSection()
-    controller: ControllerSection = ControllerSection()
-    reference: ReferenceSection = ReferenceSection()
-    link: LinkSection = LinkSection()
-    safety: SafetySection = SafetySection()
-    dashboard: DashboardSection = DashboardSection()
-
-    @property
-    def name(self) -> str:
-        """The title (shown by the console and the dashboard)."""
-        return self.title
+    if not sc.title:
+        sc.title = "sil"
+    m = sc.model
+    if m.fidelity not in FIDELITIES:
+        raise ScenarioError(source, "model.fidelity", f"expected one of {', '.join(FIDELITIES)}, "
+                            f"got {m.fidelity!r}")
+    if m.fidelity == "hybrid" and m.preset is not None and m.preset not in HYBRID_PRESETS:
+        raise ScenarioError(source, "model.preset", f"the hybrid's preset is one of "
+                            f"{', '.join(HYBRID_PRESETS)}, got {m.preset!r}")
+    if m.fidelity in ("fem", "neutral") and m.preset is not None:
+        raise ScenarioError(source, "model.preset", f"the {m.fidelity} plant is the seed's "
+                            f"(Table {'5.1' if m.fidelity == 'fem' else '3.1'}); no preset here")
+    if m.fem.n_elements is None:
+        m.fem.n_elements = 23
+    for key, default in _OPERATION.items():
+        _constant(sc.operation, key, default, source, "operation")
+    if sc.simulation is None:
+        sc.simulation = SimulationTable()
+    for key, default in _SIMULATION.items():
+        if getattr(sc.simulation, key) is None:
+            setattr(sc.simulation, key, default)
+    ctl = sc.controller
+    if ctl.type is None:
+        ctl.type = "pi"
+    if ctl.type not in _CONTROLLERS:
+        raise ScenarioError(source, "controller.type", f"the SIL runs {' | '.join(_CONTROLLERS)}"
+                            f", got {ctl.type!r}")
+    if ctl.type == "dhp":
+        d = ctl.options.dhp
+        d.design = d.design or "hybrid24"
+        if d.design not in _DHP_DESIGNS:
+            raise ScenarioError(source, "controller.dhp.design", f"the SIL's DHP designs are "
+                                f"{' | '.join(_DHP_DESIGNS)}, got {d.design!r}")
+        d.weights = "robust" if d.weights is None else d.weights
+        if d.weights not in _DHP_WEIGHTS:
+            raise ScenarioError(source, "controller.dhp.weights", f"the SIL's weights are "
+                                f"{' | '.join(_DHP_WEIGHTS)} (a named set), got {d.weights!r}")
+        t = d.training
+        t.horizon = 8.0 if t.horizon is None else t.horizon
+        t.n_samples = 50 if t.n_samples is None else t.n_samples
+        if t.n_samples < 2:
+            raise ScenarioError(source, "controller.dhp.training.n_samples",
+                                f"at least 2 samples, got {t.n_samples}")
+    if sc.reference is None:
+        sc.reference = ReferenceTable()
+    r = sc.reference
+    r.type = r.type or "step"
+    if r.type not in _REFERENCES:
+        raise ScenarioError(source, "reference.type", f"the SIL's references are "
+                            f"{' | '.join(_REFERENCES)}, got {r.type!r}")
+    for key, default in _REFERENCE.items():
+        _constant(r, key, default, source, "reference")
 
 
-def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
-    """Validate a scenario dict; raises :class:`~downhole.errors.ScenarioError`."""
-    from downhole.scenario import _raise_validation
-    from downhole.scenario.schema import check_dialect
+def _plant_name(sc: Scenario) -> str:
+    """The name :func:`downhole.sil.plants.build_plant` takes for ``[model]``."""
+    m = sc.model
+    if m.fidelity == "hybrid":
+        return m.preset or "hybrid68"
+    if m.fidelity.startswith("lumped"):
+        return "lumped"
+    return m.fidelity
 
+
+def _dhp_design(sc: Scenario) -> str:
+    """The design model a state-interface plant observes: ``[controller.dhp] design`` of a DHP
+    controller, else hybrid24."""
+    return sc.controller.options.dhp.design if sc.controller.type == "dhp" else "hybrid24"
+
+
+def parse_sil_scenario(data: dict, source: str = "<dict>") -> Scenario:
+    """Validate a parsed SIL scenario with the one schema and resolve the SIL's defaults.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed file (a missing ``model.fidelity`` is read as "hybrid").
+    source : str
+        The file, for messages.
+
+    Returns
+    -------
+    Scenario
+        The one schema's scenario, its None defaults resolved to the SIL's (module docstring).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and the dotted field: an older-dialect, unknown or unread key, a value
+        the SIL does not take, an unstable lumped step, an inconsistent controller / interface.
+    """
     check_dialect(data, source)
-    try:
-        sc = SilScenario.model_validate(data)
-    except ValidationError as exc:
-        _raise_validation(source, exc)
+    sc = parse(_with_fidelity(data), source)
+    _refuse_unread(sc, source)
+    _resolve(sc, source)
     scenario_bit(sc, source)
     if sc.model.fidelity.startswith("lumped") and sc.link.mode != "hil":
         _check_lumped_step(sc, source)
@@ -309,13 +298,12 @@ def parse_sil_scenario(data: dict, source: str = "<dict>") -> SilScenario:
     return sc
 
 
-def scenario_bit(sc: SilScenario, source: str = "<dict>"):
+def scenario_bit(sc: Scenario, source: str = "<dict>"):
     """The plant's bit: its preset's (Table 2.1, 3.1 or 5.1) with ``[bit]`` applied, or None
     without a ``[bit]`` table. Raises :class:`ScenarioError` naming ``bit.<field>``."""
     if not sc.bit:
         return None
     from downhole.params import BitParams, get_preset
-    from downhole.scenario import _raise_validation
 
     if "preset" in sc.bit:
         raise ScenarioError(source, "bit.preset", "the SIL plant's bit is its model's; give bit "
@@ -326,12 +314,12 @@ def scenario_bit(sc: SilScenario, source: str = "<dict>"):
     try:
         return BitParams(**{**get_preset(base).bit.model_dump(), **sc.bit})
     except ValidationError as exc:
-        _raise_validation(source, exc, "bit.")
+        raise_validation(source, exc, "bit.")
     except (TypeError, ValueError) as exc:
         raise ScenarioError(source, "bit", str(exc)) from None
 
 
-def _check_lumped_step(sc: SilScenario, source: str) -> None:
+def _check_lumped_step(sc: Scenario, source: str) -> None:
     """The lumped SIL plant steps with explicit Euler: ``simulation.dt`` must be below its
     stability bound (:func:`downhole.scenario.euler_stable_dt`)."""
     from downhole.params import get_preset
@@ -358,10 +346,27 @@ def _check_lumped_step(sc: SilScenario, source: str) -> None:
                             f"{mode['frequency']:.4g} rad/s)")
 
 
-def load_sil_scenario(path) -> SilScenario:
+def load_sil_scenario(path) -> Scenario:
     """Read and validate a SIL scenario TOML file (:func:`downhole.scenario.schema.
-    read_scenario`: an older-dialect key gets one line naming its replacement)."""
-    from downhole.scenario.schema import read_scenario
+    read_scenario`: an older-dialect key gets one line naming its replacement).
+
+    Parameters
+    ----------
+    path : str or Path
+        The scenario file; ``controller.file`` and ``dashboard.token_file`` are relative to
+        its folder.
+
+    Returns
+    -------
+    Scenario
+        As :func:`parse_sil_scenario` returns it.
+
+    Raises
+    ------
+    ScenarioError
+        An unreadable or invalid file (naming the file and the dotted field).
+    """
+    from downhole._schema import read_scenario
 
     path = Path(path)
     data, source, _ = read_scenario(path)
@@ -373,7 +378,7 @@ def load_sil_scenario(path) -> SilScenario:
     return sc
 
 
-def dashboard_token(sc: SilScenario) -> str | None:
+def dashboard_token(sc: Scenario) -> str | None:
     """The dashboard token of ``sc``: ``[dashboard] token``, the first line of ``token_file``,
     or None.
 
@@ -397,11 +402,11 @@ def dashboard_token(sc: SilScenario) -> str | None:
     return token
 
 
-def _dhp(sc: SilScenario, plant, progress: bool = False):
+def _dhp(sc: Scenario, plant, progress: bool = False):
     from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
     from downhole.control.dhp.weight_sets import weight_set
 
-    d = sc.controller.dhp
+    d = sc.controller.options.dhp
     t = d.training
     r = sc.reference
     ref = {"step": BitReference.step(r.axial_velocity, r.angular_velocity),
@@ -421,13 +426,13 @@ def _dhp(sc: SilScenario, plant, progress: bool = False):
                       settings=DHPSettings(n_samples=t.n_samples), progress=progress)
 
 
-def scenario_controller_file(sc: SilScenario, controller_file: str | None = None) -> str | None:
+def scenario_controller_file(sc: Scenario, controller_file: str | None = None) -> str | None:
     """The controller file a run would load: ``controller_file`` (command line) or
     ``[controller] file``."""
     return controller_file or sc.controller.file
 
 
-def check_code_allowed(sc: SilScenario, *, controller_file: str | None = None,
+def check_code_allowed(sc: Scenario, *, controller_file: str | None = None,
                        allow_code: bool = False) -> None:
     """Refuse, before anything is built, a Python controller file without the opt-in.
 
@@ -445,25 +450,26 @@ def check_code_allowed(sc: SilScenario, *, controller_file: str | None = None,
         raise DownholeInputError(CODE_REFUSED.format(path=file))
 
 
-def build_from_scenario(sc: SilScenario, *, controller_file: str | None = None,
+def build_from_scenario(sc: Scenario, *, controller_file: str | None = None,
                         with_controller: bool = True, allow_code: bool = False,
                         progress: bool = False):
-    """``(plant, controller)`` for a scenario (controller None for ``kind = "none"``, for
+    """``(plant, controller)`` for a scenario (controller None for ``type = "none"``, for
     ``remote = true`` or when ``with_controller`` is False).
 
     Parameters
     ----------
-    sc : SilScenario
+    sc : Scenario
+        As :func:`load_sil_scenario` returns it (its SIL defaults resolved).
     controller_file : str, optional
         Overrides ``[controller] file``.
     with_controller : bool
         Build the controller (False: the plant only).
     allow_code : bool, keyword-only
-        Allow a Python controller file (``kind = "file"``, ``file = "x.py"``) to run. Without
+        Allow a Python controller file (``type = "file"``, ``file = "x.py"``) to run. Without
         it such a scenario is refused before anything is built: a scenario alone never
         executes code.
     progress : bool
-        Show the DHP design's progress bars (``kind = "dhp"``).
+        Show the DHP design's progress bars (``type = "dhp"``).
 
     Raises
     ------
@@ -480,13 +486,13 @@ def build_from_scenario(sc: SilScenario, *, controller_file: str | None = None,
     if sc.link.mode == "hil":
         from downhole.sil.hil import build_hil_plant
 
-        plant = build_hil_plant(m.plant_name, dt=sim.dt, wob=op.wob,
+        plant = build_hil_plant(_plant_name(sc), dt=sim.dt, wob=op.wob,
                                 surface_torque=op.surface_torque)
     else:
-        plant = build_plant(m.plant_name, interface=m.interface, dt=sim.dt,
+        plant = build_plant(_plant_name(sc), interface=m.interface, dt=sim.dt,
                             depth_of_cut=sim.depth_of_cut, wob=op.wob,
                             top_drive_speed=op.surface_speed, surface_torque=op.surface_torque,
-                            design=sc.controller.dhp.design, n_elements=m.fem.n_elements,
+                            design=_dhp_design(sc), n_elements=m.fem.n_elements,
                             lumped_preset=m.preset or "table_2_1",
                             order=4 if m.fidelity == "lumped4" else 12,
                             axial_velocity=op.rop, bit=scenario_bit(sc))
