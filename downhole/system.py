@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -479,7 +480,13 @@ class DrillingSystem:
                 extra = max(0.0, 2 * zeta * math.sqrt(k * m) - float(fld.c_abs[0]))
                 fields.append(replace(fld, c_top=extra))
             model = replace(model, axial=fields[0], torsional=fields[1])
-        return replace(model, weight=self.hanging_weight(), name=f"lumped{order}:system")
+        model = replace(model, weight=self.hanging_weight(), name=f"lumped{order}:system")
+        return replace(model, with_rig=partial(self._chain_with_rig, model, der.string_mass))
+
+    def _chain_with_rig(self, chain, string_mass):
+        from downhole.string.fem import chain_with_rig
+
+        return chain_with_rig(chain, self.well, self.string, self.top_md, *string_mass)
 
     def _build_lumped4(self, **options):
         return self._lumped(4, **options)

@@ -5,6 +5,7 @@ of 50 and 120 rpm; the nominal case drills smoothly and the low-speed case stick
 examples/first_run.toml and examples/first_run_stickslip.toml are the same two cases."""
 
 import json
+import re
 import tomllib
 from pathlib import Path
 
@@ -64,7 +65,11 @@ def test_demo_numbers_are_those_of_a_real_rig(demo):
     ss = load_result(demo / "stickslip" / "result.nc")
     # nominal: the steady state at 120 rpm, 100 kN holds
     assert np.allclose(_second_half(nom, "hook_load"), weight - 100e3, rtol=1e-3)
-    assert np.allclose(_second_half(nom, "wob"), 100e3, rtol=1e-3)
+    # the hook is a force servo at 100 kN below the hanging weight: the bit gets 100 kN less the
+    # string's ground damping alpha0 M v at the ROP (the same balance as the FEM's)
+    mass = system.lumped_derivation().string_mass[0]
+    rop = _second_half(nom, "bit_axial_velocity").mean()
+    assert np.allclose(_second_half(nom, "wob"), 100e3 - 0.05 * mass * rop, rtol=1e-4)
     tob = _second_half(nom, "tob")
     assert 2e3 < tob.mean() < 10e3
     assert _second_half(nom, "surface_torque").max() < 40e3
@@ -77,7 +82,10 @@ def test_demo_numbers_are_those_of_a_real_rig(demo):
     assert s["stick_slip_severity"] > 1 and s["stuck_fraction"] > 0.05
     w = _second_half(ss, "bit_angular_velocity")
     assert w.min() < 0.1 and w.max() > 2 * 50 * RPM
-    assert np.all(_second_half(ss, "top_drive_angular_velocity") == pytest.approx(50 * RPM))
+    # the top drive is the rig's (inertia and PI, as at every fidelity): it holds 50 rpm on
+    # average and gives way a little as the string's torque swings
+    top = _second_half(ss, "top_drive_angular_velocity")
+    assert top.mean() == pytest.approx(50 * RPM, rel=0.02) and np.ptp(top) > 0
     # the surface sees plausible loads; the mean WOB and TOB are the set-point's
     hook = _second_half(ss, "hook_load")
     assert weight - 200e3 < hook.min() and hook.max() < weight
@@ -97,13 +105,18 @@ def test_overview_states_the_operating_point_in_its_axes_units_and_shows_steady_
     res = load_result(demo / "nominal" / "result.nc")
     fig = plot_overview(res, title="nominal", units="metric")
     title = fig._suptitle.get_text()
-    assert "surface 120 rpm" in title and "WOB 100 kN" in title and "m/h" in title
+    assert "surface 120 rpm" in title and "m/h" in title
+    assert re.search(r"WOB (99\.\d|100) kN", title), title
     assert "rad/s" not in title
     fig.canvas.draw()
     for ax in fig.axes:
         assert ax.yaxis.get_offset_text().get_text() == "", ax.get_ylabel()
         lo, hi = ax.get_ylim()
-        assert hi - lo > 1e-3 * max(abs(lo), abs(hi)), ax.get_ylabel()
+        if "measured depth" in ax.get_ylabel():
+            # 30 s at 111 m/h drill about 0.9 m at 3000 m: a metre-scale axis, not noise
+            assert abs(hi - lo) > 0.5, ax.get_ylabel()  # (a depth axis points down)
+        else:
+            assert hi - lo > 1e-3 * max(abs(lo), abs(hi)), ax.get_ylabel()
     speed = next(a for a in fig.axes if a.get_ylabel() == "rotary speed [rpm]")
     lo, hi = speed.get_ylim()
     assert lo < 120 < hi and hi - lo > 5

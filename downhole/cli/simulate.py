@@ -143,7 +143,7 @@ def demo_scenario(name: str) -> dict:
     data["title"] = f"{DEMO_WELL}: {case['label']}"
     data["operation"] = {"surface_speed": case["surface_speed"], "wob": case["wob"]}
     data["simulation"] = {"duration": "30 s", "dt": "0.5 ms", "record_dt": "10 ms",
-                          "integrator": "euler", "depth_of_cut": "delayed", "start": "steady"}
+                          "depth_of_cut": "delayed", "start": "steady"}
     return data
 
 

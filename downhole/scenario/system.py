@@ -51,7 +51,7 @@ the scenario's set-points. Schema (``docs/scenarios.md``, "Describing the system
     record_dt = "10 ms"
     depth_of_cut = "delayed"      # or "approximate"
     start = "rest"                # rest | off_bottom | steady (where the fidelity supports it)
-    integrator = "newmark"        # lumped only: newmark (default) | euler (dt checked)
+    integrator = "newmark"        # the only scheme of a described system (the rig's node)
 
 How each fidelity is driven by the set-points: lumped, the top drive moves at ``rop`` and
 ``surface_speed`` (velocity inputs); neutral, the open-loop commands of the steady state at those
@@ -70,7 +70,7 @@ from pydantic import ValidationError
 from downhole import _schema
 from downhole._schema import DEFAULT_DT  # noqa: F401 -- re-exported (sil.fmu)
 from downhole.errors import DownholeInputError, ScenarioError
-from downhole.scenario import _raise_validation, check_step_count, euler_stable_dt
+from downhole.scenario import _raise_validation, check_step_count
 from downhole.scenario.directional import _string, _well
 from downhole.system import steady_bit_state
 
@@ -304,14 +304,11 @@ def validate_system_scenario(data: dict, source: str, fidelity: str | None = Non
     if rec < dt:
         raise ScenarioError(source, "simulation.record_dt", f"record_dt ({rec:g} s) "
                             f"is below dt ({dt:g} s)")
-    if fid in ("lumped4", "lumped12") and sim.integrator == "euler":
-        bound, mode = euler_stable_dt(model)
-        if dt >= bound:
-            raise ScenarioError(source, "simulation.dt", f"dt = {dt:g} s is too large for "
-                                f"{fid}: explicit Euler is stable only for dt < {bound:.4g} s "
-                                f"(the {mode.get('field', '?')} mode at "
-                                f"{mode.get('frequency', 0.0):.4g} rad/s); use a smaller dt or "
-                                "integrator = 'newmark'")
+    if sim.integrator == "euler":
+        raise ScenarioError(source, "simulation.integrator", "'euler' is the seed's scheme for "
+                            "the lumped presets' ideal top drive (Table 2.1); a described "
+                            "system's rig (top-drive inertia and PI, hook servo) steps with "
+                            "'newmark' at every fidelity")
     if fid == "neutral" and dt > min(model.tau1, model.tau2):
         raise ScenarioError(source, "simulation.dt", f"dt = {dt:g} s exceeds the neutral "
                             f"model's wave delay {min(model.tau1, model.tau2):.4g} s")
@@ -339,11 +336,6 @@ def run_system_scenario(data: dict, source: str, text: str, fidelity: str | None
     kw = dict(duration=sim.duration, dt=dt, depth_of_cut=sim.depth_of_cut,
               record_dt=_or(sim.record_dt, "record_dt"), attrs=attrs, start=sim.start)
     try:
-        if fid in ("lumped4", "lumped12"):
-            from downhole.sim import SurfaceInputs
-
-            return simulate(model, SurfaceInputs.velocity(rop, speed),
-                            integrator=sim.integrator, **kw)
         if fid == "neutral":
             return simulate(model, model.steady_inputs(rop, speed, wob, tob), **kw)
         td = sc.rig.top_drive
@@ -356,6 +348,8 @@ def run_system_scenario(data: dict, source: str, text: str, fidelity: str | None
         else:
             hook = Hook(mode="force", wob=op.wob, block_mass=hk.block_mass,
                         servo_stiffness=hk.servo_stiffness, servo_damping=hk.servo_damping)
+        # the same rig at lumped4, lumped12, fem and hybrid: the top drive and the hook act on
+        # the model's top node (a lumped chain runs with the rig's node on top)
         return simulate(model, top_drive=top, hook=hook, **kw)
     except ScenarioError:
         raise

@@ -512,11 +512,11 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
     """The velocity-driven plant of ``model`` that :func:`export_fmu` wraps for a system scenario.
 
     Commands ``top_drive_axial_velocity`` (m/s) and ``top_drive_angular_velocity`` (rad/s) at
-    every fidelity. ``lumped4`` / ``lumped12``: :class:`~downhole.string.fem.DirectionalPlant`
-    (velocity-driven top, the given ``integrator``); ``neutral``:
-    the same plant over the neutral model's kernel configuration; ``fem`` / ``hybrid``:
+    every fidelity. ``lumped4``, ``lumped12``, ``fem``, ``hybrid``:
     :class:`~downhole.string.fem.DirectionalPlant` with the rig's PI top drive
-    (``surface_speed`` its default set-point) and a velocity-servo hook (block velocity ``rop``).
+    (``surface_speed`` its default set-point) and a velocity-servo hook (block velocity ``rop``)
+    on the model's top node (a lumped chain with the rig's node on top); ``neutral``: the same
+    plant over the neutral model's kernel configuration (the seed's damper pair).
 
     Parameters
     ----------
@@ -534,18 +534,14 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
         Hook block velocity, m/s (default 0; fem/hybrid only).
     depth_of_cut : {"delayed", "approximate"}, optional
         Depth-of-cut model (default ``"delayed"``).
-    integrator : {"newmark", "euler"}, optional
-        Integrator of the lumped plants (default ``"newmark"``).
+    integrator : {"newmark"}, optional
+        The rig's node steps with Newmark (the only choice; kept for callers).
 
     Returns
     -------
     Plant
         A plant of the :class:`~downhole.sim.plant.Plant` contract.
     """
-    if fidelity in ("lumped4", "lumped12"):
-        from downhole.string.fem import DirectionalPlant
-
-        return DirectionalPlant(model, dt=dt, depth_of_cut=depth_of_cut, integrator=integrator)
     if fidelity == "neutral":
         from downhole.string.fem import DirectionalPlant
 

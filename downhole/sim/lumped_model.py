@@ -111,6 +111,12 @@ class ChainModel:
         Weight carried by the hook when the string hangs (N); 0 for the printed unbalanced form.
     params : LumpedParams
         The parameters it was built from.
+    with_rig : callable or None
+        For a chain derived from a described system (:class:`downhole.system.DrillingSystem`):
+        ``with_rig()`` returns the chain with the rig's node on top (a
+        :class:`~downhole.string.fem.DirectionalModel` of kind ``"lumped"``), which a run with a
+        ``top_drive`` / ``hook`` steps. None: a preset's chain, whose top is the ideal velocity
+        drive of the seed's Chapter 2.
     """
 
     name: str
@@ -119,6 +125,7 @@ class ChainModel:
     bit: BitParams
     weight: float
     params: LumpedParams = field(repr=False)
+    with_rig: object = field(default=None, repr=False, compare=False)
 
     @property
     def n(self) -> int:
@@ -147,8 +154,28 @@ class ChainModel:
                  options: dict) -> ChainPack:
         """The pack :func:`downhole.sim.simulate` runs (see its module docstring): the top
         mode from ``inputs`` (a :class:`~downhole.sim.inputs.SurfaceInputs`); ``options``
-        ``integrator``, ``rock_points_per_pitch``, ``rock_memory``."""
+        ``integrator``, ``rock_points_per_pitch``, ``rock_memory``; ``top_drive`` and ``hook``
+        (:class:`~downhole.params.rig.TopDrive`, :class:`~downhole.params.rig.Hook`) run the
+        chain under the rig, as the FEM runs (see :attr:`with_rig`)."""
         opts = dict(options)
+        if "top_drive" in opts or "hook" in opts:
+            if self.with_rig is None:
+                raise DownholeInputError(
+                    "this lumped chain is a preset's (Table 2.1): its top is the seed's ideal "
+                    "velocity drive, it takes no top_drive / hook; describe the system "
+                    "(DrillingSystem, [well] and [string]) to run a lumped chain under a rig")
+            integrator = opts.pop("integrator", "newmark")
+            if integrator != "newmark":
+                raise DownholeInputError(
+                    f"integrator={integrator!r}: the rig's node (top-drive inertia, PI, hook "
+                    "servo) steps with 'newmark'; explicit Euler is the seed's scheme for the "
+                    "lumped presets' ideal top drive")
+            rig = {k: opts.pop(k) for k in ("top_drive", "hook") if k in opts}
+            opts.pop("rock_points_per_pitch", None)
+            if opts.pop("rock_memory", True) is not True or opts:
+                raise DownholeInputError(f"a lumped chain under a rig takes the options "
+                                         f"top_drive, hook, integrator; got {sorted(opts)}")
+            return self.with_rig().run_pack(dt, depth_of_cut, inputs, bit_noise, rig)
         integrator = opts.pop("integrator", "euler")
         spec = RockSurfaceSpec(self.bit.n_blades, int(opts.pop("rock_points_per_pitch", 512)),
                                bool(opts.pop("rock_memory", True)))

@@ -165,8 +165,9 @@ class DirectionalModel:
         ``top``/``bottom`` = ``"fixed"`` or ``"free"`` (top drive inertia not included)."""
         from scipy.linalg import eigh
 
-        if self.kind != "fem":
-            raise DownholeInputError("natural_frequencies is defined for FEM models only")
+        if self.kind not in ("fem", "lumped"):
+            raise DownholeInputError("natural_frequencies is defined for FEM (and lumped) "
+                                     "models only")
         M = _tri_dense(self.Ma if field == "axial" else self.Mt)
         K = _tri_dense(self.Ka if field == "axial" else self.Kt)
         keep = np.ones(self.n_nodes, bool)
@@ -184,7 +185,7 @@ class DirectionalModel:
         """The FEM this model is linearized on: itself for a FEM; for a hybrid, a FEM with the
         same AB and CD nodes and ``n_bc`` elements for the straight section BC (the delay line
         has no finite state; with ``n_bc = 1`` the state count equals the hybrid's)."""
-        if self.kind == "fem":
+        if self.kind in ("fem", "lumped"):
             return self
         iB, iC = self.node_b, self.node_c
         md = np.concatenate([self.node_md[:iB + 1],
@@ -574,6 +575,66 @@ def fem_model(well: WellPath | None = None, string: DrillString | None = None,
     return fem_from_nodes(well, string, bit, md, damping=damping, rayleigh_alpha=alpha,
                           rayleigh_beta=beta, modal_ratio=modal_ratio, friction=mu, v_eps=v_eps,
                           mass=mass, md_b=md_b, md_c=md_c, name=name or label)
+
+
+def chain_with_rig(chain: ChainModel, well: WellPath, string: DrillString, top_md: float,
+                   string_mass: float, string_inertia: float) -> DirectionalModel:
+    """A lumped chain of a described system with the rig's node on top, as a model the FEM's
+    pack steps (kind ``"lumped"``): the top drive and the hook act on that node exactly as on
+    a FEM's top node (:class:`_Packed`), so a command means the same actuator at every fidelity.
+
+    Node 0 carries the string's mass and polar inertia that the chain does not (the chain's
+    masses are matched to the first natural frequency with the top clamped, docs/scenarios.md),
+    so the whole string's inertia turns and hoists; the top drive's inertia and the block mass
+    are added at run time. The chain's top spring and damper join node 0 to the chain's first
+    node; the buoyed weight is spread over the nodes by mass (the hook carries it at rest).
+
+    Parameters
+    ----------
+    chain : ChainModel
+        The chain (gravity pre-balanced) of :meth:`downhole.system.DrillingSystem.build`.
+    well, string : WellPath, DrillString
+        The description (kept on the model for reports).
+    top_md : float
+        Measured depth of the top of the string, m.
+    string_mass, string_inertia : float
+        The string's total mass (kg) and polar inertia (kg m^2).
+
+    Returns
+    -------
+    DirectionalModel
+    """
+    n = chain.n + 1
+
+    def field_mats(fld, total):
+        mass = np.concatenate([[max(total - float(np.sum(fld.mass)), 1e-6 * total)],
+                               np.asarray(fld.mass, float)])
+        k_links = np.concatenate([[fld.k_top], np.asarray(fld.k_link, float)])
+        c_links = np.concatenate([[fld.c_top], np.asarray(fld.c_link, float)])
+        c_ground = np.concatenate([[0.0], np.asarray(fld.c_abs, float)])
+        M = np.zeros((2, n))
+        M[0] = mass
+        K = np.zeros((2, n))
+        C = np.zeros((2, n))
+        C[0] = c_ground
+        for i, (kl, cl) in enumerate(zip(k_links, c_links)):
+            K[0, i] += kl
+            K[0, i + 1] += kl
+            K[1, i] = -kl
+            C[0, i] += cl
+            C[0, i + 1] += cl
+            C[1, i] = -cl
+        return M, K, C
+
+    Ma, Ka, Ca = field_mats(chain.axial, string_mass)
+    Mt, Kt, Ct = field_mats(chain.torsional, string_inertia)
+    gravity = chain.weight * Ma[0] / float(np.sum(Ma[0]))
+    return DirectionalModel(
+        name=f"{chain.name} with the rig", kind="lumped", well=well, string=string,
+        bit=chain.bit, node_md=np.linspace(top_md, well.total_depth, n), Ma=Ma, Ka=Ka, Ca=Ca,
+        Mt=Mt, Kt=Kt, Ct=Ct, Cdense=None, gravity=gravity, elem=np.zeros((n, 8)),
+        radius=np.zeros(n), mu=0.0, v_eps=1e-3, node_b=0, node_c=n - 1, wave=None,
+        info={"chain": chain.name})
 
 
 def fem_from_nodes(well, string, bit, md, *, damping="rayleigh", rayleigh_alpha=0.05,
@@ -1228,10 +1289,19 @@ class DirectionalPlant(Plant):
                  top_drive: TopDrive | None = None, hook: Hook | None = None,
                  depth_of_cut: str = "delayed", mode: str = "velocity",
                  integrator: str | None = None):
+        if isinstance(model, ChainModel) and (top_drive is not None or hook is not None):
+            if model.with_rig is None:
+                raise DownholeInputError("this lumped chain is a preset's (Table 2.1): its top "
+                                         "is the seed's ideal velocity drive, it takes no "
+                                         "top_drive / hook (describe the system to give a rig)")
+            if integrator not in (None, "newmark"):
+                raise DownholeInputError(f"a lumped chain under a rig steps with Newmark, got "
+                                         f"integrator={integrator!r}")
+            model = model.with_rig()  # the chain with the rig's node on top
         neutral = isinstance(model, NeutralModel)
         lumped = isinstance(model, ChainModel) or neutral
         if dt is None:
-            dt = 1e-4 if neutral else 5e-4 if lumped else 1e-3
+            dt = 1e-4 if neutral else 5e-4 if lumped or model.kind == "lumped" else 1e-3
         dt = si_or_number(dt, "time", "dt")  # "0.5 ms" or a pint quantity
         self.model = model
         self._neutral = neutral
