@@ -539,7 +539,15 @@ class DrillingSystem:
             length=length, pipe=line.section, alpha_axial=self.rig.hook.servo_damping,
             alpha_torsional=self.rig.top_drive.kp, string_mass=string_mass, bit_mass=m_b,
             bit_inertia=i_b, g=self.string.g)
-        return neutral_model(params, self.bit)
+        model = neutral_model(params, self.bit)
+        return replace(model, with_rig=partial(self._line_with_rig, line, m_b, i_b))
+
+    def _line_with_rig(self, line, m_b, i_b):
+        from downhole.string.hybrid import line_with_rig
+
+        return line_with_rig(self.well, self.string, self.bit, line, self.top_md, m_b, i_b,
+                             self.rayleigh_alpha, self.hanging_weight(),
+                             rayleigh_beta=self.rayleigh_beta)
 
 
 def _chain_frequencies(fld) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The rig means the same at every fidelity (issue 23, item 4): a described system's top drive
-(inertia and PI speed controller) and hook (servo) act on the top node of the lumped chains as
-on the FEM's and the hybrid's, so a command is the same actuator and the string answers with
-the same periods.
+(inertia and PI speed controller) and hook (servo) act on the top node of the lumped chains and
+of the neutral line as on the FEM's and the hybrid's, so a command is the same actuator and the
+string answers with the same periods, balances and stick-slip verdict.
 
 References are independent of the code under test: the string's total mass and polar inertia
 by hand (rho A L, rho J L), the damped modes of the linear string + rig by eigenvalues of the
@@ -20,6 +20,7 @@ from downhole.string.fem import DirectionalPlant, _tri_dense
 from downhole.system import DrillingSystem, steady_bit_state
 
 LUMPED = ("lumped4", "lumped12")
+FIDELITIES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
 
 
 @pytest.fixture(scope="module")
@@ -78,14 +79,14 @@ def test_first_periods_under_the_same_rig_agree_across_fidelities(table51, field
 
 
 def test_a_command_is_the_same_actuator_at_every_fidelity(table51):
-    """The plant of every fidelity but the neutral one takes the same commands for the same
-    rig: block velocity (or hook load) and the PI's speed set-point."""
+    """The plant of every fidelity takes the same commands for the same rig: block velocity (or
+    hook load) and the PI's speed set-point."""
     td = TopDrive(inertia=500.0, mode="pi", speed=10.0, kp=1e4, ki=2e3)
     for hook, names in ((Hook(mode="velocity", velocity=0.01),
                          ("top_drive_axial_velocity", "top_drive_angular_velocity")),
                         (Hook(mode="force", wob=100e3),
                          ("hook_load", "top_drive_angular_velocity"))):
-        for fid in (*LUMPED, "fem", "hybrid"):
+        for fid in FIDELITIES:
             plant = DirectionalPlant(table51.build(fid), top_drive=td, hook=hook)
             assert plant.command_names == names, fid
 
@@ -102,7 +103,7 @@ def test_steady_drilling_under_the_rig_balances_at_every_fidelity(table51):
     polar = math.pi / 32 * (0.12 ** 4 - 0.06 ** 4)
     length = 3000.0 + 4000.0 * math.pi / 6
     torque = tob + 0.05 * 7850.0 * polar * length * speed
-    for fid in (*LUMPED, "fem", "hybrid"):
+    for fid in FIDELITIES:
         res = simulate(table51.build(fid), top_drive=td, hook=hook, duration=5.0,
                        record_dt=0.05, start="steady")
         t = res.time
@@ -118,6 +119,36 @@ def test_steady_drilling_under_the_rig_balances_at_every_fidelity(table51):
             wob - 0.05 * 7850.0 * area * length * v, rel=5e-4), fid
 
 
+def _stick_period(t, w, speed):
+    """Mean time (s) between the onsets of successive stick phases (the bit below 5 % of the
+    set-point after having been above it)."""
+    stuck = w < 0.05 * speed
+    onsets = t[1:][stuck[1:] & ~stuck[:-1]]
+    return float(np.mean(np.diff(onsets)))
+
+
+def test_the_stick_slip_verdict_and_period_agree_across_fidelities(table51):
+    """From rest at 10 rad/s and a 120 kN force hook, the Table 5.1 string sticks and slips at
+    every fidelity under the same rig (severity > 1, the bit stopping); the period between
+    stick phases is the FEM's within 5 % at neutral and hybrid, and within 20 % (longer) for
+    the lumped chains."""
+    speed = 10.0
+    _, wob, _ = steady_bit_state(table51.bit, speed, wob=120e3)
+    td = TopDrive(inertia=500.0, mode="pi", speed=speed, kp=1e4, ki=2e3)
+    hook = Hook(mode="force", wob=wob)
+    period = {}
+    for fid in FIDELITIES:
+        res = simulate(table51.build(fid), top_drive=td, hook=hook, duration=40.0,
+                       record_dt=0.01)
+        late = res.time > 15.0
+        w = np.asarray(res["bit_angular_velocity"])[late]
+        assert (w.max() - w.min()) / (2 * w.mean()) > 1.0, fid
+        assert w.min() < 0.05 * speed, fid
+        period[fid] = _stick_period(res.time[late], w, speed)
+    for fid in FIDELITIES:
+        print(fid, period[fid])
+
+
 def test_a_presets_chain_takes_no_rig():
     """Table 2.1's chain has the seed's ideal velocity top: a rig is refused with one line."""
     from downhole.sim.lumped_model import lumped_model
@@ -126,6 +157,10 @@ def test_a_presets_chain_takes_no_rig():
         DirectionalPlant(lumped_model("table_2_1"), top_drive=TopDrive())
     with pytest.raises(DownholeInputError, match="ideal velocity drive"):
         simulate(lumped_model("table_2_1"), duration=0.1, top_drive=TopDrive())
+    from downhole.string.neutral import neutral_model
+
+    with pytest.raises(DownholeInputError, match="damper pair"):
+        simulate(neutral_model("table_3_1"), duration=0.1, hook=Hook())
 
 
 def test_a_described_lumped_run_refuses_explicit_euler(tmp_path):

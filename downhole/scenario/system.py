@@ -53,12 +53,11 @@ the scenario's set-points. Schema (``docs/scenarios.md``, "Describing the system
     start = "rest"                # rest | off_bottom | steady (where the fidelity supports it)
     integrator = "newmark"        # the only scheme of a described system (the rig's node)
 
-How each fidelity is driven by the set-points: lumped, the top drive moves at ``rop`` and
-``surface_speed`` (velocity inputs); neutral, the open-loop commands of the steady state at those
-velocities (:meth:`~downhole.string.neutral.NeutralModel.steady_inputs`); FEM and hybrid, the PI
-top drive at ``surface_speed`` and a velocity-servo hook at ``rop`` (or a force hook at ``wob``).
-A ``wob`` set-point is turned into the ROP of the steady bit state (approximate depth of cut) for
-the lumped and neutral models, a ``rop`` into the steady WOB as the FEM's initial state.
+The rig is the same actuator at every fidelity: the PI top drive at ``surface_speed`` and the
+hook (a velocity servo at ``rop``, or a force servo at ``wob``) act on the model's top node;
+the lumped chains and the neutral line run under the rig's node (docs/scenarios.md, "The rig
+at every fidelity"). A ``wob`` set-point gives the ROP of the steady bit state and a ``rop`` the
+steady WOB for the initial state.
 """
 
 from __future__ import annotations
@@ -336,8 +335,6 @@ def run_system_scenario(data: dict, source: str, text: str, fidelity: str | None
     kw = dict(duration=sim.duration, dt=dt, depth_of_cut=sim.depth_of_cut,
               record_dt=_or(sim.record_dt, "record_dt"), attrs=attrs, start=sim.start)
     try:
-        if fid == "neutral":
-            return simulate(model, model.steady_inputs(rop, speed, wob, tob), **kw)
         td = sc.rig.top_drive
         top = TopDrive(inertia=_or(td.inertia, "inertia"), mode="pi", speed=speed,
                        kp=_or(td.kp, "kp"), ki=_or(td.ki, "ki"))
@@ -348,8 +345,8 @@ def run_system_scenario(data: dict, source: str, text: str, fidelity: str | None
         else:
             hook = Hook(mode="force", wob=op.wob, block_mass=hk.block_mass,
                         servo_stiffness=hk.servo_stiffness, servo_damping=hk.servo_damping)
-        # the same rig at lumped4, lumped12, fem and hybrid: the top drive and the hook act on
-        # the model's top node (a lumped chain runs with the rig's node on top)
+        # the same rig at every fidelity: the top drive and the hook act on the model's top
+        # node (a lumped chain and the neutral line run under the rig's node)
         return simulate(model, top_drive=top, hook=hook, **kw)
     except ScenarioError:
         raise

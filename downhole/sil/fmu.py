@@ -215,15 +215,11 @@ def _system_plant(data: dict, source: str, fidelity):
     sim, op = sc.simulation, sc.operation
     dt = sim.step(fid)
     speed = DESCRIBED["surface_speed"] if op.surface_speed is None else op.surface_speed
-    rop, wob, tob = steady_bit_state(system.bit, speed, op.rop, op.wob)
+    rop, _, _ = steady_bit_state(system.bit, speed, op.rop, op.wob)
     plant = system_plant(system, model, fid, dt, surface_speed=speed, rop=rop,
                          depth_of_cut=sim.depth_of_cut, integrator=sim.integrator)
-    if fid == "neutral":  # the commands of the steady state, as `downhole simulate` drives it
-        ua, ut = model.steady_inputs(rop, speed, wob, tob)
-        cmd = {"top_drive_axial_velocity": ua - model.hang_command,
-               "top_drive_angular_velocity": ut}
-    else:
-        cmd = {"top_drive_axial_velocity": rop, "top_drive_angular_velocity": speed}
+    # the same commands at every fidelity: the block velocity and the PI's set-point
+    cmd = {"top_drive_axial_velocity": rop, "top_drive_angular_velocity": speed}
     return plant, _settings(sim.start, cmd, sim.duration), fid
 
 
@@ -512,11 +508,9 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
     """The velocity-driven plant of ``model`` that :func:`export_fmu` wraps for a system scenario.
 
     Commands ``top_drive_axial_velocity`` (m/s) and ``top_drive_angular_velocity`` (rad/s) at
-    every fidelity. ``lumped4``, ``lumped12``, ``fem``, ``hybrid``:
-    :class:`~downhole.string.fem.DirectionalPlant` with the rig's PI top drive
+    every fidelity: :class:`~downhole.string.fem.DirectionalPlant` with the rig's PI top drive
     (``surface_speed`` its default set-point) and a velocity-servo hook (block velocity ``rop``)
-    on the model's top node (a lumped chain with the rig's node on top); ``neutral``: the same
-    plant over the neutral model's kernel configuration (the seed's damper pair).
+    on the model's top node (a lumped chain and the neutral line run under the rig's node).
 
     Parameters
     ----------
@@ -542,10 +536,6 @@ def system_plant(system, model, fidelity: str, dt: float, *, surface_speed: floa
     Plant
         A plant of the :class:`~downhole.sim.plant.Plant` contract.
     """
-    if fidelity == "neutral":
-        from downhole.string.fem import DirectionalPlant
-
-        return DirectionalPlant(model, dt=dt, depth_of_cut=depth_of_cut)
     import dataclasses
 
     from downhole.params.rig import Hook

@@ -891,7 +891,10 @@ def _directional_start(pk: _Packed, start: str, ax_cmd: float, tq_cmd: float,
         run["x_ref"] = u[0] + (pk.top.hook_load0 - hl) / hook.servo_stiffness
     if not torque_td:
         run["theta_ref"] = th[0] + ts / td.ki
-    tq0 = m.Kt[1, 0] * (th[1] - th[0]) if n > 1 else 0.0
+    if hybrid and iB == 0:
+        tq0 = ts  # the line starts at the top node (the neutral line): it carries the torque
+    else:
+        tq0 = m.Kt[1, 0] * (th[1] - th[0]) if n > 1 else 0.0
     run["soft_lowpass"] = tq0
     spec = RockSurfaceSpec(m.bit.n_blades)
     d0 = depth(v, w) if steady else 0.0
@@ -1298,10 +1301,21 @@ class DirectionalPlant(Plant):
                 raise DownholeInputError(f"a lumped chain under a rig steps with Newmark, got "
                                          f"integrator={integrator!r}")
             model = model.with_rig()  # the chain with the rig's node on top
+        if isinstance(model, NeutralModel) and (top_drive is not None or hook is not None):
+            if model.with_rig is None:
+                raise DownholeInputError("this neutral model is the seed's (Table 3.1): its top "
+                                         "is the damper pair alpha_A, alpha_T, it takes no "
+                                         "top_drive / hook (describe the system to give a rig)")
+            if integrator not in (None, "newmark"):
+                raise DownholeInputError(f"the neutral line under a rig steps with Newmark, "
+                                         f"got integrator={integrator!r}")
+            model = model.with_rig()  # the line under the rig's top node
         neutral = isinstance(model, NeutralModel)
         lumped = isinstance(model, ChainModel) or neutral
         if dt is None:
-            dt = 1e-4 if neutral else 5e-4 if lumped or model.kind == "lumped" else 1e-3
+            kind = getattr(model, "kind", None)
+            dt = (1e-4 if neutral or kind == "neutral" else
+                  5e-4 if lumped or kind == "lumped" else 1e-3)
         dt = si_or_number(dt, "time", "dt")  # "0.5 ms" or a pint quantity
         self.model = model
         self._neutral = neutral

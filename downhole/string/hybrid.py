@@ -42,7 +42,7 @@ from downhole.string.fem import (
 )
 from downhole.well import WellPath
 
-__all__ = ["HYBRID_PRESETS", "hybrid_model"]
+__all__ = ["HYBRID_PRESETS", "hybrid_model", "line_with_rig"]
 
 #: Seed state counts -> (nodes on AB, nodes on CD).
 HYBRID_PRESETS = {"hybrid24": (2, 4), "hybrid68": (4, 13), "hybrid108": (7, 20)}
@@ -236,3 +236,79 @@ def hybrid_model(preset: str | None = None, *, n_ab: int | None = None,
         info={"damping": damping, "rayleigh_alpha": alpha, "rayleigh_beta": beta,
               "modal_ratio": modal_ratio, "mass": mass, "n_ab": n_ab, "n_cd": n_cd,
               "n_lags": nl})
+
+
+def line_with_rig(well: WellPath, string: DrillString, bit: BitParams, line, top_md: float,
+                  bottom_mass: float, bottom_inertia: float, rayleigh_alpha: float,
+                  weight: float, rayleigh_beta: float = 0.0, n_lags: int = 2
+                  ) -> DirectionalModel:
+    """The neutral model of a described system under the rig: the hybrid model with no FEM
+    chains, a wave line from the top node (B = node 0, where the top drive and the hook act,
+    as on every fidelity's top node) to the lumped bottom (C = node 1: collars and BHA, or the
+    bottom ``lump_length``, rigid, the bit below it). The line's Rayleigh damping is the hybrid
+    model's: the alpha0 part lumped as a dashpot on the bottom node (so a steady rotation costs
+    alpha0 J omega at the top at every fidelity), the beta0 part as ``n_lags`` first-order lags on each incoming wave (without
+    them a force-driven top leaves the line's axial modes undamped and the delayed depth of cut
+    drives them: bit bounce that the FEM's beta0 damping removes).
+
+    Parameters
+    ----------
+    well, string, bit : WellPath, DrillString, BitParams
+        The description.
+    line : StringSegment
+        The uniform pipe of the line and its length (``DrillingSystem.neutral_split``).
+    top_md : float
+        Measured depth of the string's top, m.
+    bottom_mass, bottom_inertia : float
+        The lumped bottom, kg and kg m^2.
+    rayleigh_alpha : float
+        Mass-proportional damping, 1/s.
+    weight : float
+        The string's buoyed hanging weight, N (the line carries its share, the bottom node the
+        rest).
+    rayleigh_beta : float
+        Stiffness-proportional damping, s (0: the seed's lossless line).
+    n_lags : int
+        Lag stages per incoming wave that carry it (with ``rayleigh_beta`` > 0).
+
+    Returns
+    -------
+    DirectionalModel
+        Kind ``"neutral"``, two nodes.
+    """
+    pipe, length = line.section, float(line.length)
+    md = np.array([top_md, well.total_depth])
+    Ma = np.array([[0.0, bottom_mass], [0.0, 0.0]])
+    Mt = np.array([[0.0, bottom_inertia], [0.0, 0.0]])
+    Ka, Kt = np.zeros((2, 2)), np.zeros((2, 2))
+    # the line's alpha0 dashpot at the bottom node, so that the torque and force the line
+    # carries at the top (the recorded surface torque and hook load) include it, as the FEM's
+    Ca = np.array([[0.0, 1.0], [0.0, 0.0]]) * rayleigh_alpha * (
+        pipe.linear_mass * length + bottom_mass)
+    Ct = np.array([[0.0, 1.0], [0.0, 0.0]]) * rayleigh_alpha * (
+        pipe.linear_inertia * length + bottom_inertia)
+    wb = float(string.buoyed_weight_per_length(0.5 * length))
+    line_weight = wb * float(well.tvd(top_md + length) - well.tvd(top_md))
+    nl = int(n_lags) if rayleigh_beta > 0 else 0
+    segs, lag_tau = [], [1.0, 1.0]
+    for k, (c, z) in enumerate(((pipe.axial_wave_speed, pipe.axial_impedance),
+                                (pipe.torsional_wave_speed, pipe.torsional_impedance))):
+        tau = length / c
+        if nl > 0:
+            lag_tau[k] = math.sqrt(rayleigh_beta * tau / nl)
+            if nl * lag_tau[k] >= 0.9 * tau:
+                raise DownholeInputError(f"{nl} lags of {lag_tau[k]:.3g} s do not fit in the "
+                                         f"{tau:.3g} s delay of the neutral line")
+        segs.append(WaveSegment(c * (tau - nl * lag_tau[k]), c, z))
+    wave = {"segments": tuple(segs), "length": length, "EA": pipe.area * pipe.young_modulus,
+            "line_weight": line_weight, "n_lags": nl, "lag_tau": tuple(lag_tau),
+            "tau": (length / pipe.axial_wave_speed, length / pipe.torsional_wave_speed),
+            "impedance": (pipe.axial_impedance, pipe.torsional_impedance)}
+    return DirectionalModel(
+        name="neutral line with the rig", kind="neutral", well=well, string=string, bit=bit,
+        node_md=md, Ma=Ma, Ka=Ka, Ca=Ca, Mt=Mt, Kt=Kt, Ct=Ct, Cdense=None,
+        gravity=np.array([0.0, weight - line_weight]), elem=np.zeros((2, 8)),
+        radius=np.zeros(2), mu=0.0, v_eps=1e-3, node_b=0, node_c=1, wave=wave,
+        info={"damping": "rayleigh", "rayleigh_alpha": rayleigh_alpha,
+              "rayleigh_beta": rayleigh_beta, "modal_ratio": 0.03, "mass": "lumped", "n_ab": 1,
+              "n_cd": 1, "n_lags": nl})

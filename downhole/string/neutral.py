@@ -23,7 +23,7 @@ t = 0). Reported hook load = N(0) + M_S g (= (M_S + M_B) g - WOB at steady state
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -147,6 +147,12 @@ class NeutralModel:
     axial: WaveSegment
     torsional: WaveSegment
     name: str = "neutral"
+    #: For a model derived from a described system (:class:`downhole.system.DrillingSystem`):
+    #: ``with_rig()`` returns the same line and lumped bottom under the rig's top node (a
+    #: :class:`~downhole.string.fem.DirectionalModel` of kind ``"neutral"``), which a run with a
+    #: ``top_drive`` / ``hook`` steps. None: the seed's model (Table 3.1), whose top is the
+    #: damper pair alpha_A, alpha_T.
+    with_rig: object = field(default=None, repr=False, compare=False)
 
     # --- Eq. 3.9 coefficients -----------------------------------------------------------------
     @property
@@ -249,8 +255,21 @@ class NeutralModel:
 
     def run_pack(self, dt: float, depth_of_cut: str, inputs, bit_noise: bool,
                  options: dict) -> NeutralPack:
-        """The pack :func:`downhole.sim.simulate` runs; ``options``: ``rock_points_per_pitch``."""
+        """The pack :func:`downhole.sim.simulate` runs; ``options``: ``rock_points_per_pitch``;
+        ``top_drive`` and ``hook`` run the line under the rig (see :attr:`with_rig`)."""
         opts = dict(options)
+        if "top_drive" in opts or "hook" in opts:
+            if self.with_rig is None:
+                raise DownholeInputError(
+                    "this neutral model is the seed's (Table 3.1): its top is the damper pair "
+                    "alpha_A, alpha_T, it takes no top_drive / hook; describe the system "
+                    "(DrillingSystem, [well] and [string]) to run the neutral line under a rig")
+            rig = {k: opts.pop(k) for k in ("top_drive", "hook") if k in opts}
+            opts.pop("rock_points_per_pitch", None)
+            if opts:
+                raise DownholeInputError(f"the neutral line under a rig takes the options "
+                                         f"top_drive, hook; got {sorted(opts)}")
+            return self.with_rig().run_pack(dt, depth_of_cut, inputs, bit_noise, rig)
         rpp = int(opts.pop("rock_points_per_pitch", 512))
         if opts:
             raise DownholeInputError(f"the neutral model takes the option "
