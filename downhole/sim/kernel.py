@@ -133,6 +133,10 @@ class KernelParams(NamedTuple):
     bit_disturbance : bool
         ``cmd`` has two more columns: a force (N) and a torque (N m) added to the bit's WOB
         and TOB over the step (noise); not with a given reference.
+    rig_node, bit_node : int
+        The node the top drive and the hook act on, and the node the bit law acts on (-1: the
+        last node). Every pack names them (the chains and the FEM: 0 and the last node); the
+        kernel hard-wires neither.
     """
 
     velocity_hook: bool
@@ -162,6 +166,8 @@ class KernelParams(NamedTuple):
     given_reference: bool = False
     bit_iterations: int = 60
     bit_disturbance: bool = False
+    rig_node: int = 0
+    bit_node: int = -1
 
 
 #: The clocks and references :func:`run_kernel` carries from call to call, one record of
@@ -397,7 +403,8 @@ def run_kernel(model, ks, cmd, top_ref, n_steps, dt, rec, rec_every, rec_start):
     wt_hist, wt_pos, wt_wp = ks.wave_t_hist, ks.wave_t_pos, ks.wave_t
     lag, work = ks.lag, ks.work
     n = state.shape[1]
-    ib = n - 1
+    it = top.rig_node
+    ib = top.bit_node if top.bit_node >= 0 else n - 1
     iB = top.node_b
     iC = top.node_c
     hybrid = top.hybrid
@@ -454,12 +461,12 @@ def run_kernel(model, ks, cmd, top_ref, n_steps, dt, rec, rec_every, rec_start):
     for i in range(n):
         Fst[0, i] = node[i, 0]
     if vel_hook:
-        Fst[0, 0] += -h0
-        Cst[0, 0] += hc
-        Kx[0, 0] = hk
+        Fst[0, it] += -h0
+        Cst[0, it] += hc
+        Kx[0, it] = hk
     if not torque_mode:
-        Cst[1, 0] += kp
-        Kx[1, 0] = ki
+        Cst[1, it] += kp
+        Kx[1, it] = ki
     if hybrid:
         za0 = wa_wp.impedance
         zt0 = wt_wp.impedance
@@ -562,7 +569,7 @@ def run_kernel(model, ks, cmd, top_ref, n_steps, dt, rec, rec_every, rec_start):
             # ---- references at t_{n+1}
             omega_ref = ctq
             if soft:
-                tq0 = mats[9, 0] * (state[3, 1] - state[3, 0]) if n > 1 else 0.0
+                tq0 = mats[9, it] * (state[3, it + 1] - state[3, it]) if n > 1 else 0.0
                 if stau > 0:
                     lowp += (dt / stau) * (tq0 - lowp)
                 omega_ref = ctq - sg * (tq0 - lowp)
@@ -572,13 +579,13 @@ def run_kernel(model, ks, cmd, top_ref, n_steps, dt, rec, rec_every, rec_start):
         # ---- top drive and hook (node 0; the Newmark end-of-step forces)
         if not euler:
             if vel_hook:
-                F[0, 0] = Fst[0, 0] + hk * (x_ref - state[0, 0]) + hc * cax
+                F[0, it] = Fst[0, it] + hk * (x_ref - state[0, it]) + hc * cax
             else:
-                F[0, 0] = Fst[0, 0] + (w_pre - cax)
+                F[0, it] = Fst[0, it] + (w_pre - cax)
             if torque_mode:
-                F[1, 0] = ctq
+                F[1, it] = ctq
             else:
-                F[1, 0] = kp * omega_ref + ki * (th_ref - state[3, 0])
+                F[1, it] = kp * omega_ref + ki * (th_ref - state[3, it])
         # ---- wellbore contact (soft string, frozen-coefficient friction)
         if n_ce > 0:
             for j in range(n_cn):
@@ -634,15 +641,15 @@ def run_kernel(model, ks, cmd, top_ref, n_steps, dt, rec, rec_every, rec_start):
                     fe[i + 1] -= fl
                 if f == 0:
                     if vel_hook:
-                        fe[0] += hk * (xr0 - state[0, 0]) + hc * (vr0 - state[1, 0])
+                        fe[it] += hk * (xr0 - state[0, it]) + hc * (vr0 - state[1, it])
                     else:
-                        fe[0] += w_pre - xr0
+                        fe[it] += w_pre - xr0
                     fe[ib] -= wob_e
                 else:
                     if torque_mode:
-                        fe[0] += tr0
+                        fe[it] += tr0
                     else:
-                        fe[0] += ki * (tr0 - state[3, 0]) + kp * (wr0 - state[4, 0])
+                        fe[it] += ki * (tr0 - state[3, it]) + kp * (wr0 - state[4, it])
                     fe[ib] -= tob_e
                 for i in range(n):
                     state[ru, i] += dt * state[ru + 1, i]
@@ -680,11 +687,11 @@ def run_kernel(model, ks, cmd, top_ref, n_steps, dt, rec, rec_every, rec_start):
                 ta_in = _lag_cascade(lag, 3, nlt, al_t, ta_in)
             sb, sc = wave_source_forces(za, a_in, b_in)
             tsb, tsc = wave_source_forces(zt, ta_in, tb_in)
-            if iB == 0:
+            if iB == it:
                 # the line starts at the top node (the neutral model): its forces add to the
                 # hook and top-drive forces set above
-                F[0, 0] += sb
-                F[1, 0] += tsb
+                F[0, it] += sb
+                F[1, it] += tsb
             else:
                 F[0, iB] = Fst[0, iB] + sb
                 F[1, iB] = tsb
@@ -850,7 +857,7 @@ def run_kernel(model, ks, cmd, top_ref, n_steps, dt, rec, rec_every, rec_start):
             countdown = rec_every
             vab = state[1, ib]
             vtb = state[4, ib]
-            if not (math.isfinite(vab) and math.isfinite(vtb) and math.isfinite(state[0, 0])):
+            if not (math.isfinite(vab) and math.isfinite(vtb) and math.isfinite(state[0, it])):
                 status = 1
                 break
             if approx:
@@ -871,28 +878,29 @@ def run_kernel(model, ks, cmd, top_ref, n_steps, dt, rec, rec_every, rec_start):
             rec[row, 5] = wn + dwob
             rec[row, 6] = tn + dtob
             if given and vel_hook:
-                rec[row, 7] = (h0 + w_pre) - (hk * (x_ref - state[0, 0])
-                                              + hc * (cax - state[1, 0]))
+                rec[row, 7] = (h0 + w_pre) - (hk * (x_ref - state[0, it])
+                                              + hc * (cax - state[1, it]))
                 rec[row, 9] = cax
             elif vel_hook:
-                rec[row, 7] = (h0 + w_pre) - hk * (x_ref - state[0, 0]) \
-                    - hc * (cax - state[1, 0])
-                rec[row, 9] = state[1, 0]
+                rec[row, 7] = (h0 + w_pre) - hk * (x_ref - state[0, it]) \
+                    - hc * (cax - state[1, it])
+                rec[row, 9] = state[1, it]
             else:
                 rec[row, 7] = cax
-                rec[row, 9] = state[1, 0]
+                rec[row, 9] = state[1, it]
             if given and not torque_mode:
-                rec[row, 8] = ki * (th_ref - state[3, 0]) + kp * (ctq - state[4, 0])
+                rec[row, 8] = ki * (th_ref - state[3, it]) + kp * (ctq - state[4, it])
                 rec[row, 10] = ctq
             elif given:
                 rec[row, 8] = ctq
-                rec[row, 10] = state[4, 0]
+                rec[row, 10] = state[4, it]
             else:
-                if hybrid and iB == 0:
+                if hybrid and iB == it:
                     rec[row, 8] = tb_line  # the line's torque at the top node
                 else:
-                    rec[row, 8] = mats[9, 0] * (state[3, 1] - state[3, 0]) if n > 1 else 0.0
-                rec[row, 10] = state[4, 0]
+                    rec[row, 8] = (mats[9, it] * (state[3, it + 1] - state[3, it]) if n > 1
+                                   else 0.0)
+                rec[row, 10] = state[4, it]
             if hybrid:
                 rec[row, 11] = fb_line
                 rec[row, 12] = tb_line
@@ -903,7 +911,7 @@ def run_kernel(model, ks, cmd, top_ref, n_steps, dt, rec, rec_every, rec_start):
                 rec[row, 12] = _mid_torque(mats[9], state[3], iB)
                 rec[row, 13] = _mid_tension(mats[3], state[0], iC)
                 rec[row, 14] = _mid_torque(mats[9], state[3], iC)
-            rec[row, 15] = state[3, 0]
+            rec[row, 15] = state[3, it]
             rec[row, 16] = omega_ref
             row += 1
     rs.time = t_now

@@ -328,7 +328,7 @@ class ChainPack:
             approx_doc=self.approx, node_b=0, node_c=n - 1, hybrid=False, dense=False,
             n_lags_a=0, lag_tau_a=0.0, n_lags_t=0, lag_tau_t=0.0, fb0=0.0, fc0=0.0,
             prebalanced_weight=float(model.weight), explicit_euler=integrator == "euler",
-            given_reference=True)
+            given_reference=True, rig_node=0, bit_node=n - 1)
         self._wave = (np.zeros((2, 4)), np.zeros(1, np.int64),
                       WaveParams(impedance=0.0, delay_steps=1.0, cap=4, a_init=0.0,
                                  b_init=0.0))

@@ -1027,7 +1027,7 @@ class _Packed:
             lag_tau_a=float(wv["lag_tau"][0]) if wv is not None else 0.0,
             n_lags_t=int(wv["n_lags"]) if wv is not None else 0,
             lag_tau_t=float(wv["lag_tau"][1]) if wv is not None else 0.0,
-            fb0=float(fb0), fc0=float(fc0))
+            fb0=float(fb0), fc0=float(fc0), rig_node=0, bit_node=n - 1)
         self.top = top
         self._template = None
         self.record0 = None

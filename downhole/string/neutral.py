@@ -507,7 +507,7 @@ class NeutralPack:
             v_eps=1e-3, approx_doc=self.approx, node_b=0, node_c=1, hybrid=True, dense=False,
             n_lags_a=0, lag_tau_a=1.0, n_lags_t=0, lag_tau_t=1.0, fb0=0.0, fc0=0.0,
             prebalanced_weight=float(p.string_mass * p.g), bit_iterations=1,
-            bit_disturbance=bool(bit_noise))
+            bit_disturbance=bool(bit_noise), rig_node=0, bit_node=1)
         self.n_cmd = 4 if bit_noise else 2
         self._no_ref = np.zeros((1, 4))
 
