@@ -80,6 +80,7 @@ __all__ = [
     "build_system",
     "check_fidelity",
     "is_system_dialect",
+    "lumped_design_model",
     "parse_system",
     "run_system_scenario",
     "steady_bit_state",
@@ -352,3 +353,42 @@ def run_system_scenario(data: dict, source: str, text: str, fidelity: str | None
         raise
     except DownholeInputError as exc:
         raise ScenarioError(source, "simulation", f"{fid}: {exc}") from None
+
+
+def lumped_design_model(data: dict, source: str) -> tuple[dict, dict]:
+    """The 4th-order model a design derives from a file that describes its system ([well],
+    [string], [bit], [model] friction and damping): the ``lumped4`` chain's parameters
+    (:meth:`downhole.system.DrillingSystem.build`: stiffness, first-frequency mass, Rayleigh
+    ground damping) and the bit, as plain dicts (``downhole optimize dp`` passes them to
+    :func:`downhole.control.dp.problem.dp_problem_of`).
+
+    Parameters
+    ----------
+    data : dict
+        The parsed file.
+    source : str
+        The file, for messages.
+
+    Returns
+    -------
+    (dict, dict)
+        LumpedParams and BitParams fields.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and the field of a bad description, or the fidelity's refusal (wall
+        contact in a deviated well, ...).
+    """
+    from downhole.scenario import parse_scenario
+
+    _check_renames(data, source)
+    probe = dict(data)
+    probe["model"] = {**(data.get("model") or {}), "fidelity": "lumped4"}
+    sc = parse_scenario(probe, source)
+    system = build_system(sc, source, "lumped4")
+    try:
+        chain = system.build("lumped4", **_build_options(sc, "lumped4"))
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "model", f"lumped4: {exc}") from None
+    return chain.params.model_dump(), system.bit.model_dump()

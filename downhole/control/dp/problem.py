@@ -103,13 +103,16 @@ class GridSpec(BaseModel):
 
 class ModelSpec(BaseModel):
     """The 4th-order model: a lumped preset, an optional epsilon override (Pa) and further
-    bit-parameter overrides (``bit``: BitParams fields over the preset's, SI or unit strings)."""
+    bit-parameter overrides (``bit``: BitParams fields over the preset's, SI or unit strings).
+    ``lumped``: the 4th-order parameters of a described system (LumpedParams fields, derived
+    by :meth:`downhole.system.DrillingSystem.build` at ``lumped4``), instead of the preset's."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     preset: str = "table_2_1"
     epsilon: Q["pressure"] | None = None
     bit: dict[str, Any] = Field(default_factory=dict)
+    lumped: dict[str, Any] | None = None
 
 
 class DPProblem(BaseModel):
@@ -187,7 +190,9 @@ class DPProblem(BaseModel):
             bit = BitParams(**{**bit.model_dump(), **self.model.bit})
         if self.model.epsilon is not None:
             bit = bit.model_copy(update={"epsilon": float(self.model.epsilon)})
-        return preset.string, bit
+        string = preset.string if self.model.lumped is None else LumpedParams(
+            **self.model.lumped)
+        return string, bit
 
     def arrays(self, epsilon_scale: float = 1.0) -> ModelArrays:
         """Plain arrays for the compiled kernels, with epsilon scaled by ``epsilon_scale``.
@@ -480,12 +485,20 @@ def _with_model(data: dict) -> dict:
     return data
 
 
-def _check_dp_tables(sc: Scenario, source: str) -> None:
+#: What a problem file that describes its system ([well], [string]) may hold besides _TABLES.
+_DESCRIBED_TABLES = ("well", "string", "rig")
+_DESCRIBED_MODEL = ("friction", "rayleigh_alpha", "rayleigh_beta", "lumped4")
+
+
+def _check_dp_tables(sc: Scenario, source: str, described: bool = False) -> None:
     """Refuse what the one schema holds and a problem file does not (one line naming it)."""
-    for key in sorted(sc.model_fields_set - set(_TABLES)):
+    tables = set(_TABLES) | (set(_DESCRIBED_TABLES) if described else set())
+    for key in sorted(sc.model_fields_set - tables):
         raise ScenarioError(source, key, "unknown key in a DP problem file (it has title, "
-                            "description, [model], [bit] and [optimize]; see docs/dp.md)")
-    for key in sorted(sc.model.model_fields_set - {"fidelity", "preset"}):
+                            "description, [model], [bit] and [optimize], and may describe its "
+                            "system with [well] and [string]; see docs/dp.md)")
+    own = {"fidelity", "preset"} if not described else {"fidelity", *_DESCRIBED_MODEL}
+    for key in sorted(sc.model.model_fields_set - own):
         raise ScenarioError(source, f"model.{key}", "unknown key in a DP problem file ([model] "
                             "has fidelity = 'lumped4' and preset; see docs/dp.md)")
     if sc.model.fidelity != _FIDELITY:
@@ -505,7 +518,8 @@ def _file_field(field: str) -> str:
     return f"optimize.{field}" if field else ""
 
 
-def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, str | None]:
+def dp_problem_of(data: dict, source: str = "<dict>", described: tuple | None = None
+                  ) -> tuple[DPProblem, str | None]:
     """Validate a parsed problem file: ``(problem, method or None)``.
 
     The file is validated by the one scenario schema (:func:`downhole._schema.parse`) and read
@@ -519,6 +533,11 @@ def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, str | 
         The parsed TOML tables (``model``, ``bit``, ``optimize``, ...).
     source : str, optional
         Name of the file (or origin), used in error messages (default ``"<dict>"``).
+    described : (dict, dict), optional
+        For a file that describes its system: the 4th-order parameters (LumpedParams fields)
+        and the bit (BitParams fields) derived from it
+        (:func:`downhole.scenario.system.lumped_design_model`); the file's [well], [string],
+        [rig] and description keys of [model] are then read there, not here.
 
     Returns
     -------
@@ -535,16 +554,19 @@ def dp_problem_of(data: dict, source: str = "<dict>") -> tuple[DPProblem, str | 
     """
     check_dialect(data, source)
     sc = parse(_with_model(data), source)
-    _check_dp_tables(sc, source)
+    _check_dp_tables(sc, source, described is not None)
     preset = sc.model.preset or _DEFAULT_PRESET
     bit = dict(sc.bit)
-    if "preset" in bit:
+    if described is not None:  # the system's bit (its preset and overrides) and 4th-order model
+        bit = dict(described[1])
+    if "preset" in bit and described is None:
         raise ScenarioError(source, "bit.preset", f"model.preset = {preset!r} brings "
                             "its bit; give only bit parameters here (epsilon, ...)")
     epsilon = bit.pop("epsilon", None)
     optimize = sc.optimize or OptimizeTable()
     opt = optimize.model_dump(exclude={"method"})
-    opt["model"] = {"preset": preset, "epsilon": epsilon, "bit": bit}
+    opt["model"] = {"preset": preset, "epsilon": epsilon, "bit": bit,
+                    "lumped": None if described is None else dict(described[0])}
     try:
         problem = DPProblem.model_validate(opt)
     except ValidationError as exc:
@@ -584,6 +606,10 @@ def load_dp_scenario(path: str | Path) -> tuple[DPProblem, str | None]:
     from downhole._schema import read_scenario
 
     data, source, _ = read_scenario(path)
+    if "well" in data or "string" in data:
+        raise ScenarioError(source, "well", "this problem file describes its system: "
+                            "`downhole optimize dp` derives the 4th-order model from it "
+                            "(downhole.scenario.system.lumped_design_model)")
     return dp_problem_of(data, source)
 
 
