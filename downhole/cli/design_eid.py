@@ -3,7 +3,8 @@ closed loop with the input delay, write the gains (npz + JSON), a short report a
 
 The scenario is the neutral-model scenario of ``downhole simulate`` (schema in
 :mod:`downhole.scenario.neutral`): ``[model]`` (fidelity "neutral", preset, ``[model.string]``,
-``[bit]`` overrides), ``[controller] type = "eid"`` with the design options
+``[bit]`` overrides) or a described system (``[well]``, ``[string]``: the design model is its
+neutral-type model, :func:`downhole.scenario.system.neutral_design_model`), ``[controller] type = "eid"`` with the design options
 (``internal_model_gain``, ``filter_bandwidth``, ``observer_gain``, ``gain_bound``, ``predictor``,
 ``delayed_input_observer``; all optional) and an optional ``[reference]``. ``[operation]`` and
 ``[simulation]`` are ignored here, so the same file both designs and runs the loop.
@@ -28,6 +29,10 @@ def load_eid_scenario(path: Path):
     from downhole.scenario.neutral import build_neutral, build_reference, load_neutral_scenario
 
     data, source, _ = load_scenario(path)
+    if "well" in data or "string" in data:  # the design model from the description
+        from downhole.scenario.system import neutral_design_model
+
+        return neutral_design_model(data, source)
     model_t = data.get("model")
     if isinstance(model_t, dict) and "fidelity" not in model_t:
         raise ScenarioError(source, "model.fidelity", 'required field is missing (use '

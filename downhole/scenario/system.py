@@ -81,6 +81,7 @@ __all__ = [
     "check_fidelity",
     "is_system_dialect",
     "lumped_design_model",
+    "neutral_design_model",
     "parse_system",
     "run_system_scenario",
     "steady_bit_state",
@@ -392,3 +393,52 @@ def lumped_design_model(data: dict, source: str) -> tuple[dict, dict]:
     except DownholeInputError as exc:
         raise ScenarioError(source, "model", f"lumped4: {exc}") from None
     return chain.params.model_dump(), system.bit.model_dump()
+
+
+#: The keys an EID design on a described system reads besides the description's.
+_EID_DESIGN_KEYS = ("controller.type", "reference", "operation", "simulation")
+
+
+def neutral_design_model(data: dict, source: str):
+    """The EID design of a file that describes its system: the system's neutral-type model
+    (:meth:`downhole.system.DrillingSystem.build` at ``neutral``: the pipe above the BHA as the
+    wave line, the BHA lumped into the bit, the rig's top gains as the model's top dampers),
+    the ``[controller] type = "eid"`` design options and the ``[reference]``.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed file.
+    source : str
+        The file, for messages.
+
+    Returns
+    -------
+    (NeutralModel, dict, Reference)
+        The design model, the design keyword arguments and the reference.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and the field (a description the neutral model cannot represent:
+        several pipe sections, wall contact in a deviated well, ...).
+    """
+    from downhole.scenario import parse_scenario
+    from downhole.scenario.neutral import build_reference
+
+    _check_renames(data, source)
+    eid_keys = tuple(f"controller.{k}" for k in _schema.EIDOptions.model_fields)
+    _schema.only_keys(data, source, SYSTEM_KEYS + _EID_DESIGN_KEYS + eid_keys + ("rig",),
+                      "an EID design on a described system")
+    probe = dict(data)
+    probe["model"] = {**(data.get("model") or {}), "fidelity": "neutral"}
+    sc = parse_scenario(probe, source)
+    if sc.controller.type != "eid":
+        raise ScenarioError(source, "controller.type", 'design eid needs [controller] type = '
+                            f'"eid" with the design options, got {sc.controller.type!r}')
+    system = build_system(sc, source, "neutral")
+    try:
+        model = system.build("neutral", **_build_options(sc, "neutral"))
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "model", f"neutral: {exc}") from None
+    return model, sc.controller.options.design_options(), build_reference(sc)
