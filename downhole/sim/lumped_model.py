@@ -31,7 +31,7 @@ from downhole.sim.kernel import (
     new_run_state,
     run_kernel,
 )
-from downhole.sim.plant import check_start, steady_depth_of_cut
+from downhole.sim.plant import check_start, steady_depth_of_cut, under_rig
 from downhole.sim.wave import WaveParams
 
 __all__ = ["CHAIN_CHANNELS", "ChainField", "ChainModel", "ChainPack", "lumped_model"]
@@ -127,6 +127,10 @@ class ChainModel:
     params: LumpedParams = field(repr=False)
     with_rig: object = field(default=None, repr=False, compare=False)
 
+    #: What a preset chain's top is (the refusal of a rig names it).
+    rigless_top = "this lumped chain is a preset's (Table 2.1): its top is the seed's ideal " \
+                  "velocity drive"
+
     @property
     def n(self) -> int:
         return self.axial.n
@@ -159,23 +163,13 @@ class ChainModel:
         chain under the rig, as the FEM runs (see :attr:`with_rig`)."""
         opts = dict(options)
         if "top_drive" in opts or "hook" in opts:
-            if self.with_rig is None:
-                raise DownholeInputError(
-                    "this lumped chain is a preset's (Table 2.1): its top is the seed's ideal "
-                    "velocity drive, it takes no top_drive / hook; describe the system "
-                    "(DrillingSystem, [well] and [string]) to run a lumped chain under a rig")
-            integrator = opts.pop("integrator", "newmark")
-            if integrator != "newmark":
-                raise DownholeInputError(
-                    f"integrator={integrator!r}: the rig's node (top-drive inertia, PI, hook "
-                    "servo) steps with 'newmark'; explicit Euler is the seed's scheme for the "
-                    "lumped presets' ideal top drive")
+            model = under_rig(self, opts.pop("integrator", None))
             rig = {k: opts.pop(k) for k in ("top_drive", "hook") if k in opts}
             opts.pop("rock_points_per_pitch", None)
             if opts.pop("rock_memory", True) is not True or opts:
                 raise DownholeInputError(f"a lumped chain under a rig takes the options "
                                          f"top_drive, hook, integrator; got {sorted(opts)}")
-            return self.with_rig().run_pack(dt, depth_of_cut, inputs, bit_noise, rig)
+            return model.run_pack(dt, depth_of_cut, inputs, bit_noise, rig)
         integrator = opts.pop("integrator", "euler")
         spec = RockSurfaceSpec(self.bit.n_blades, int(opts.pop("rock_points_per_pitch", 512)),
                                bool(opts.pop("rock_memory", True)))

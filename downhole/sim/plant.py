@@ -42,7 +42,7 @@ from downhole.errors import DownholeInputError
 from downhole.signals import SIGNALS, check_command_value
 from downhole.units import as_si
 
-__all__ = ["START_MODES", "Plant", "check_start", "plant_bit_radius"]
+__all__ = ["START_MODES", "Plant", "check_start", "plant_bit_radius", "under_rig"]
 
 #: The ways a run can start (see the module docstring).
 START_MODES = ("rest", "off_bottom", "steady")
@@ -193,3 +193,36 @@ def steady_depth_of_cut(v: float, omega: float) -> float:
         raise DownholeInputError(f"a steady drilling start needs a positive angular set-point, "
                                  f"got omega = {omega!r} rad/s")
     return 2.0 * math.pi * v / omega
+
+
+def under_rig(model, integrator: str | None = None):
+    """``model.with_rig()``: a lumped chain or a neutral model of a described system under the
+    rig's top node (the model the top drive and the hook act on, as on a FEM's top node).
+
+    Parameters
+    ----------
+    model : ChainModel or NeutralModel
+        A model with a ``with_rig`` builder (None for a seed preset) and a ``rigless_top``
+        sentence saying what its top is instead.
+    integrator : str, optional
+        Must be None or ``"newmark"`` (the rig's node steps with Newmark).
+
+    Returns
+    -------
+    DirectionalModel
+
+    Raises
+    ------
+    DownholeInputError
+        A preset's model (its own top takes no rig) or another integrator.
+    """
+    if model.with_rig is None:
+        raise DownholeInputError(f"{model.rigless_top}; it takes no top_drive / hook: describe "
+                                 "the system (DrillingSystem, [well] and [string]) to run it "
+                                 "under a rig")
+    if integrator not in (None, "newmark"):
+        raise DownholeInputError(f"integrator={integrator!r}: the rig's node (top-drive "
+                                 "inertia, PI, hook servo) steps with 'newmark'; explicit Euler "
+                                 "is the seed's scheme for the Table 2.1 presets' ideal top "
+                                 "drive")
+    return model.with_rig()

@@ -40,7 +40,7 @@ from downhole.sim.kernel import (
     run_kernel,
 )
 from downhole.sim.lumped_model import ChainModel
-from downhole.sim.plant import Plant
+from downhole.sim.plant import Plant, under_rig
 from downhole.sim.wave import WaveParams
 from downhole.string.drillstring import DrillString
 from downhole.string.neutral import NeutralModel
@@ -1292,24 +1292,9 @@ class DirectionalPlant(Plant):
                  top_drive: TopDrive | None = None, hook: Hook | None = None,
                  depth_of_cut: str = "delayed", mode: str = "velocity",
                  integrator: str | None = None):
-        if isinstance(model, ChainModel) and (top_drive is not None or hook is not None):
-            if model.with_rig is None:
-                raise DownholeInputError("this lumped chain is a preset's (Table 2.1): its top "
-                                         "is the seed's ideal velocity drive, it takes no "
-                                         "top_drive / hook (describe the system to give a rig)")
-            if integrator not in (None, "newmark"):
-                raise DownholeInputError(f"a lumped chain under a rig steps with Newmark, got "
-                                         f"integrator={integrator!r}")
-            model = model.with_rig()  # the chain with the rig's node on top
-        if isinstance(model, NeutralModel) and (top_drive is not None or hook is not None):
-            if model.with_rig is None:
-                raise DownholeInputError("this neutral model is the seed's (Table 3.1): its top "
-                                         "is the damper pair alpha_A, alpha_T, it takes no "
-                                         "top_drive / hook (describe the system to give a rig)")
-            if integrator not in (None, "newmark"):
-                raise DownholeInputError(f"the neutral line under a rig steps with Newmark, "
-                                         f"got integrator={integrator!r}")
-            model = model.with_rig()  # the line under the rig's top node
+        if isinstance(model, (ChainModel, NeutralModel)) and (top_drive is not None
+                                                             or hook is not None):
+            model = under_rig(model, integrator)  # the chain / the line under the rig's node
         neutral = isinstance(model, NeutralModel)
         lumped = isinstance(model, ChainModel) or neutral
         if dt is None:

@@ -40,7 +40,7 @@ from downhole.sim.kernel import (
     new_run_state,
     run_kernel,
 )
-from downhole.sim.plant import check_start, steady_depth_of_cut
+from downhole.sim.plant import check_start, steady_depth_of_cut, under_rig
 from downhole.sim.wave import (
     WaveSegment,
     segments_from_pipe,
@@ -154,6 +154,10 @@ class NeutralModel:
     #: damper pair alpha_A, alpha_T.
     with_rig: object = field(default=None, repr=False, compare=False)
 
+    #: What the seed's model's top is (the refusal of a rig names it).
+    rigless_top = "this neutral model is the seed's (Table 3.1): its top is the damper pair " \
+                  "alpha_A, alpha_T"
+
     # --- Eq. 3.9 coefficients -----------------------------------------------------------------
     @property
     def tau1(self) -> float:
@@ -259,17 +263,13 @@ class NeutralModel:
         ``top_drive`` and ``hook`` run the line under the rig (see :attr:`with_rig`)."""
         opts = dict(options)
         if "top_drive" in opts or "hook" in opts:
-            if self.with_rig is None:
-                raise DownholeInputError(
-                    "this neutral model is the seed's (Table 3.1): its top is the damper pair "
-                    "alpha_A, alpha_T, it takes no top_drive / hook; describe the system "
-                    "(DrillingSystem, [well] and [string]) to run the neutral line under a rig")
+            model = under_rig(self)
             rig = {k: opts.pop(k) for k in ("top_drive", "hook") if k in opts}
             opts.pop("rock_points_per_pitch", None)
             if opts:
                 raise DownholeInputError(f"the neutral line under a rig takes the options "
                                          f"top_drive, hook; got {sorted(opts)}")
-            return self.with_rig().run_pack(dt, depth_of_cut, inputs, bit_noise, rig)
+            return model.run_pack(dt, depth_of_cut, inputs, bit_noise, rig)
         rpp = int(opts.pop("rock_points_per_pitch", 512))
         if opts:
             raise DownholeInputError(f"the neutral model takes the option "
