@@ -213,16 +213,23 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         safety=SafetyPolicy(sc.safety.timeout, sc.safety.hold, sc.safety.ramp, sc.safety.resume),
         controller_enabled=sc.controller.enabled and sc.controller.type != "none",
         realtime=rtc.enabled, link_key_file=link_key_file)
-    if runner.ring_capped is not None:
-        kept = runner.recorder.capacity * sim.record_dt
-        typer.echo(f"note: the recording keeps the last {kept:g} s in memory "
-                   f"([realtime] ring_memory_mib = {rtc.ring_memory_mib:g} for "
-                   f"{len(runner.channels)} channels every {sim.record_dt:g} s; ring_seconds = "
-                   f"{rtc.ring_seconds:g} would need "
-                   f"{runner.ring_capped * 8 * len(runner.channels) / 2**20:.0f} MiB)"
-                   + ("" if chunk_dir is not None else
-                      "; set [realtime] chunk_dir to keep the whole run on disk"), err=True)
     dur = duration if duration is not None else sim.duration
+    kept = runner.recorder.capacity * sim.record_dt
+    streamed = None  # a chunk folder of this run's own, removed once --out holds the run
+    if chunk_dir is None and out is not None and dur > kept * (1 + 1e-9):
+        # the run is longer than the ring keeps in memory: stream it to disk beside --out
+        streamed = Path(out).parent / f"{Path(out).name}.chunks"
+        check_output_path(streamed, option=f"{scenario}: the run's chunk folder", kind="folder")
+        runner.stream_to(streamed)
+    if runner.ring_capped is not None or streamed is not None:
+        where = (f"; the whole run streams to {streamed}/ and goes into {out}"
+                 if streamed is not None else
+                 "" if chunk_dir is not None else
+                 "; give --out to keep the whole run on disk")
+        typer.echo(f"note: the recording keeps the last {kept:g} s in memory "
+                   f"([realtime] ring_memory_mib = {rtc.ring_memory_mib:g}, ring_seconds = "
+                   f"{rtc.ring_seconds:g}, {len(runner.channels)} channels every "
+                   f"{sim.record_dt:g} s){where}", err=True)
     patience = wait if wait is not None else sc.link.connect_timeout
     stopper = _StopOnSignal(runner).install()
     out_file = OutputFile(out, "sil") if out is not None else None
@@ -317,6 +324,10 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
                            "link": runner.link.counters if runner.link else None,
                            "events": runner.event_count}, indent=1))
     _write_sil_result(res, out, None if written else out_file, stopper)
+    if streamed is not None and (written or out_file is not None) and Path(out).exists():
+        import shutil
+
+        shutil.rmtree(streamed, ignore_errors=True)  # --out holds the whole run now
 
 
 def _check_controller_choice(sc, scenario, cfile: str | None) -> None:

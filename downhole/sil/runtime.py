@@ -758,7 +758,8 @@ class RealTimeRunner:
         return self.result()
 
     def result(self) -> Result:
-        """The recording in memory as a Result."""
+        """The recording as a Result: the rows in memory, or the whole run from the chunk files
+        when the ring has dropped its oldest rows."""
         import json
 
         units = {f"command_{c}": self.plant.units.get(c, "") for c in self.plant.command_names}
@@ -775,7 +776,22 @@ class RealTimeRunner:
             attrs["link_counters"] = json.dumps(self.link.counters)
         attrs.update({k: v for k, v in self.plant.info.items() if isinstance(v, (str, int,
                                                                                   float))})
-        return self.recorder.to_result(units, attrs)
+        rec = self.recorder
+        if rec.chunk_dir is not None and rec.count > rec.capacity and rec.disk_error is None:
+            # the ring has dropped the oldest rows: the whole run is in the chunk files
+            from downhole.sil.recorder import load_chunks
+
+            rec.flush()
+            res = load_chunks(rec.chunk_dir, units, attrs)
+            res.dataset.attrs.pop("incomplete", None)  # a live read: the run owns the folder
+            return res
+        return rec.to_result(units, attrs)
+
+    def stream_to(self, chunk_dir) -> None:
+        """Record to chunk files in ``chunk_dir`` as well (before the run starts): the run is
+        longer than the ring keeps, so the whole run goes to disk and :meth:`result` reads it
+        back from there."""
+        self.recorder = RingRecorder(self.channels, self.recorder.capacity, chunk_dir)
 
     def close(self) -> None:
         """Close the link (sends BYE to the peer)."""
