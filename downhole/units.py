@@ -510,10 +510,8 @@ def si_or_number(value, dimension: str, what: str):
     ----------
     value : object
         A quantity string, a pint Quantity, or anything else (returned as is).
-    dimension : str
-        A key of :data:`SI_UNITS`, e.g. ``"length"`` or ``"angular_velocity"``.
-    what : str
-        Name of the value (e.g. the parameter name), prefixed to the error message.
+    dimension, what
+        As :func:`as_si`.
 
     Returns
     -------
@@ -538,10 +536,8 @@ def as_si_array(values, dimension: str, what: str):
     values : array_like, str or pint.Quantity
         A pint Quantity array, a sequence (or nested sequence) of numbers (taken as SI) or of
         quantity strings / Quantities, or a single quantity string.
-    dimension : str
-        A key of :data:`SI_UNITS`, e.g. ``"length"`` or ``"angular_velocity"``.
-    what : str
-        Name of the value (e.g. the parameter name), prefixed to the error message.
+    dimension, what
+        As :func:`as_si`.
 
     Returns
     -------

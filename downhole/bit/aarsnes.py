@@ -20,19 +20,11 @@ from __future__ import annotations
 
 from numba import njit
 
-from downhole.bit.detournay import (
-    contact_speed_factor,
-    cutting,
-    friction_coefficient,
-    friction_sign,
-)
+from downhole.bit.detournay import contact_speed_factor, friction_torque_factor
 
 __all__ = [
     "aarsnes_contact_force",
-    "aarsnes_forces_and_slopes",
     "aarsnes_friction_factor",
-    "aarsnes_torque",
-    "aarsnes_wob",
 ]
 
 
@@ -69,106 +61,12 @@ def aarsnes_contact_force(d, v, p):
 
 
 @njit(cache=True, inline="always")
-def aarsnes_wob(d, v, p):
-    """Weight on bit and its slopes ``(WOB, dWOB/dd, dWOB/dv)``; zero for d <= 0.
-
-    Parameters
-    ----------
-    d : float
-        Total depth of cut (all blades), m.
-    v : float
-        Bit axial velocity, m/s (positive into the rock).
-    p : BitKernelParams
-        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
-
-    Returns
-    -------
-    (wob, dwob_dd, dwob_dv) : tuple of float
-        N, N/m, N s/m.
-    """
-    if d <= 0.0:
-        return 0.0, 0.0, 0.0
-    wc, _, kw, _, _ = cutting(d, 0.0, p)
-    wf, dwf_dd, dwf_dv = aarsnes_contact_force(d, v, p)
-    return wc + wf, kw + dwf_dd, dwf_dv
-
-
-@njit(cache=True, inline="always")
 def aarsnes_friction_factor(omega, p):
     """k_f = gamma mu a g(omega) of T_f = k_f W_f and dk_f/domega (no factor 1/2).
 
     Parameters
     ----------
-    omega : float
-        Bit angular velocity, rad/s.
-    p : BitKernelParams
-        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
-
-    Returns
-    -------
-    (k_f, dk_f_domega) : tuple of float
-        The factor, m (N m of torque per N of contact force), and its slope, m s/rad.
+    omega, p
+        As :func:`downhole.bit.detournay.friction_torque_factor`.
     """
-    mugam, dmugam = friction_coefficient(omega, p)
-    g, dg = friction_sign(omega, p)
-    a = p.radius
-    return mugam * a * g, a * (dmugam * g + mugam * dg)
-
-
-@njit(cache=True, inline="always")
-def aarsnes_torque(d, wf, omega, p):
-    """TOB and dTOB/domega at depth of cut ``d`` with the contact force ``wf`` held fixed.
-
-    Zero for d <= 0.
-
-    Parameters
-    ----------
-    d : float
-        Total depth of cut (all blades), m.
-    wf : float
-        Contact force W_f, N.
-    omega : float
-        Bit angular velocity, rad/s.
-    p : BitKernelParams
-        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
-
-    Returns
-    -------
-    (tob, dtob_domega) : tuple of float
-        Torque on bit, N m, and its slope, N m s/rad.
-    """
-    if d <= 0.0:
-        return 0.0, 0.0
-    _, tc, _, _, dtc_dw = cutting(d, omega, p)
-    kf, dkf = aarsnes_friction_factor(omega, p)
-    return tc + kf * wf, dtc_dw + dkf * wf
-
-
-@njit(cache=True, inline="always")
-def aarsnes_forces_and_slopes(d, v, omega, p):
-    """WOB, TOB and their partial slopes of the Aarsnes law; zero for d <= 0.
-
-    Parameters
-    ----------
-    d : float
-        Total depth of cut (all blades), m.
-    v : float
-        Bit axial velocity, m/s (positive into the rock).
-    omega : float
-        Bit angular velocity, rad/s.
-    p : BitKernelParams
-        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
-
-    Returns
-    -------
-    tuple of 7 float
-        ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``: N, N m, N/m, N s/m,
-        N m/m, N m s/m, N m s/rad.
-    """
-    if d <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    wc, tc, kw, dtc_dd, dtc_dw = cutting(d, omega, p)
-    wf, dwf_dd, dwf_dv = aarsnes_contact_force(d, v, p)
-    kf, dkf = aarsnes_friction_factor(omega, p)
-    return (wc + wf, tc + kf * wf, kw + dwf_dd, dwf_dv, dtc_dd + kf * dwf_dd, kf * dwf_dv,
-            dtc_dw + dkf * wf)
+    return friction_torque_factor(omega, p, 1.0)

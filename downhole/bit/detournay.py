@@ -23,12 +23,10 @@ from numba import njit
 __all__ = [
     "contact_speed_factor",
     "cutting",
-    "detournay_forces_and_slopes",
-    "detournay_torque",
-    "detournay_wob",
     "friction_coefficient",
     "friction_factor",
     "friction_sign",
+    "friction_torque_factor",
     "wear_flat_force",
 ]
 
@@ -183,33 +181,8 @@ def wear_flat_force(d, v, p):
 
 
 @njit(cache=True, inline="always")
-def detournay_wob(d, v, p):
-    """Weight on bit and its slopes ``(WOB, dWOB/dd, dWOB/dv)``; zero for d <= 0.
-
-    Parameters
-    ----------
-    d : float
-        Total depth of cut (all blades), m.
-    v : float
-        Bit axial velocity, m/s (positive into the rock).
-    p : BitKernelParams
-        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
-
-    Returns
-    -------
-    (wob, dwob_dd, dwob_dv) : tuple of float
-        N, N/m, N s/m.
-    """
-    if d <= 0.0:
-        return 0.0, 0.0, 0.0
-    wc, _, kw, _, _ = cutting(d, 0.0, p)
-    wf, dwf_dd, dwf_dv = wear_flat_force(d, v, p)
-    return wc + wf, kw + dwf_dd, dwf_dv
-
-
-@njit(cache=True, inline="always")
-def friction_factor(omega, p):
-    """k_f = 1/2 mu gamma a g(omega) of TOB_f = k_f W_f (Eq. 2.6) and dk_f/domega.
+def friction_torque_factor(omega, p, scale):
+    """k_f = scale mu gamma a g(omega) of TOB_f = k_f W_f and dk_f/domega.
 
     Parameters
     ----------
@@ -217,6 +190,8 @@ def friction_factor(omega, p):
         Bit angular velocity, rad/s.
     p : BitKernelParams
         Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
+    scale : float
+        The law's factor: 1/2 for Detournay (Eq. 2.6), 1 for Aarsnes & van de Wouw.
 
     Returns
     -------
@@ -226,66 +201,21 @@ def friction_factor(omega, p):
     mugam, dmugam = friction_coefficient(omega, p)
     g, dg = friction_sign(omega, p)
     a = p.radius
-    return 0.5 * mugam * a * g, 0.5 * a * (dmugam * g + mugam * dg)
+    return scale * mugam * a * g, scale * a * (dmugam * g + mugam * dg)
 
 
 @njit(cache=True, inline="always")
-def detournay_torque(d, wf, omega, p):
-    """TOB and dTOB/domega with the wear-flat force ``wf`` held fixed; zero for d <= 0.
-
-    What the implicit torsional solve iterates on.
+def friction_factor(omega, p):
+    """k_f = 1/2 mu gamma a g(omega) of TOB_f = k_f W_f (Eq. 2.6) and dk_f/domega.
 
     Parameters
     ----------
-    d : float
-        Total depth of cut (all blades), m.
-    wf : float
-        Wear-flat contact force W_f, N.
-    omega : float
-        Bit angular velocity, rad/s.
-    p : BitKernelParams
-        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
+    omega, p
+        As :func:`friction_torque_factor`.
 
     Returns
     -------
-    (tob, dtob_domega) : tuple of float
-        Torque on bit, N m, and its slope, N m s/rad.
+    (k_f, dk_f_domega) : tuple of float
+        :func:`friction_torque_factor` at scale 1/2.
     """
-    if d <= 0.0:
-        return 0.0, 0.0
-    _, tc, _, _, dtc_dw = cutting(d, omega, p)
-    kf, dkf = friction_factor(omega, p)
-    return tc + kf * wf, dtc_dw + dkf * wf
-
-
-@njit(cache=True, inline="always")
-def detournay_forces_and_slopes(d, v, omega, p):
-    """WOB, TOB and their partial slopes of the Detournay law.
-
-    TOB = 1/2 eps a^2 d s(omega) + 1/2 mu gamma a g(omega) W_f (Eqs. 2.4, 2.6).
-
-    Parameters
-    ----------
-    d : float
-        Total depth of cut (all blades), m.
-    v : float
-        Bit axial velocity, m/s (positive into the rock).
-    omega : float
-        Bit angular velocity, rad/s.
-    p : BitKernelParams
-        Compiled bit parameters (:meth:`downhole.params.BitParams.kernel_params`).
-
-    Returns
-    -------
-    tuple of 7 float
-        ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``: N, N m, N/m, N s/m,
-        N m/m, N m s/m, N m s/rad; all zero for d <= 0.
-    """
-    if d <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    wc, tc, kw, dtc_dd, dtc_dw = cutting(d, omega, p)
-    wf, dwf_dd, dwf_dv = wear_flat_force(d, v, p)
-    kf, dkf = friction_factor(omega, p)
-    return (wc + wf, tc + kf * wf, kw + dwf_dd, dwf_dv, dtc_dd + kf * dwf_dd, kf * dwf_dv,
-            dtc_dw + dkf * wf)
-
+    return friction_torque_factor(omega, p, 0.5)

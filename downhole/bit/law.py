@@ -38,24 +38,15 @@ entry to :data:`LAWS`.
 
 from __future__ import annotations
 
+import importlib
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
-from downhole.bit.aarsnes import (
-    aarsnes_contact_force,
-    aarsnes_forces_and_slopes,
-    aarsnes_torque,
-    aarsnes_wob,
-)
-from downhole.bit.detournay import (
-    detournay_forces_and_slopes,
-    detournay_torque,
-    detournay_wob,
-    wear_flat_force,
-)
+from downhole.bit.aarsnes import aarsnes_contact_force, aarsnes_friction_factor
+from downhole.bit.detournay import cutting, friction_factor, wear_flat_force
 from downhole.params.bit import LAW_IDS, BitKernelParams, BitParams
 
 __all__ = [
@@ -144,31 +135,96 @@ def law_id(name: str) -> int:
 
 
 @njit(cache=True, inline="always")
+def _law_contact_force(d, v, p, law):
+    """The contact force ``(W_f, dW_f/dd, dW_f/dv)`` of law ``law`` for d > 0."""
+    if law == _AARSNES:
+        return aarsnes_contact_force(d, v, p)
+    return wear_flat_force(d, v, p)
+
+
+@njit(cache=True, inline="always")
+def _law_friction_factor(omega, p, law):
+    """``(k_f, dk_f/domega)`` of the friction torque T_f = k_f W_f of law ``law``."""
+    if law == _AARSNES:
+        return aarsnes_friction_factor(omega, p)
+    return friction_factor(omega, p)
+
+
+@njit(cache=True, inline="always")
+def _law_wob(d, v, p, law):
+    """:func:`bit_wob` of law ``law`` (cutting plus the law's contact force)."""
+    if d <= 0.0:
+        return 0.0, 0.0, 0.0
+    wc, _, kw, _, _ = cutting(d, 0.0, p)
+    wf, dwf_dd, dwf_dv = _law_contact_force(d, v, p, law)
+    return wc + wf, kw + dwf_dd, dwf_dv
+
+
+@njit(cache=True, inline="always")
+def _law_torque(d, wf, omega, p, law):
+    """:func:`bit_torque_at_contact` of law ``law`` (cutting plus the law's friction)."""
+    if d <= 0.0:
+        return 0.0, 0.0
+    _, tc, _, _, dtc_dw = cutting(d, omega, p)
+    kf, dkf = _law_friction_factor(omega, p, law)
+    return tc + kf * wf, dtc_dw + dkf * wf
+
+
+@njit(cache=True, inline="always")
+def _law_forces_and_slopes(d, v, omega, p, law):
+    """:func:`bit_forces_and_slopes` of law ``law``: TOB = T_c + k_f W_f, WOB = W_c + W_f."""
+    if d <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    wc, tc, kw, dtc_dd, dtc_dw = cutting(d, omega, p)
+    wf, dwf_dd, dwf_dv = _law_contact_force(d, v, p, law)
+    kf, dkf = _law_friction_factor(omega, p, law)
+    return (wc + wf, tc + kf * wf, kw + dwf_dd, dwf_dv, dtc_dd + kf * dwf_dd, kf * dwf_dv,
+            dtc_dw + dkf * wf)
+
+
+def _entry_points(lid):
+    """The compiled ``(wob, torque, forces_and_slopes)`` of law id ``lid``, whatever ``p.law``."""
+
+    @njit(inline="always")
+    def wob(d, v, p):
+        return _law_wob(d, v, p, lid)
+
+    @njit(inline="always")
+    def torque(d, wf, omega, p):
+        return _law_torque(d, wf, omega, p, lid)
+
+    @njit(inline="always")
+    def forces_and_slopes(d, v, omega, p):
+        return _law_forces_and_slopes(d, v, omega, p, lid)
+
+    return {"wob": wob, "torque": torque, "forces_and_slopes": forces_and_slopes}
+
+
+# Each law's module keeps its entry points importable under their names (``detournay_wob``,
+# ``aarsnes_torque``, ...): one composition above serves them all.
+for _law in LAWS.values():
+    for _kind, _fn in _entry_points(_law.law_id).items():
+        setattr(importlib.import_module(_law.module), f"{_law.name}_{_kind}", _fn)
+
+
+@njit(cache=True, inline="always")
 def bit_wob(d, v, p):
     """Weight on bit and its partial slopes ``(wob, dwob_dd, dwob_dv)`` of the selected law.
 
     Parameters
     ----------
-    d : float
-        Total depth of cut (all blades), m.
-    v : float
-        Bit axial velocity, m/s (positive into the rock).
+    d, v : float
+        Total depth of cut (all blades), m; bit axial velocity, m/s (positive into the rock).
     p : BitKernelParams
         Compiled bit parameters (law id ``p.law`` and the law's constants), from
         :meth:`downhole.params.BitParams.kernel_params`.
 
     Returns
     -------
-    wob : float
-        Weight on bit, N.
-    dwob_dd : float
-        dWOB/dd, N/m.
-    dwob_dv : float
-        dWOB/dv, N s/m.
+    wob, dwob_dd, dwob_dv : float
+        Weight on bit, N; dWOB/dd, N/m; dWOB/dv, N s/m. All zero for d <= 0.
     """
-    if p.law == _AARSNES:
-        return aarsnes_wob(d, v, p)
-    return detournay_wob(d, v, p)
+    return _law_wob(d, v, p, p.law)
 
 
 @njit(cache=True, inline="always")
@@ -177,13 +233,8 @@ def bit_contact_force(d, v, p):
 
     Parameters
     ----------
-    d : float
-        Total depth of cut (all blades), m.
-    v : float
-        Bit axial velocity, m/s (positive into the rock).
-    p : BitKernelParams
-        Compiled bit parameters (law id ``p.law`` and the law's constants), from
-        :meth:`downhole.params.BitParams.kernel_params`.
+    d, v, p
+        As :func:`bit_wob`.
 
     Returns
     -------
@@ -192,9 +243,7 @@ def bit_contact_force(d, v, p):
     """
     if d <= 0.0:
         return 0.0, 0.0, 0.0
-    if p.law == _AARSNES:
-        return aarsnes_contact_force(d, v, p)
-    return wear_flat_force(d, v, p)
+    return _law_contact_force(d, v, p, p.law)
 
 
 @njit(cache=True, inline="always")
@@ -214,8 +263,7 @@ def bit_torque_at_contact(d, wf, omega, p):
     omega : float
         Bit angular velocity, rad/s.
     p : BitKernelParams
-        Compiled bit parameters (law id ``p.law`` and the law's constants), from
-        :meth:`downhole.params.BitParams.kernel_params`.
+        As :func:`bit_wob`.
 
     Returns
     -------
@@ -224,9 +272,7 @@ def bit_torque_at_contact(d, wf, omega, p):
     dtob_domega : float
         dTOB/domega, N m s/rad.
     """
-    if p.law == _AARSNES:
-        return aarsnes_torque(d, wf, omega, p)
-    return detournay_torque(d, wf, omega, p)
+    return _law_torque(d, wf, omega, p, p.law)
 
 
 @njit(cache=True, inline="always")
@@ -235,15 +281,10 @@ def bit_forces_and_slopes(d, v, omega, p):
 
     Parameters
     ----------
-    d : float
-        Total depth of cut (all blades), m.
-    v : float
-        Bit axial velocity, m/s (positive into the rock).
+    d, v, p
+        As :func:`bit_wob`.
     omega : float
         Bit angular velocity, rad/s.
-    p : BitKernelParams
-        Compiled bit parameters (law id ``p.law`` and the law's constants), from
-        :meth:`downhole.params.BitParams.kernel_params`.
 
     Returns
     -------
@@ -251,9 +292,7 @@ def bit_forces_and_slopes(d, v, omega, p):
         ``(wob, tob, dwob_dd, dwob_dv, dtob_dd, dtob_dv, dtob_domega)``: N, N m, N/m, N s/m,
         N m/m, N m s/m, N m s/rad; all zero for d <= 0 (bit off bottom).
     """
-    if p.law == _AARSNES:
-        return aarsnes_forces_and_slopes(d, v, omega, p)
-    return detournay_forces_and_slopes(d, v, omega, p)
+    return _law_forces_and_slopes(d, v, omega, p, p.law)
 
 
 @njit(cache=True, inline="always")
@@ -262,15 +301,8 @@ def bit_forces(d, v, omega, p):
 
     Parameters
     ----------
-    d : float
-        Total depth of cut (all blades), m.
-    v : float
-        Bit axial velocity, m/s (positive into the rock).
-    omega : float
-        Bit angular velocity, rad/s.
-    p : BitKernelParams
-        Compiled bit parameters (law id ``p.law`` and the law's constants), from
-        :meth:`downhole.params.BitParams.kernel_params`.
+    d, v, omega, p
+        As :func:`bit_forces_and_slopes`.
 
     Returns
     -------
@@ -310,10 +342,8 @@ def approx_depth_rate(omega, p):
 
     Parameters
     ----------
-    omega : float
-        Bit angular velocity, rad/s.
-    p : BitKernelParams
-        Compiled bit parameters; ``p.omega_floor`` is omega*, rad/s.
+    omega, p
+        As :func:`approx_depth_of_cut`.
 
     Returns
     -------
@@ -486,14 +516,8 @@ def bit_forces_and_slopes_py(d, v, omega, bit: BitParams) -> tuple[float, ...]:
 
     Parameters
     ----------
-    d : float
-        Total depth of cut (all blades), m.
-    v : float
-        Bit axial velocity, m/s (positive into the rock).
-    omega : float
-        Bit angular velocity, rad/s.
-    bit : BitParams or BitKernelParams
-        Bit parameters; a :class:`BitParams` is compiled with ``kernel_params()``.
+    d, v, omega, bit
+        As :func:`bit_forces_py`.
 
     Returns
     -------
@@ -515,14 +539,10 @@ def bit_forces_vec(d, v, omega, bit: BitParams):
 
     Parameters
     ----------
-    d : array_like
-        Total depth of cut, m.
-    v : array_like
-        Bit axial velocity, m/s (positive into the rock).
-    omega : array_like
-        Bit angular velocity, rad/s.
+    d, v, omega : array_like
+        Total depth of cut, m; bit axial velocity, m/s; bit angular velocity, rad/s.
     bit : BitParams or BitKernelParams
-        Bit parameters; a :class:`BitParams` is compiled with ``kernel_params()``.
+        As :func:`bit_forces_py`.
 
     Returns
     -------

@@ -199,16 +199,8 @@ def rock_advance_to(surf, j_next, theta_ref, h, nb, cap, memory, theta_prev, x_p
     ----------
     surf : ndarray, shape (cap,), float64
         Ring buffer of the rock surface, m; updated in place.
-    j_next : int
-        Index of the next grid angle not yet reached.
-    theta_ref : float
-        Bit angle of grid index 0, rad.
-    h : float
-        Grid step in angle, rad.
-    nb : int
-        Grid points per blade pitch.
-    cap : int
-        Ring capacity (a power of two).
+    j_next, theta_ref, h, nb, cap
+        As :func:`rock_depth_at`.
     memory : bool
         Hole-bottom memory (True) or the printed Eq. 2.9.
     theta_prev : float
@@ -289,13 +281,8 @@ def rock_advance(surf, istate, rp, theta_prev, x_prev, theta_new, x_new):
 
     Parameters
     ----------
-    surf : ndarray, shape (cap,), float64
-        Ring buffer of the rock surface (axial position of the hole bottom per grid angle),
-        m, x positive downward; updated in place by the advance functions.
-    istate : ndarray, shape (1,), int64
-        ``[j_next]``, the index of the next grid angle not yet reached.
-    rp : RockSurfaceParams
-        Grid layout (:meth:`RockSurfaceSpec.params`).
+    surf, istate, rp
+        As :func:`rock_depth`.
     theta_prev : float
         Bit angle at the start of the step, rad.
     x_prev : float

@@ -182,12 +182,8 @@ def friction_forces(normal_force, mu, v, omega, radius, v_eps):
 
     Parameters
     ----------
-    normal_force : float
-        Normal force N, N.
-    mu : float
-        Friction coefficient (dimensionless).
-    v : float
-        Axial velocity, m/s.
+    normal_force, mu, v
+        As :func:`friction_damper`.
     omega : float
         Angular velocity, rad/s.
     radius : float

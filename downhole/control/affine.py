@@ -406,64 +406,23 @@ class ControlAffineModel:
         return self._g * self._P[:, None] / self._U[None, :]
 
     def to_nondim_state(self, z):
-        """Non-dimensional state ``zbar = P^-1 z``.
-
-        Parameters
-        ----------
-        z : array_like, shape (..., n)
-            Physical state(s), each entry in the unit of its kind (m, rad, m/s, rad/s).
-
-        Returns
-        -------
-        ndarray
-            ``z / state_scale``, same shape.
-        """
+        """Non-dimensional state(s) ``zbar = P^-1 z = z / state_scale`` of ``z`` (shape (..., n),
+        each entry in the unit of its kind: m, rad, m/s, rad/s)."""
         return np.asarray(z, float) / self._P
 
     def to_physical_state(self, zbar):
-        """Physical state ``z = P zbar``.
-
-        Parameters
-        ----------
-        zbar : array_like, shape (..., n)
-            Non-dimensional state(s).
-
-        Returns
-        -------
-        ndarray
-            ``zbar * state_scale`` in the unit of each state's kind (m, rad, m/s, rad/s),
-            same shape.
-        """
+        """Physical state(s) ``z = P zbar = zbar * state_scale`` (m, rad, m/s, rad/s) of ``zbar``
+        (shape (..., n))."""
         return np.asarray(zbar, float) * self._P
 
     def to_nondim_input(self, u):
-        """Non-dimensional input ``ubar = U^-1 u``.
-
-        Parameters
-        ----------
-        u : array_like, shape (..., m)
-            Physical input(s), in the units of :data:`INPUT_UNITS` (N, N m, m, rad).
-
-        Returns
-        -------
-        ndarray
-            ``u / input_scale``, same shape.
-        """
+        """Non-dimensional input(s) ``ubar = U^-1 u = u / input_scale`` of ``u`` (shape (..., m), in
+        the units of :data:`INPUT_UNITS`: N, N m, m, rad)."""
         return np.asarray(u, float) / self._U
 
     def to_physical_input(self, ubar):
-        """Physical input ``u = U ubar``.
-
-        Parameters
-        ----------
-        ubar : array_like, shape (..., m)
-            Non-dimensional input(s).
-
-        Returns
-        -------
-        ndarray
-            ``ubar * input_scale`` in the units of :data:`INPUT_UNITS`, same shape.
-        """
+        """Physical input(s) ``u = U ubar = ubar * input_scale`` (units of :data:`INPUT_UNITS`) of
+        ``ubar`` (shape (..., m))."""
         return np.asarray(ubar, float) * self._U
 
     # ------------------------------------------------------------------ dynamics

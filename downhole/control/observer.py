@@ -106,6 +106,17 @@ def _positive(name, value) -> float:
     return x
 
 
+def _surface_noise(who: str, noise) -> dict:
+    """:data:`DEFAULT_SURFACE_NOISE` with the entries of ``noise`` (validated, positive) put in;
+    an unknown key is a :class:`DownholeInputError` naming ``who``."""
+    sig = dict(DEFAULT_SURFACE_NOISE)
+    for k, v in dict(noise or {}).items():
+        if k not in sig:
+            raise DownholeInputError(f"{who}: unknown noise key {k!r}; expected {sorted(sig)}")
+        sig[k] = _positive(f"noise.{k}", v)
+    return sig
+
+
 def bit_law_jacobian(bit, v: float, omega: float) -> np.ndarray:
     """Jacobian ``[[dWOB/dv, dWOB/domega], [dTOB/dv, dTOB/domega]]`` of the bit law with the
     approximated depth of cut (d = 2 pi v / omega) at ``(v, omega)`` (central differences).
@@ -356,12 +367,7 @@ def fem_surface_observer(dmodel, dt: float, *, noise: Mapping[str, float] | None
     C[1, 1] = 1.0                 # alpha_1: top-drive angle
     C[2, 2 * n] = 1.0             # v_1
     C[3, 2 * n + 1] = 1.0         # omega_1
-    sig = dict(DEFAULT_SURFACE_NOISE)
-    for k, v in dict(noise or {}).items():
-        if k not in sig:
-            raise DownholeInputError(f"fem_surface_observer: unknown noise key {k!r}; expected "
-                                     f"{sorted(sig)}")
-        sig[k] = _positive(f"noise.{k}", v)
+    sig = _surface_noise("fem_surface_observer", noise)
     R = np.diag([_positive("block_position_noise", block_position_noise),
                  sig["top_drive_angle"], sig["top_drive_axial_velocity"],
                  sig["top_drive_angular_velocity"]]) ** 2
@@ -558,12 +564,7 @@ class NeutralSurfaceObserver:
         if self.dt > model.tau1:
             raise DownholeInputError(f"NeutralSurfaceObserver: dt = {dt} s exceeds the axial "
                                      f"wave delay {model.tau1:.6g} s")
-        sig = dict(DEFAULT_SURFACE_NOISE)
-        for k, v in dict(noise or {}).items():
-            if k not in sig:
-                raise DownholeInputError(f"NeutralSurfaceObserver: unknown noise key {k!r}; "
-                                         f"expected {sorted(sig)}")
-            sig[k] = _positive(f"noise.{k}", v)
+        sig = _surface_noise("NeutralSurfaceObserver", noise)
         self.noise = sig
         nd = model.ndde()
         p = model.params

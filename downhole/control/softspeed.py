@@ -137,12 +137,8 @@ def reflection_coefficient(impedance: float, kp: float, ki: float, inertia: floa
     ----------
     impedance : float
         Characteristic torsional impedance Z of the top pipe, N m s/rad.
-    kp : float
-        Proportional gain P, N m s/rad.
-    ki : float
-        Integral gain I, N m/rad.
-    inertia : float
-        Top-drive inertia J, kg m^2.
+    kp, ki, inertia
+        As :func:`top_drive_impedance`.
     omega : float
         Angular frequency, rad/s (positive).
 

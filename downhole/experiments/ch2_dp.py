@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from downhole.experiments import experiment
+from downhole.experiments._plots import pyplot
 
 __all__ = ["TABLE_2_2", "robust_pair", "spread_metrics", "table_problem"]
 
@@ -51,15 +52,6 @@ def table_problem(horizon: float, search: int, index: int | None, step: float = 
 
 _EVAL_SET = (0.5, 1.5, 2.0)          # Figs. 2.13/2.14: 50, 150, 200 % of epsilon
 _SWEEP_SET = (1.5, 1.75, 2.0, 2.25, 2.5)  # Figs. 2.11/2.12: 150-250 %
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 # --------------------------------------------------------------------------- fig2.7 / fig2.8
@@ -122,7 +114,7 @@ def fig2_7(out_dir: Path, quick: bool):
     e_fwd05, e_inv05, xf05, loads05, idx05 = _model_errors(ref, 0.5)
     e_fwd005, e_inv005, xf005, _, idx005 = _model_errors(ref, 0.05)
     e_fwd002, *_ = _model_errors(ref, 0.02)
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(1, 3, figsize=(14, 4))
     ax[0].plot(ref["t"], ref["x2"] * 1e3, "k", lw=2, label="reference (5e-4 s)")
     ax[0].plot(ref["t"][idx005], np.clip(xf005[:, 1] * 1e3, -20, 40), "b.-", ms=3,
@@ -166,7 +158,7 @@ def fig2_8(out_dir: Path, quick: bool):
         ef, ei, *_ = _model_errors(ref, dt)
         fwd.append(ef)
         inv.append(ei)
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.loglog(steps, np.minimum(fwd, 1e6), "ro-", label="forward model (Eq. 2.12), states")
     ax.loglog(steps, inv, "gs-", label="partially inverted (Eq. 2.15), loads")
@@ -219,7 +211,7 @@ def _fig_replay(out_dir, quick, channel, label, scale_name, fig_id):
     k = np.searchsorted(t, t0)
     path_dev = float(np.max(np.abs(np.interp(t[k:], sol.times, sol.x2 if conv > 1 else sol.x4)
                                    - r4[channel][k:])) / scale)
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(sol.times, (sol.x2 if conv > 1 else sol.x4) * conv, "k.", label="DP path")
     ax.plot(t, r4[channel] * conv, "b", label="4th-order model")
@@ -300,7 +292,7 @@ def spread_metrics(sol, scales, t0: float = 2.0, dt: float = 2.5e-3) -> dict:
 
 
 def _plot_eps(out_dir, fig_id, sol, scales, met, title):
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     cmap = plt.get_cmap("viridis")
     for i, s in enumerate(scales):
@@ -323,18 +315,23 @@ def _monotonic(means) -> bool:
     return bool(np.all(d < 0) or np.all(d > 0))
 
 
+def _sweep_figure(out_dir, fig_id, sol, title):
+    """Figs. 2.11/2.12: ``sol``'s inputs over the epsilon sweep, plotted and measured."""
+    met = spread_metrics(sol, _SWEEP_SET)
+    _plot_eps(out_dir, fig_id, sol, _SWEEP_SET, met, title)
+    return {"measured": {"epsilon_scales": _SWEEP_SET, "mean_x2": met["means"],
+                         "spread": met["spread"], "monotonic": _monotonic(met["means"])},
+            "passed": _monotonic(met["means"]) and met["means"][0] > met["means"][-1]}
+
+
 @experiment("fig2.11", chapter=2, title="Nominal DP inputs over epsilon 150-250 %",
             claim="with nominal DP inputs the bit axial velocity varies monotonically with "
                   "epsilon (time-mean bit velocity decreasing as epsilon grows)",
             caption="Bit axial velocity over varied parameter epsilon with computationally "
                     "efficient dynamic programming optimized inputs")
 def fig2_11(out_dir: Path, quick: bool):
-    p, nominal, _ = robust_pair(quick)
-    met = spread_metrics(nominal, _SWEEP_SET)
-    _plot_eps(out_dir, "fig2.11", nominal, _SWEEP_SET, met, "nominal DP, epsilon 150-250 %")
-    return {"measured": {"epsilon_scales": _SWEEP_SET, "mean_x2": met["means"],
-                         "spread": met["spread"], "monotonic": _monotonic(met["means"])},
-            "passed": _monotonic(met["means"]) and met["means"][0] > met["means"][-1]}
+    _, nominal, _ = robust_pair(quick)
+    return _sweep_figure(out_dir, "fig2.11", nominal, "nominal DP, epsilon 150-250 %")
 
 
 @experiment("fig2.12", chapter=2, title="Robust DP inputs over epsilon 150-250 %",
@@ -344,12 +341,8 @@ def fig2_11(out_dir: Path, quick: bool):
                     "programming optimized inputs")
 def fig2_12(out_dir: Path, quick: bool):
     p, _, robust = robust_pair(quick)
-    met = spread_metrics(robust, _SWEEP_SET)
-    _plot_eps(out_dir, "fig2.12", robust, _SWEEP_SET, met,
-              f"robust DP (ensemble {list(p.robust.epsilon_scales)}), epsilon 150-250 %")
-    return {"measured": {"epsilon_scales": _SWEEP_SET, "mean_x2": met["means"],
-                         "spread": met["spread"], "monotonic": _monotonic(met["means"])},
-            "passed": _monotonic(met["means"]) and met["means"][0] > met["means"][-1]}
+    return _sweep_figure(out_dir, "fig2.12", robust,
+                         f"robust DP (ensemble {list(p.robust.epsilon_scales)}), epsilon 150-250 %")
 
 
 def _pair_measure(quick):
@@ -463,7 +456,7 @@ def table2_2(out_dir: Path, quick: bool):
 def fig2_15(out_dir: Path, quick: bool):
     rows = list(_cost_rows_cached(quick))
     _write_rows(out_dir, rows)
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.5))
     labels = [f"{r['type'][:4]} {r['horizon_s']}s {r['search_grid']}x{r['index_grid']}"
               for r in rows]

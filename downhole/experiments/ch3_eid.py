@@ -9,6 +9,7 @@ from functools import lru_cache
 import numpy as np
 
 from downhole.experiments import experiment
+from downhole.experiments._plots import pyplot
 
 ROP_REF, OMEGA_REF = 0.01, 20.0
 
@@ -26,10 +27,7 @@ def _setup():
 
 
 def _plot(res, path, title, ref=True, extra=None):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     rows = 2 + (1 if extra else 0)
     fig, ax = plt.subplots(rows, 1, figsize=(8, 2.6 * rows), sharex=True)
@@ -203,10 +201,7 @@ def fig3_8(out_dir, quick):
     m, c = _setup()
     dt = 2e-4 if quick else 1e-4
     factors = (0.5, 1.0, 1.5, 2.0)
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
     measured = {}

@@ -21,6 +21,7 @@ import numpy as np
 
 from downhole.errors import DownholeInputError
 from downhole.experiments import experiment
+from downhole.experiments._plots import pyplot
 
 
 def _candidates() -> tuple:
@@ -182,10 +183,7 @@ OPEN_LOOP_MARGIN = 0.5
 
 
 def _plot(points, omegas, rops, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
     ow = sorted({p["omega"] for p in points})

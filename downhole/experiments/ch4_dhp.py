@@ -22,6 +22,7 @@ import numpy as np
 
 from downhole.control.dhp.weight_sets import weight_set
 from downhole.experiments import experiment
+from downhole.experiments._plots import pyplot
 
 SEED_TABLE_4_2 = {"DP 4 states 10^4 grid (0.05 s)": 259.91, "DP 4 states 4x10^4 grid (0.05 s)":
                   3516.27, "DHP 24 states 100 samples": 148.69,
@@ -97,10 +98,7 @@ def _run(ctrl, plant_model, depth_of_cut, duration, record_every=10):
 
 
 def _plot_velocities(res_list, labels, path, title):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for i, (res, lab) in enumerate(zip(res_list, labels)):
@@ -142,10 +140,7 @@ def _tracking(res, t0):
                              "10 iterations at every step (seed: about 4)",
             caption="Weights versus iterations during neural network training")
 def fig4_5(out_dir, quick):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     from downhole.control.dhp import (
         BitReference,
@@ -197,10 +192,7 @@ def fig4_5(out_dir, quick):
                   "4 s before the final time (seed: about 2 s) and stay so to t = 0",
             caption="Trained weights versus time")
 def fig4_6(out_dir, quick):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     ctrl = _controller("step", quick)
     _, _, design = _models()
@@ -302,10 +294,7 @@ def fig4_9(out_dir, quick):
 
 
 def _effort_experiment(index, name, unit, scale, fig, out_dir, quick):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fem24, _, design = _models()
     T = _horizon(quick)
@@ -467,10 +456,7 @@ def table4_2(out_dir, quick):
 
 
 def _bar(rows, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(figsize=(9, 4))
     names = list(SEED_TABLE_4_2)
@@ -578,10 +564,7 @@ _HYB_PLANTS = (("fem24_approximate", 0, "approximate"), ("hybrid68_approximate",
                   "50-300%: stable, no stick-slip after 5 s (quick mode: 12 s runs, N_S = 50, "
                   "RMS from 7 s, epsilon 50/100/300%)")
 def dhp_hybrid68(out_dir, quick):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fem24, hyb68, _ = _models()
     models = (fem24, hyb68)

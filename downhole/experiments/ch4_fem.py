@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from downhole.experiments import experiment
+from downhole.experiments._plots import plot_stick_slip
 
 __all__ = ["fig4_4"]
 
@@ -12,11 +13,6 @@ __all__ = ["fig4_4"]
                   "speed (10 rad/s), Table 5.1 well, PI top drive, 120 kN WOB",
             caption="Stick-slip and bit-bounce behaviors of the drill bit motions")
 def fig4_4(out_dir, quick):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from downhole.sim import simulate
     from downhole.string.fem import fem_model
 
@@ -27,19 +23,9 @@ def fig4_4(out_dir, quick):
     s = r.summary(window=win)
     sel = r.time >= win[0]
     ratio = float(r["bit_angular_velocity"][sel].max() / 10.0)
-    fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    ax[0].plot(r.time, r["bit_angular_velocity"], label="bit")
-    ax[0].plot(r.time, r["top_drive_angular_velocity"], label="top drive")
-    ax[0].set_ylabel("angular velocity (rad/s)")
-    ax[0].legend()
-    ax[1].plot(r.time, 1e3 * r["bit_axial_velocity"])
-    ax[1].set_ylabel("bit axial velocity (mm/s)")
-    ax[1].set_xlabel("time (s)")
-    fig.suptitle(f"Fig. 4.4: {m.n_states}-state FEM, stuck {s['stuck_fraction']:.0%}, "
-                 f"peak {ratio:.2f}x top drive")
-    fig.tight_layout()
-    fig.savefig(out_dir / "fig4.4.png", dpi=110)
-    plt.close(fig)
+    plot_stick_slip(r, out_dir / "fig4.4.png",
+                    f"Fig. 4.4: {m.n_states}-state FEM, stuck {s['stuck_fraction']:.0%}, "
+                    f"peak {ratio:.2f}x top drive")
     r.save(out_dir / "fig4.4.nc")
     measured = {"stuck_fraction": s["stuck_fraction"], "peak_ratio": ratio,
                 "stick_slip_severity": s["stick_slip_severity"],

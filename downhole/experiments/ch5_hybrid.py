@@ -8,6 +8,7 @@ import time
 import numpy as np
 
 from downhole.experiments import experiment
+from downhole.experiments._plots import plot_stick_slip, pyplot
 
 __all__ = ["fig5_4", "fig5_5", "fig5_6", "fig5_7", "fig5_8", "fig5_9", "table5_2"]
 
@@ -15,15 +16,6 @@ __all__ = ["fig5_4", "fig5_5", "fig5_6", "fig5_7", "fig5_8", "fig5_9", "table5_2
 TABLE_5_2 = {("fem", 1e-4, 432): 118.34, ("hybrid", 1e-4, 108): 36.89,
              ("hybrid", 1e-4, 24): 8.52, ("fem", 1e-3, 432): 12.31,
              ("hybrid", 1e-3, 108): 4.33, ("hybrid", 1e-3, 24): 0.74}
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _rms_over_peak(a, b, t):
@@ -46,7 +38,7 @@ def _bc_runs(quick):
 
 
 def _bc_figure(out_dir, quick, kind):
-    plt = _plt()
+    plt = pyplot()
     fem180, dense, hyb = _bc_runs(quick)
     chans = ("force_b", "force_c") if kind == "force" else ("torque_b", "torque_c")
     scale, unit = (1e-3, "kN") if kind == "force" else (1e-3, "kN m")
@@ -96,7 +88,7 @@ def fig5_6(out_dir, quick):
     from downhole.string.fem import fem_model
     from downhole.string.hybrid import hybrid_model
 
-    plt = _plt()
+    plt = pyplot()
     dur = 20.0
     hm = hybrid_model("hybrid68")
     fm = fem_model(n_elements=400 if quick else 1000)
@@ -136,7 +128,6 @@ def fig5_7(out_dir, quick):
     from downhole.sim import simulate
     from downhole.string.hybrid import hybrid_model
 
-    plt = _plt()
     duration = 30.0 if quick else 60.0
     m = hybrid_model("hybrid68")
     r = simulate(m, duration=duration, dt=1e-3)
@@ -152,19 +143,9 @@ def fig5_7(out_dir, quick):
     onsets = r.time[1:][slipping[1:] & ~slipping[:-1]]
     onsets = onsets[onsets > 10.0]
     period = float(np.mean(np.diff(onsets))) if onsets.size > 2 else None
-    fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    ax[0].plot(r.time, w, label="bit")
-    ax[0].plot(r.time, r["top_drive_angular_velocity"], label="top drive")
-    ax[0].set_ylabel("angular velocity (rad/s)")
-    ax[0].legend()
-    ax[1].plot(r.time, 1e3 * r["bit_axial_velocity"])
-    ax[1].set_ylabel("bit axial velocity (mm/s)")
-    ax[1].set_xlabel("time (s)")
-    fig.suptitle(f"Fig. 5.7: 68-state hybrid, stuck {s['stuck_fraction']:.0%}, peak "
-                 f"{ratio:.2f}x, period {period or float('nan'):.1f} s")
-    fig.tight_layout()
-    fig.savefig(out_dir / "fig5.7.png", dpi=110)
-    plt.close(fig)
+    plot_stick_slip(r, out_dir / "fig5.7.png",
+                    f"Fig. 5.7: 68-state hybrid, stuck {s['stuck_fraction']:.0%}, peak "
+                    f"{ratio:.2f}x, period {period or float('nan'):.1f} s", w)
     r.save(out_dir / "fig5.7.nc")
     measured = {"stuck_fraction": s["stuck_fraction"], "peak_ratio": ratio,
                 "stick_slip_period": period, "first_bit_motion_s": first_motion,
@@ -186,7 +167,7 @@ def fig5_8(out_dir, quick):
     from downhole.string.fem import fem_model
     from downhole.string.hybrid import hybrid_model
 
-    plt = _plt()
+    plt = pyplot()
     dur = 20.0
     splits = {24: (2, 4), 32: (3, 5), 40: (4, 6), 48: (4, 8), 68: (4, 13)}
     dense = simulate(fem_model(n_elements=400 if quick else 1000), duration=dur,
@@ -239,7 +220,7 @@ def fig5_9(out_dir, quick):
     from downhole.string.hybrid import hybrid_model
     from downhole.well import WellPath
 
-    plt = _plt()
+    plt = pyplot()
     lengths = [500.0, 2000.0, 5000.0, 10000.0] if quick else [500.0, 1000.0, 2000.0, 4000.0,
                                                              6000.0, 8000.0, 10000.0]
     dur = 10.0 if quick else 30.0

@@ -18,22 +18,14 @@ from __future__ import annotations
 import numpy as np
 
 from downhole.experiments import experiment
+from downhole.experiments._plots import pyplot
 
 #: Open-loop operating point of Fig. 6.5 (slack-off N, top-drive torque N m).
 OPEN_LOOP = (100e3, 20e3)
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def _plot(res, path, title, off=None):
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True)
     ax[0].plot(res.time, res["bit_angular_velocity"], label="bit (SIL runtime)")
     if off is not None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from downhole.experiments import experiment
+from downhole.experiments._plots import pyplot
 from downhole.sim.loop import run_loop
 
 #: What holds from the surface (the claim of ``observer-surface``), checked below.
@@ -94,10 +95,7 @@ def _dhp_measure(r, t0=5.0):
 
 
 def _plot(eid_res, dhp_runs, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(2, 2, figsize=(11, 6), sharex="col")
     t = eid_res.time

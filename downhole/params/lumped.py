@@ -35,19 +35,9 @@ class TwelfthOrderSplit(BaseModel):
     servo_damping_ratio: float = Field(0.7, ge=0)
 
     def model_post_init(self, __context) -> None:
-        """Pydantic hook run after field validation: check the shares.
-
-        Parameters
-        ----------
-        __context : object
-            Pydantic's validation context (unused).
-
-        Raises
-        ------
-        ValueError
-            If ``mass_shares`` or ``compliance_shares`` are not three positive numbers summing to 1
-            (pydantic reports it as a validation error).
-        """
+        """Pydantic hook after field validation (``__context`` unused): a ``ValueError``, reported
+        as a validation error, unless ``mass_shares`` and ``compliance_shares`` are three
+        positive numbers summing to 1."""
         for name in ("mass_shares", "compliance_shares"):
             vals = getattr(self, name)
             if any(v <= 0 for v in vals) or abs(sum(vals) - 1.0) > 1e-9:

@@ -47,18 +47,8 @@ class PipeSection(BaseModel):
     weight_factor: float = Field(1.0, ge=1.0, le=3.0)
 
     def model_post_init(self, __context) -> None:
-        """Pydantic hook run after field validation: check the diameters.
-
-        Parameters
-        ----------
-        __context : object
-            Pydantic's validation context (unused).
-
-        Raises
-        ------
-        ValueError
-            If the inner diameter is not smaller than the outer diameter.
-        """
+        """Pydantic hook after field validation (``__context`` unused): a ``ValueError``, reported
+        as a validation error, if the inner diameter is not smaller than the outer one."""
         if self.inner_diameter >= self.outer_diameter:
             raise ValueError(
                 f"inner_diameter ({self.inner_diameter} m) must be smaller than "

@@ -169,6 +169,15 @@ def _require_key_beyond_loopback(host: str, signer, what: str) -> None:
             f"key_file= (docs/sil.md, 'Security: the UDP link')")
 
 
+def _shared_key(key, key_file, host, what):
+    """The shared key (:func:`load_key`) and its :class:`Signer` (None without a key), refused
+    beyond the loopback without one (:func:`_require_key_beyond_loopback`, ``what``)."""
+    k = load_key(key, key_file)
+    signer = Signer(k) if k is not None else None
+    _require_key_beyond_loopback(host, signer, what)
+    return k, signer
+
+
 class _SeqTracker:
     """Classifies incoming sequence numbers: new, duplicate or reordered; counts gaps.
 
@@ -306,10 +315,9 @@ class PlantLink:
 
         self.layout = layout
         self._layout_raw = pack_layout(layout)
-        k = load_key(key, key_file)
-        self._key = k
-        self._signer = Signer(k) if k is not None else None  # the shared key: HELLO, CHALLENGE
-        _require_key_beyond_loopback(host, self._signer, "binding the plant's UDP link to")
+        # the shared key and its signer: HELLO, CHALLENGE
+        self._key, self._signer = _shared_key(key, key_file, host,
+                                              "binding the plant's UDP link to")
         # keyed sessions: the session keys (controller -> plant, plant -> controller), the last
         # counter accepted from the controller, the challenges outstanding, and bounded
         # memories of HELLO nonces and ended sessions (keyless: _rx and _tx stay None)
@@ -953,10 +961,8 @@ class ControllerClient:
 
     def __init__(self, host: str, port: int, name: str = "controller", *, key=None,
                  key_file=None, bind: tuple | None = None):
-        k = load_key(key, key_file)
-        self._key = k
-        self._signer = Signer(k) if k is not None else None  # the shared key: HELLO, CHALLENGE
-        _require_key_beyond_loopback(host, self._signer, "the plant at")
+        # the shared key and its signer: HELLO, CHALLENGE
+        self._key, self._signer = _shared_key(key, key_file, host, "the plant at")
         # keyed: the session keys (controller -> plant, plant -> controller) and the last
         # counter accepted from the plant; ended sessions of this client (keyless: None)
         self._tx: Signer | None = None

@@ -200,11 +200,7 @@ class SurfaceInputs:
         Returns
         -------
         SurfaceInputs
-
-        Raises
-        ------
-        DownholeInputError
-            A value that is not a number, a quantity of the right dimension or a valid signal.
+            Raising :class:`DownholeInputError` as :meth:`velocity` does.
         """
         return cls("force", hook_load, torque)
 

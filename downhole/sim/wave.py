@@ -532,10 +532,8 @@ def wave_end_forces(z, v_b, v_c, a_in, b_in):
     ----------
     z : float
         Characteristic impedance Z, N s/m or N m s/rad.
-    v_b, v_c : float
-        Velocities of the end nodes B and C, m/s or rad/s.
-    a_in, b_in : float
-        Incoming waves at C and at B, m/s or rad/s.
+    v_b, v_c, a_in, b_in
+        As :func:`wave_outgoing`.
 
     Returns
     -------

@@ -249,8 +249,8 @@ class DrillString:
 
         Parameters
         ----------
-        s : float or array_like
-            Distance from the top of the string (measured depth along the string), m.
+        s
+            As :meth:`segment_at`.
         name : str
             Attribute name of :class:`PipeSection`.
 
@@ -273,8 +273,8 @@ class DrillString:
 
         Parameters
         ----------
-        s : float or array_like
-            Distance from the top of the string (measured depth along the string), m.
+        s
+            As :meth:`segment_at`.
 
         Returns
         -------

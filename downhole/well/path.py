@@ -393,15 +393,18 @@ class WellPath:
         dtds = np.where(small[..., None], 0.0, kappa[..., None] * nrm / np.where(nn > 0, nn, 1.0))
         return t, pos, kappa, dtds
 
+    def _frame_at(self, md):
+        """:meth:`_frame` (tangent, position, curvature, dt/ds) at measured depth ``md``."""
+        _, i, f = self._locate(md)
+        return self._frame(i, f)
+
     def tangent(self, md) -> np.ndarray:
         """Unit tangent (north, east, down) at ``md``, shape (..., 3)."""
-        _, i, f = self._locate(md)
-        return self._frame(i, f)[0]
+        return self._frame_at(md)[0]
 
     def position(self, md) -> np.ndarray:
         """North, east, TVD at ``md``, m, shape (..., 3)."""
-        _, i, f = self._locate(md)
-        return self._frame(i, f)[1]
+        return self._frame_at(md)[1]
 
     def tvd(self, md) -> np.ndarray:
         """True vertical depth at ``md``, m."""
@@ -417,13 +420,11 @@ class WellPath:
 
     def curvature(self, md) -> np.ndarray:
         """Curvature (dogleg severity) at ``md``, rad/m; piecewise constant between stations."""
-        _, i, f = self._locate(md)
-        return self._frame(i, f)[2]
+        return self._frame_at(md)[2]
 
     def curvature_vector(self, md) -> np.ndarray:
         """dt/ds at ``md``, 1/m, shape (..., 3)."""
-        _, i, f = self._locate(md)
-        return self._frame(i, f)[3]
+        return self._frame_at(md)[3]
 
     # --- survey quantities -------------------------------------------------------------------
     def _rates(self, md):

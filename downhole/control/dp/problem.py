@@ -227,18 +227,8 @@ class DPProblem(BaseModel):
 
     # ------------------------------------------------------------------ validation
     def model_post_init(self, __context) -> None:
-        """Pydantic hook run after field validation: check the problem's consistency.
-
-        Parameters
-        ----------
-        __context : object
-            Pydantic's validation context (unused).
-
-        Raises
-        ------
-        DownholeInputError
-            An inconsistent problem (the message names the field).
-        """
+        """Pydantic hook after field validation (``__context`` unused): a
+        :class:`DownholeInputError` naming the field of an inconsistent problem."""
         self._check()
 
     def _check(self) -> None:

@@ -58,12 +58,8 @@ def trajectory_cost(problem, x2, x4) -> float:
 
     Parameters
     ----------
-    problem : DPProblem
-        The problem (weights lambda1..4, targets v_m, w_m, v_d, w_d and step Delta t, s).
-    x2 : array_like, shape (N+1,)
-        Bit axial velocity at k = 0..N, m/s.
-    x4 : array_like, shape (N+1,)
-        Bit angular velocity at k = 0..N, rad/s.
+    problem, x2, x4
+        As :func:`stage_costs`.
 
     Returns
     -------

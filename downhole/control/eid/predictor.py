@@ -200,7 +200,11 @@ def predictive_closed_loop(controller, model, rop: float, omega: float,
     depth-of-cut coupling k_c the axial reference perturbation is k_c (rop/omega) times the bit
     angular velocity: it enters the internal model (x_R' = B_R (r - x_p)) and the damper,
     whose command acts on the bit tau1 later (a factor exp(-s tau1)). Returns the same keys."""
-    from downhole.control.eid.stability import _bit_rock_gains, _newton_roots, channel_loop_matrices
+    from downhole.control.eid.stability import (
+        _bit_rock_gains,
+        _regenerative_roots,
+        channel_loop_matrices,
+    )
 
     mats = [channel_loop_matrices(controller.model_coeffs[i], controller.gains[i],
                                   predictor=controller.predictor,
@@ -235,12 +239,4 @@ def predictive_closed_loop(controller, model, rop: float, omega: float,
             M[:, 0, n] += -b * damping_gain * fil_a * kap * np.exp(-s * model.tau1)
         return np.linalg.det(M)
 
-    roots = _newton_roots(char, im_max=im_max, n_re=3, d_im=3.0, iters=40)
-    chain = max(math.log(abs(g1)) / (2 * model.tau1), math.log(abs(u1)) / (2 * model.tau2))
-    sa = float(max(roots.real.max() if roots.size else -math.inf, chain))
-    dom = roots[0] if roots.size else complex(chain, 0)
-    osc = [r for r in roots if r.imag > 10.0]
-    osc = osc[0] if osc else complex(-math.inf, 0.0)
-    return {"spectral_abscissa": sa, "dominant_root": [float(dom.real), float(dom.imag)],
-            "rightmost_oscillatory_root": [float(osc.real), float(osc.imag)],
-            "roots": [[float(r.real), float(r.imag)] for r in roots[:6]], "stable": sa < 0}
+    return _regenerative_roots(char, im_max, g1, u1, model)

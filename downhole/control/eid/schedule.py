@@ -185,12 +185,8 @@ def closed_loop_margin(c, model, rop: float, omega: float) -> dict:
     ----------
     c : EIDController or PredictiveEID
         The controller.
-    model : NeutralModel
-        The neutral-type plant.
-    rop : float
-        Rate of penetration, m/s.
-    omega : float
-        Bit rotary speed, rad/s.
+    model, rop, omega
+        As :func:`open_loop_abscissa`.
 
     Returns
     -------

@@ -321,6 +321,21 @@ def bit_rock_open_loop_roots(model, rop: float = 0.01, omega: float = 20.0, *,
     return _newton_roots(f, im_max=im_max)
 
 
+def _regenerative_roots(char, im_max, g1, u1, model) -> dict:
+    """Roots of the regenerative characteristic ``char`` and their summary (spectral abscissa
+    with the neutral chain's bound log|g1| / 2 tau1, log|u1| / 2 tau2; dominant and rightmost
+    oscillatory roots; the six rightmost roots; stability)."""
+    roots = _newton_roots(char, im_max=im_max, n_re=3, d_im=3.0, iters=40)
+    chain = max(math.log(abs(g1)) / (2 * model.tau1), math.log(abs(u1)) / (2 * model.tau2))
+    sa = float(max(roots.real.max() if roots.size else -math.inf, chain))
+    dom = roots[0] if roots.size else complex(chain, 0)
+    osc = [r for r in roots if r.imag > 10.0]
+    osc = osc[0] if osc else complex(-math.inf, 0.0)
+    return {"spectral_abscissa": sa, "dominant_root": [float(dom.real), float(dom.imag)],
+            "rightmost_oscillatory_root": [float(osc.real), float(osc.imag)],
+            "roots": [[float(r.real), float(r.imag)] for r in roots[:6]], "stable": sa < 0}
+
+
 def regenerative_closed_loop(controller, model, rop: float = 0.01, omega: float = 20.0, *,
                              im_max: float = 200.0) -> dict:
     """Spectral abscissa of the EID closed loop on the true plant (input delay included) with
@@ -366,12 +381,4 @@ def regenerative_closed_loop(controller, model, rop: float = 0.01, omega: float 
         M[:, n, n] += -ft * kt * c
         return np.linalg.det(M)
 
-    roots = _newton_roots(char, im_max=im_max, n_re=3, d_im=3.0, iters=40)
-    chain = max(math.log(abs(g1)) / (2 * model.tau1), math.log(abs(u1)) / (2 * model.tau2))
-    sa = float(max(roots.real.max() if roots.size else -math.inf, chain))
-    dom = roots[0] if roots.size else complex(chain, 0)
-    osc = [r for r in roots if r.imag > 10.0]
-    osc = osc[0] if osc else complex(-math.inf, 0.0)
-    return {"spectral_abscissa": sa, "dominant_root": [float(dom.real), float(dom.imag)],
-            "rightmost_oscillatory_root": [float(osc.real), float(osc.imag)],
-            "roots": [[float(r.real), float(r.imag)] for r in roots[:6]], "stable": sa < 0}
+    return _regenerative_roots(char, im_max, g1, u1, model)
