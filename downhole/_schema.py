@@ -1079,10 +1079,8 @@ def parse(data: dict, source: str) -> Scenario:
 
     Parameters
     ----------
-    data : dict
-        The parsed file.
-    source : str
-        The file, for messages.
+    data, source : dict, str
+        The parsed file and its name (for messages).
 
     Returns
     -------
@@ -1115,10 +1113,8 @@ def refuse_keys(data: dict, source: str, keys: dict[str, str]) -> None:
 
     Parameters
     ----------
-    data : dict
-        The parsed file.
-    source : str
-        The file, for messages.
+    data, source : dict, str
+        The parsed file and its name (for messages).
     keys : dict
         Dotted key -> why it does not apply (and what to use instead).
 
@@ -1172,10 +1168,8 @@ def only_keys(data: dict, source: str, allowed: tuple[str, ...], what: str) -> N
 
     Parameters
     ----------
-    data : dict
-        The parsed file.
-    source : str
-        The file, for messages.
+    data, source : dict, str
+        The parsed file and its name (for messages).
     allowed : tuple of str
         The dotted keys the command reads; a key also allows every key below it.
     what : str

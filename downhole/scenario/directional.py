@@ -159,10 +159,8 @@ def parse_directional(data: dict, source: str) -> Scenario:
 
     Parameters
     ----------
-    data : dict
-        The parsed file.
-    source : str
-        The file, for messages.
+    data, source : dict, str
+        The parsed file and its name (for messages).
 
     Returns
     -------

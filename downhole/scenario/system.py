@@ -142,10 +142,8 @@ def parse_system(data: dict, source: str):
 
     Parameters
     ----------
-    data : dict
-        The parsed file.
-    source : str
-        The file, for messages.
+    data, source : dict, str
+        The parsed file and its name (for messages).
 
     Returns
     -------
@@ -365,10 +363,8 @@ def lumped_design_model(data: dict, source: str) -> tuple[dict, dict]:
 
     Parameters
     ----------
-    data : dict
-        The parsed file.
-    source : str
-        The file, for messages.
+    data, source : dict, str
+        The parsed file and its name (for messages).
 
     Returns
     -------
@@ -407,10 +403,8 @@ def neutral_design_model(data: dict, source: str):
 
     Parameters
     ----------
-    data : dict
-        The parsed file.
-    source : str
-        The file, for messages.
+    data, source : dict, str
+        The parsed file and its name (for messages).
 
     Returns
     -------
