@@ -32,9 +32,10 @@ from downhole.errors import DownholeInputError
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 RUN = "runs"
 SLOW = "slow"  # runs, but designs or trains for more than a few seconds: @pytest.mark.slow
+RIG = "with a rig"  # runs with a rig on the HIL link: test_udp_recipe
 FIDELITIES = ("lumped4", "lumped12", "neutral", "fem", "hybrid")
 
-# Expected outcome per example and command: RUN, SLOW (runs; marked slow) or the dotted field
+# Expected outcome per example and command: RUN, SLOW (runs; marked slow), RIG or the dotted field
 # of the one-line refusal. "sil" only for files with a [controller].
 MATRIX: dict[str, dict[str, str]] = {
     # DHP design files: simulate trains, then runs the closed loop (slow). No plant to export;
@@ -93,7 +94,7 @@ MATRIX: dict[str, dict[str, str]] = {
                               "sil": SLOW},
     "sil_hil.toml": {"simulate": "operation.surface_torque",
                      "export-fmu": "link.mode", "gym": "link.mode",  # HIL: bit from the rig
-                     "sil": "rig"},  # needs the rig on the link: test_udp_recipe below
+                     "sil": RIG},  # needs the rig on the link: test_udp_recipe below
     "sil_open_loop.toml": {"simulate": "model.interface", "export-fmu": RUN,
                            "gym": "model.interface", "sil": RUN},
     "sil_pi_hybrid68.toml": {"simulate": "model.interface", "export-fmu": RUN, "gym": RUN,
@@ -203,7 +204,7 @@ def check_gym(path, expected):
 def _cases():
     for name, row in MATRIX.items():
         for command, expected in row.items():
-            if expected == "rig":
+            if expected == RIG:
                 continue
             marks = [pytest.mark.slow] if expected == SLOW else []
             yield pytest.param(name, command, expected, marks=marks, id=f"{name}-{command}")
