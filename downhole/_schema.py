@@ -1190,7 +1190,18 @@ def only_keys(data: dict, source: str, allowed: tuple[str, ...], what: str) -> N
         parent = dotted.rsplit(".", 1)[0] if "." in dotted else ""
         near = [a for a in allowed if parent and a.startswith(parent + ".")]
         hint = f"; it reads {', '.join(near)}" if near else ""
+        owner = next((cmd for key, cmd in OTHER_COMMANDS.items()
+                      if dotted == key or dotted.startswith(key + ".")), None)
+        if owner:
+            hint += f"; {owner} reads it"
         raise ScenarioError(source, dotted, f"not used by {what}{hint} (see docs/scenarios.md)")
+
+
+#: Keys that only another command reads (named by :func:`only_keys`' refusal).
+OTHER_COMMANDS = {"optimize": "`downhole optimize dp`", "sweep": "`downhole sweep`",
+                  "model.interface": "`downhole sil`", "link": "`downhole sil`",
+                  "realtime": "`downhole sil`", "safety": "`downhole sil`",
+                  "dashboard": "`downhole sil`"}
 
 
 def _known(dotted: str) -> bool:

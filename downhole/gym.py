@@ -114,15 +114,20 @@ class DrillingEnv(gym.Env):
         ------
         ScenarioError
             A bad file (one line naming the file and the dotted field).
-        DownholeInputError
-            A plant with the ``state`` interface (the environment drives the surface).
+            A plant with the ``state`` interface (the environment drives the surface), a HIL
+            plant (``[link] mode = "hil"``: its bit velocities come from a rig on the link).
         """
+        from downhole.errors import ScenarioError
         from downhole.sil.scenario import build_from_scenario, load_sil_scenario
 
         sc = load_sil_scenario(path)
         if sc.model.interface != "surface":
-            raise DownholeInputError(f"{path}: model.interface = {sc.model.interface!r}; the "
-                                     "environment drives the surface (interface = 'surface')")
+            raise ScenarioError(str(path), "model.interface", f"{sc.model.interface!r}: the "
+                                "environment drives the surface (interface = 'surface')")
+        if sc.link.mode == "hil":
+            raise ScenarioError(str(path), "link.mode", "'hil': the HIL plant takes its bit "
+                                "velocities from a rig over the link; the environment has no "
+                                "link (remove [link] mode to train on the plant alone)")
         plant, _ = build_from_scenario(sc, with_controller=False)
         kw = dict(dt=sc.simulation.dt, episode_seconds=sc.simulation.duration,
                   reference=(sc.reference.axial_velocity, sc.reference.angular_velocity))

@@ -198,7 +198,7 @@ def sil(scenario: Path = typer.Argument(..., help="SIL scenario TOML (docs/sil.m
         if progress and not cfile:
             _design_note(sc, "plant")
     plant, ctrl = build_from_scenario(sc, controller_file=cfile, allow_code=allow_code,
-                                      progress=progress)
+                                      progress=progress, source=str(scenario))
     hil = sc.link.mode == "hil"
     use_link = sc.controller.remote or hil
     every = max(1, int(round(sim.record_dt / sim.dt)))
@@ -436,7 +436,8 @@ def sil_controller(port: int | None = typer.Option(
     else:
         if progress:
             _design_note(sc, "controller")
-        _, ctrl = build_from_scenario(sc, allow_code=allow_code, progress=progress)
+        _, ctrl = build_from_scenario(sc, allow_code=allow_code, progress=progress,
+                                      source=str(scenario))
         if ctrl is None:
             raise DownholeInputError(f"{scenario}: the scenario defines no controller "
                                      f"([controller] type = {sc.controller.type!r})")

@@ -109,6 +109,7 @@ line naming the key to use (:data:`downhole.scenario.schema.RENAMES`).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from pathlib import Path
 
@@ -347,6 +348,10 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
     plan = None
     if d.plan is not None:
         plan = _plan(src, d.plan, plant_source)
+        if plan.duration >= horizon:  # checked by the trainer only after the design
+            raise ScenarioError(src, "controller.dhp.training.horizon", f"{horizon:g} s: the "
+                                f"planned start-up (controller.dhp.plan.duration = "
+                                f"{plan.duration:g} s) must be shorter than the trained horizon")
 
     # --------------------------------------------------------------------- simulation
     sim = None
@@ -357,7 +362,7 @@ def parse_dhp_scenario(data: dict, src: str = "<dict>", text: str = "",
             "design": {"use_feed_forward": tr.use_feed_forward,
                        "past_horizon": tr.past_horizon},
             "plant": plant, "simulation": sim, "text": text,
-            "controller_file": controller_file, "plan": plan, "title": sc.title}
+            "controller_file": controller_file, "plan": plan, "title": sc.title, "source": src}
 
 
 def _simulation(src, s: SimulationTable, horizon, dt, plant) -> dict:
@@ -597,10 +602,26 @@ def design_from_scenario(sc: dict, progress: bool = False):
 
     kw = dict(horizon=sc["horizon"], weights=sc["weights"], settings=sc["settings"],
               progress=progress, **sc["design"])
-    if sc.get("plan") is None:
-        return design_dhp(sc["model"], sc["reference"], **kw)
-    return design_dhp_planned(sc["model"], sc["plant_source"][1], sc["reference"],
-                              plan_settings=sc["plan"], **kw)
+    with training_errors(sc.get("source", "<dict>")):
+        if sc.get("plan") is None:
+            return design_dhp(sc["model"], sc["reference"], **kw)
+        return design_dhp_planned(sc["model"], sc["plant_source"][1], sc["reference"],
+                                  plan_settings=sc["plan"], **kw)
+
+
+@contextlib.contextmanager
+def training_errors(src: str):
+    """Turn the trainer's refusal of the file's training settings (``n_samples`` below the
+    basis size of the trained model, known only once the model is augmented) into one line
+    naming the file and ``controller.dhp.training``."""
+    try:
+        yield
+    except ScenarioError:
+        raise
+    except DownholeInputError as exc:
+        field = "controller.dhp.training" + (".n_samples" if str(exc).startswith("n_samples")
+                                             else "")
+        raise ScenarioError(src, field, str(exc)) from None
 
 
 def run_scenario_simulation(sc: dict, ctrl):

@@ -56,6 +56,8 @@ what that schema leaves to the reading command (its None defaults) resolved to t
   table_2_1); ``model.fem.n_elements``: 23;
 - ``[operation]``: ``wob`` 120 kN, ``surface_speed`` 10 rad/s, ``surface_torque`` 0, ``rop``
   10 mm/s; constants only (a ``[[t, value], ...]`` profile is refused naming the key);
+  ``mode`` only ``"velocity"`` of a lumped plant (what it is: velocity-driven);
+- ``simulation.integrator``: only ``"euler"`` of a lumped plant (its scheme);
 - ``[simulation]``: ``dt`` 1 ms (the real-time period), ``duration`` 20 s, ``record_dt`` 10 ms;
 - ``controller.type``: "pi" (the SIL runs none | pi | dhp | file); ``[controller.dhp]``:
   ``design`` hybrid24 (hybrid24 | hybrid68), ``weights`` "robust" (robust | design | planned),
@@ -103,8 +105,8 @@ SIL_KEYS: dict[str, tuple[str, ...]] = {
          "controller", "reference", "link", "safety", "dashboard"),
     "model": ("fidelity", "preset", "interface", "fem"),
     "model.fem": ("n_elements",),
-    "operation": ("wob", "surface_speed", "surface_torque", "rop"),
-    "simulation": ("dt", "duration", "record_dt", "depth_of_cut", "start"),
+    "operation": ("wob", "surface_speed", "surface_torque", "rop", "mode"),
+    "simulation": ("dt", "duration", "record_dt", "depth_of_cut", "start", "integrator"),
     "controller.dhp": ("design", "weights", "training"),
     "controller.dhp.training": ("horizon", "n_samples"),
     "reference": ("type", "axial_velocity", "angular_velocity", "axial_velocity_min",
@@ -178,6 +180,20 @@ def _resolve(sc: Scenario, source: str) -> None:
                             f"(Table {'5.1' if m.fidelity == 'fem' else '3.1'}); no preset here")
     if m.fem.n_elements is None:
         m.fem.n_elements = 23
+    if sc.operation.mode is not None and (not m.fidelity.startswith("lumped")
+                                          or sc.operation.mode != "velocity"):
+        why = ("its lumped plant is velocity-driven (mode = 'velocity' only)"
+               if m.fidelity.startswith("lumped") else "a lumped plant's key")
+        raise ScenarioError(source, "operation.mode", f"{sc.operation.mode!r} is not read by "
+                            f"the SIL at fidelity {m.fidelity!r}: {why} (see docs/sil.md)")
+    sim_set = sc.simulation.model_fields_set if sc.simulation is not None else set()
+    if "integrator" in sim_set and (not m.fidelity.startswith("lumped")
+                                    or sc.simulation.integrator != "euler"):
+        why = ("its lumped plant steps with explicit Euler (integrator = 'euler' only)"
+               if m.fidelity.startswith("lumped") else "each plant has its own scheme")
+        raise ScenarioError(source, "simulation.integrator", f"{sc.simulation.integrator!r} is "
+                            f"not read by the SIL at fidelity {m.fidelity!r}: {why} (see "
+                            "docs/sil.md)")
     for key, default in _OPERATION.items():
         _constant(sc.operation, key, default, source, "operation")
     if sc.simulation is None:
@@ -207,6 +223,14 @@ def _resolve(sc: Scenario, source: str) -> None:
         if t.n_samples < 2:
             raise ScenarioError(source, "controller.dhp.training.n_samples",
                                 f"at least 2 samples, got {t.n_samples}")
+        if d.weights == "planned":
+            from downhole.control.dhp.plan import PlanSettings
+
+            plan = PlanSettings().duration
+            if plan >= t.horizon:  # checked by the trainer only after the design
+                raise ScenarioError(source, "controller.dhp.training.horizon", f"{t.horizon:g} "
+                                    f"s: weights = 'planned' plans a {plan:g} s start-up, which "
+                                    "must be shorter than the trained horizon")
     if sc.reference is None:
         sc.reference = ReferenceTable()
     r = sc.reference
@@ -402,7 +426,14 @@ def dashboard_token(sc: Scenario) -> str | None:
     return token
 
 
-def _dhp(sc: Scenario, plant, progress: bool = False):
+def _dhp(sc: Scenario, plant, progress: bool = False, source: str = "<scenario>"):
+    from downhole.scenario.dhp import training_errors
+
+    with training_errors(source):
+        return _design_dhp(sc, plant, progress)
+
+
+def _design_dhp(sc: Scenario, plant, progress: bool = False):
     from downhole.control.dhp import BitReference, DHPSettings, PenaltyWeights, design_dhp
     from downhole.control.dhp.weight_sets import weight_set
 
@@ -452,7 +483,7 @@ def check_code_allowed(sc: Scenario, *, controller_file: str | None = None,
 
 def build_from_scenario(sc: Scenario, *, controller_file: str | None = None,
                         with_controller: bool = True, allow_code: bool = False,
-                        progress: bool = False):
+                        progress: bool = False, source: str = "<scenario>"):
     """``(plant, controller)`` for a scenario (controller None for ``type = "none"``, for
     ``remote = true`` or when ``with_controller`` is False).
 
@@ -470,6 +501,8 @@ def build_from_scenario(sc: Scenario, *, controller_file: str | None = None,
         executes code.
     progress : bool
         Show the DHP design's progress bars (``type = "dhp"``).
+    source : str
+        The file, for messages (a DHP design's training settings the trainer refuses).
 
     Raises
     ------
@@ -514,5 +547,5 @@ def build_from_scenario(sc: Scenario, *, controller_file: str | None = None,
         elif kind == "pi":
             ctrl = pi_controller_for(plant)
         elif kind == "dhp":
-            ctrl = _dhp(sc, plant, progress=progress)
+            ctrl = _dhp(sc, plant, progress=progress, source=source)
     return plant, ctrl
