@@ -66,6 +66,9 @@ MATRIX: dict[str, dict[str, str]] = {
     # DP problems: only `downhole optimize dp` reads [optimize]
     "dp_customized.toml": {"simulate": "optimize.method", "export-fmu": "optimize.method",
                            "gym": "optimize"},
+    # a DP problem on a described string: `optimize dp` derives its model (test_dp_described)
+    "dp_described.toml": {"simulate": "optimize.method", "export-fmu": "optimize.method",
+                          "gym": "well"},
     "dp_robust.toml": {"simulate": "optimize.method", "export-fmu": "optimize.method",
                        "gym": "optimize"},
     "dp_seed_regions.toml": {"simulate": "optimize.method", "export-fmu": "optimize.method",
@@ -119,6 +122,7 @@ FIDELITY_MATRIX: dict[str, dict[str, str]] = {
     # (its own fidelity, fem, is accepted by export-fmu)
     "directional_survey_soft_torque.toml": {**dict.fromkeys(FIDELITIES, (_OVERRIDE, "--fidelity")),
                                             "fem": (_OVERRIDE, RUN)},
+    "dp_described.toml": dict.fromkeys(FIDELITIES, "optimize.method"),
     "first_run.toml": {},
     "first_run_stickslip.toml": {},
     "oilfield_units.toml": {},
