@@ -90,9 +90,9 @@ def _sil(path):  # downhole sil, sil-controller --scenario and export-fmu
 
 
 def _dp(path):
-    from downhole.control.dp import load_problem
+    from downhole.scenario.system import load_dp_problem
 
-    load_problem(path)
+    load_dp_problem(path)  # what `downhole optimize dp` reads (a preset or a described string)
 
 
 def _design_dhp(path):

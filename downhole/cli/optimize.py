@@ -49,9 +49,8 @@ def dp(
     from rich.table import Table
 
     from downhole.control.dp import METHODS, replay_path, solve, trajectory_cost
-    from downhole.control.dp.problem import dp_problem_of
     from downhole.errors import DownholeInputError
-    from downhole.scenario.schema import read_scenario
+    from downhole.scenario.system import load_dp_problem
     from downhole.units import unit_label
 
     if method is not None and method not in METHODS:
@@ -59,13 +58,8 @@ def dp(
         raise DownholeInputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
     display = resolve_units(units, unit)
     check_output_path(out, kind="folder")
-    data, source, _ = read_scenario(scenario)
-    described = None
-    if "well" in data or "string" in data:  # the DP's 4th-order model from the description
-        from downhole.scenario.system import lumped_design_model
-
-        described = lumped_design_model(data, source)
-    problem, file_method = dp_problem_of(data, source, described)
+    # a preset's 4th-order model, or the one derived from a described well and string
+    problem, file_method = load_dp_problem(scenario)
     method = method or file_method or "customized"
     kwargs = {"regions": regions} if method == "customized" and regions is not None else {}
     with OutputFolder(out, SOLUTION_FILES, "optimize dp") as folder:

@@ -80,6 +80,7 @@ __all__ = [
     "build_system",
     "check_fidelity",
     "is_system_dialect",
+    "load_dp_problem",
     "lumped_design_model",
     "neutral_design_model",
     "parse_system",
@@ -436,3 +437,33 @@ def neutral_design_model(data: dict, source: str):
     except DownholeInputError as exc:
         raise ScenarioError(source, "model", f"neutral: {exc}") from None
     return model, sc.controller.options.design_options(), build_reference(sc)
+
+
+def load_dp_problem(path):
+    """Read a DP problem file, a preset's or a described system's: ``(problem, method)`` (what
+    ``downhole optimize dp`` reads; :func:`lumped_design_model` derives the model of a file with
+    [well] and [string]).
+
+    Parameters
+    ----------
+    path : str or Path
+        The problem file.
+
+    Returns
+    -------
+    (DPProblem, str or None)
+        The problem and ``optimize.method``.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and the field.
+    """
+    from downhole.control.dp.problem import dp_problem_of
+    from downhole.scenario.schema import read_scenario
+
+    data, source, _ = read_scenario(path)
+    described = None
+    if "well" in data or "string" in data:
+        described = lumped_design_model(data, source)
+    return dp_problem_of(data, source, described)

@@ -456,3 +456,52 @@ def build_plant(model: str = "hybrid68", *, interface: str = "surface", dt: floa
         sp.units.update(zip(dm.state_names, dm.state_units()))  # m, rad, m/s, rad/s by kind
         return sp
     raise DownholeInputError(f"interface must be 'surface' or 'state', got {interface!r}")
+
+
+def rig_plant(model, dt: float, *, inertia: float, kp: float, ki: float, speed: float,
+              wob: float, servo_stiffness: float = 1e7, servo_damping: float = 1e6,
+              block_mass: float = 0.0, depth_of_cut: str = "delayed",
+              name: str = "described") -> SilPlant:
+    """The surface-interface SIL plant of a described system's model at any fidelity: the rig's
+    PI top drive and force hook on the model's top node (a lumped chain and the neutral line
+    run under the rig's node, docs/scenarios.md), commands ``hook_load`` and
+    ``top_drive_angular_velocity``.
+
+    Parameters
+    ----------
+    model : ChainModel, NeutralModel or DirectionalModel
+        ``DrillingSystem.build(fidelity)``.
+    dt : float
+        Step, s.
+    inertia, kp, ki : float
+        The top drive: kg m^2, N m s/rad, N m/rad.
+    speed : float
+        The PI's open-loop set-point, rad/s.
+    wob : float
+        The force hook's WOB at the open-loop hook load, N.
+    servo_stiffness, servo_damping, block_mass : float
+        The hook servo (N/m, N s/m) and the block, kg.
+    depth_of_cut : {"delayed", "approximate"}
+        The bit's depth-of-cut model.
+    name : str
+        The plant's name.
+
+    Returns
+    -------
+    SilPlant
+    """
+    from downhole.control.topdrive import Hook, TopDrive
+    from downhole.string.fem import DirectionalPlant
+
+    p = DirectionalPlant(model, dt, top_drive=TopDrive(inertia=inertia, mode="pi", speed=speed,
+                                                       kp=kp, ki=ki),
+                         hook=Hook(mode="force", wob=wob, servo_stiffness=servo_stiffness,
+                                   servo_damping=servo_damping, block_mass=block_mass),
+                         depth_of_cut=depth_of_cut)
+    dflt = p.default_command()
+    weight = dflt["hook_load"] + wob
+    return SilPlant(p, ("hook_load", "top_drive_angular_velocity"),
+                    {"hook_load": dflt["hook_load"], "top_drive_angular_velocity": speed},
+                    {"hook_load": weight, "top_drive_angular_velocity": 0.0}, name=name,
+                    info={"model": "described", "interface": "surface",
+                          "n_states": 4 * p._pk.model.n_nodes})

@@ -132,8 +132,15 @@ def _with_fidelity(data: dict) -> dict:
     return {**data, "model": {"fidelity": "hybrid", **model}}
 
 
+#: What the SIL reads besides :data:`SIL_KEYS` of a file that describes its system.
+DESCRIBED_KEYS = {"": ("well", "string", "rig"),
+                  "model": ("friction", "rayleigh_alpha", "rayleigh_beta", "lump_length",
+                            "wave_section", "lumped4", "lumped12", "neutral", "hybrid")}
+
+
 def _refuse_unread(sc: Scenario, source: str) -> None:
-    """Refuse a key of the one schema that the SIL does not read (:data:`SIL_KEYS`)."""
+    """Refuse a key of the one schema that the SIL does not read (:data:`SIL_KEYS`; a
+    described system's also :data:`DESCRIBED_KEYS`)."""
     tables = {"": sc, "model": sc.model, "model.fem": sc.model.fem,
               "operation": sc.operation, "simulation": sc.simulation, "reference": sc.reference}
     if sc.controller.type == "dhp":
@@ -142,7 +149,7 @@ def _refuse_unread(sc: Scenario, source: str) -> None:
     for path, table in tables.items():
         if table is None:
             continue
-        reads = SIL_KEYS[path]
+        reads = SIL_KEYS[path] + (DESCRIBED_KEYS.get(path, ()) if sc.described else ())
         for key in type(table).model_fields:  # in the schema's order
             if key in table.model_fields_set and key not in reads:
                 where = f"[{path}]" if path else "the top level"
@@ -178,7 +185,9 @@ def _resolve(sc: Scenario, source: str) -> None:
     if m.fidelity in ("fem", "neutral") and m.preset is not None:
         raise ScenarioError(source, "model.preset", f"the {m.fidelity} plant is the seed's "
                             f"(Table {'5.1' if m.fidelity == 'fem' else '3.1'}); no preset here")
-    if m.fem.n_elements is None:
+    if sc.described:
+        _described_rules(sc, source)
+    elif m.fem.n_elements is None:
         m.fem.n_elements = 23
     if sc.operation.mode is not None and (not m.fidelity.startswith("lumped")
                                           or sc.operation.mode != "velocity"):
@@ -187,7 +196,7 @@ def _resolve(sc: Scenario, source: str) -> None:
         raise ScenarioError(source, "operation.mode", f"{sc.operation.mode!r} is not read by "
                             f"the SIL at fidelity {m.fidelity!r}: {why} (see docs/sil.md)")
     sim_set = sc.simulation.model_fields_set if sc.simulation is not None else set()
-    if "integrator" in sim_set and (not m.fidelity.startswith("lumped")
+    if "integrator" in sim_set and (not m.fidelity.startswith("lumped") or sc.described
                                     or sc.simulation.integrator != "euler"):
         why = ("its lumped plant steps with explicit Euler (integrator = 'euler' only)"
                if m.fidelity.startswith("lumped") else "each plant has its own scheme")
@@ -242,6 +251,48 @@ def _resolve(sc: Scenario, source: str) -> None:
         _constant(r, key, default, source, "reference")
 
 
+def _described_rules(sc: Scenario, source: str) -> None:
+    """What the SIL takes of a described system: its plant is the system's model at
+    ``[model] fidelity`` under the rig (the top drive's PI at ``surface_speed``, a force hook
+    at ``wob``), the surface interface, no preset."""
+    m = sc.model
+    if m.preset is not None:
+        raise ScenarioError(source, "model.preset", "a described system ([well], [string]) is "
+                            "its own plant: no preset")
+    if m.interface != "surface":
+        raise ScenarioError(source, "model.interface", "a described system's SIL plant has the "
+                            "surface interface (the rig's top drive and hook); the state "
+                            "interface is the DHP design FEM's (a hybrid preset)")
+    if sc.controller.type == "dhp":
+        raise ScenarioError(source, "controller.type", "the SIL's DHP runs on a hybrid "
+                            "preset's state interface, not on a described system")
+    if sc.link.mode == "hil":
+        raise ScenarioError(source, "link.mode", "the HIL rig's plant is a preset's; a "
+                            "described system runs in software")
+
+
+def _system_plant(sc: Scenario, source: str):
+    """The SIL plant of a described system: its model at ``[model] fidelity`` under the rig."""
+    from downhole.errors import DownholeInputError
+    from downhole.scenario.system import DESCRIBED, _build_options, build_system
+    from downhole.sil.plants import rig_plant
+
+    fid = sc.model.fidelity
+    system = build_system(sc, source, fid)
+    try:
+        model = system.build(fid, **_build_options(sc, fid))
+    except DownholeInputError as exc:
+        raise ScenarioError(source, "model.fidelity", f"{fid}: {exc}") from None
+    td, hk = sc.rig.top_drive, sc.rig.hook
+    op, sim = sc.operation, sc.simulation
+    return rig_plant(model, sim.dt, inertia=DESCRIBED["inertia"] if td.inertia is None
+                     else td.inertia, kp=DESCRIBED["kp"] if td.kp is None else td.kp,
+                     ki=DESCRIBED["ki"] if td.ki is None else td.ki,
+                     speed=op.surface_speed, wob=op.wob, servo_stiffness=hk.servo_stiffness,
+                     servo_damping=hk.servo_damping, block_mass=hk.block_mass,
+                     depth_of_cut=sim.depth_of_cut, name=f"{sc.title or 'described'} ({fid})")
+
+
 def _plant_name(sc: Scenario) -> str:
     """The name :func:`downhole.sil.plants.build_plant` takes for ``[model]``."""
     m = sc.model
@@ -283,8 +334,9 @@ def parse_sil_scenario(data: dict, source: str = "<dict>") -> Scenario:
     sc = parse(_with_fidelity(data), source)
     _refuse_unread(sc, source)
     _resolve(sc, source)
-    scenario_bit(sc, source)
-    if sc.model.fidelity.startswith("lumped") and sc.link.mode != "hil":
+    if not sc.described:
+        scenario_bit(sc, source)
+    if sc.model.fidelity.startswith("lumped") and sc.link.mode != "hil" and not sc.described:
         _check_lumped_step(sc, source)
     if sc.controller.type == "file" and not sc.controller.file:
         raise ScenarioError(source, "controller.file", "type = 'file' needs a file path")
@@ -377,8 +429,8 @@ def load_sil_scenario(path) -> Scenario:
     Parameters
     ----------
     path : str or Path
-        The scenario file; ``controller.file`` and ``dashboard.token_file`` are relative to
-        its folder.
+        The scenario file; ``controller.file``, ``dashboard.token_file`` and a described
+        well's ``survey`` are relative to its folder.
 
     Returns
     -------
@@ -399,6 +451,8 @@ def load_sil_scenario(path) -> Scenario:
         sc.controller.file = str(path.parent / sc.controller.file)
     if sc.dashboard.token_file and not Path(sc.dashboard.token_file).is_absolute():
         sc.dashboard.token_file = str(path.parent / sc.dashboard.token_file)
+    if sc.well is not None and sc.well.survey and not Path(sc.well.survey).is_absolute():
+        sc.well.survey = str(path.parent / sc.well.survey)
     return sc
 
 
@@ -516,7 +570,9 @@ def build_from_scenario(sc: Scenario, *, controller_file: str | None = None,
     if building:
         check_code_allowed(sc, controller_file=controller_file, allow_code=allow_code)
     m, op, sim = sc.model, sc.operation, sc.simulation
-    if sc.link.mode == "hil":
+    if sc.described:  # the system's model at its fidelity, under the rig
+        plant = _system_plant(sc, source)
+    elif sc.link.mode == "hil":
         from downhole.sil.hil import build_hil_plant
 
         plant = build_hil_plant(_plant_name(sc), dt=sim.dt, wob=op.wob,
