@@ -59,16 +59,17 @@ MATRIX: dict[str, dict[str, str]] = {
         "simulate": RUN,
         "export-fmu": "operation.surface_speed",  # a profile: the importer drives the input
         "gym": "model.wave_section", "sil": "model.wave_section"},  # SIL hybrids are presets
-    # described systems: the SIL (and so the environment) builds no described well or string
-    "directional_survey.toml": {"simulate": RUN, "export-fmu": RUN, "gym": "well"},
-    "directional_survey_soft_torque.toml": {"simulate": RUN, "export-fmu": RUN, "gym": "well",
-                                            "sil": "well"},
+    # described systems: the SIL (and so the environment) runs the system's model at its
+    # fidelity under the rig; a FEM preset with a described well is the preset's runner's
+    "directional_survey.toml": {"simulate": RUN, "export-fmu": RUN, "gym": RUN},
+    "directional_survey_soft_torque.toml": {"simulate": RUN, "export-fmu": RUN,
+                                            "gym": "model.preset", "sil": "model.preset"},
     # DP problems: only `downhole optimize dp` reads [optimize]
     "dp_customized.toml": {"simulate": "optimize.method", "export-fmu": "optimize.method",
                            "gym": "optimize"},
     # a DP problem on a described string: `optimize dp` derives its model (test_dp_described)
     "dp_described.toml": {"simulate": "optimize.method", "export-fmu": "optimize.method",
-                          "gym": "well"},
+                          "gym": "optimize"},
     "dp_robust.toml": {"simulate": "optimize.method", "export-fmu": "optimize.method",
                        "gym": "optimize"},
     "dp_seed_regions.toml": {"simulate": "optimize.method", "export-fmu": "optimize.method",
@@ -82,13 +83,13 @@ MATRIX: dict[str, dict[str, str]] = {
     # lumped presets (velocity mode, explicit Euler: what the SIL's lumped plant is)
     "fig2.3.toml": {"simulate": RUN, "export-fmu": RUN, "gym": RUN},
     "fig2.4.toml": {"simulate": RUN, "export-fmu": RUN, "gym": RUN},
-    "first_run.toml": {"simulate": RUN, "export-fmu": RUN, "gym": "well"},
-    "first_run_stickslip.toml": {"simulate": RUN, "export-fmu": RUN, "gym": "well"},
+    "first_run.toml": {"simulate": RUN, "export-fmu": RUN, "gym": RUN},
+    "first_run_stickslip.toml": {"simulate": RUN, "export-fmu": RUN, "gym": RUN},
     "models-4th-vs-12th.toml": {"simulate": RUN, "export-fmu": RUN, "gym": RUN},
     "neutral_open_loop.toml": {"simulate": RUN, "export-fmu": RUN,
                                "gym": "operation.axial_command"},  # the SIL's neutral: U_T, WOB
     "nominal_table_2_1.toml": {"simulate": RUN, "export-fmu": RUN, "gym": RUN},
-    "oilfield_units.toml": {"simulate": RUN, "export-fmu": RUN, "gym": "well"},
+    "oilfield_units.toml": {"simulate": RUN, "export-fmu": RUN, "gym": RUN},
     # SIL files: simulate runs no SIL controller / interface / link
     "sil_dashboard_lumped.toml": {"simulate": "controller.type",  # a lumped preset: open loop
                                   "export-fmu": RUN, "gym": RUN, "sil": RUN},
@@ -108,8 +109,8 @@ MATRIX: dict[str, dict[str, str]] = {
                               "gym": "sweep"},
     "sweep_stability_map.toml": {"simulate": "sweep.metrics", "export-fmu": "sweep.metrics",
                                  "gym": "sweep"},
-    "table_5_1.toml": {"simulate": RUN, "export-fmu": RUN, "gym": "well"},
-    "torque_drag.toml": {"simulate": RUN, "export-fmu": RUN, "gym": "well"},
+    "table_5_1.toml": {"simulate": RUN, "export-fmu": RUN, "gym": RUN},
+    "torque_drag.toml": {"simulate": RUN, "export-fmu": RUN, "gym": RUN},
 }
 
 # `simulate --fidelity F` and `export-fmu --fidelity F` of the files that describe a well and a

@@ -133,7 +133,7 @@ def _with_fidelity(data: dict) -> dict:
 
 
 #: What the SIL reads besides :data:`SIL_KEYS` of a file that describes its system.
-DESCRIBED_KEYS = {"": ("well", "string", "rig"),
+DESCRIBED_KEYS = {"": ("well", "string", "rig", "torque_drag"),
                   "model": ("friction", "rayleigh_alpha", "rayleigh_beta", "lump_length",
                             "wave_section", "lumped4", "lumped12", "neutral", "hybrid")}
 
