@@ -109,7 +109,7 @@ from downhole.scenario import (
     read_scenario_text,
 )
 
-__all__ = ["DIRECTIONAL_KEYS", "build_directional", "parse_directional",
+__all__ = ["DIRECTIONAL_KEYS", "build_directional",
            "run_directional_scenario", "validate_directional_scenario"]
 
 
@@ -153,19 +153,10 @@ def _simulation(sc: Scenario, source: str):
     return sim.duration, dt, rec
 
 
-def parse_directional(data: dict, source: str) -> Scenario:
-    """Validate a FEM / hybrid preset: the keys it reads, the one schema and its rules (a
-    controller pi, soft_torque or a saved dhp ``file``; a velocity hook takes ``rop``).
-
-    Parameters
-    ----------
-    data, source : dict, str
-        The parsed file and its name (for messages).
-
-    Returns
-    -------
-    Scenario
-    """
+def _parse_directional(data: dict, source: str) -> Scenario:
+    """The FEM / hybrid preset ``data`` validated: the keys it reads, the one schema and its
+    rules (a controller pi, soft_torque or a saved dhp ``file``; a velocity hook takes
+    ``rop``)."""
     _schema.only_keys(data, source, DIRECTIONAL_KEYS, "a FEM / hybrid preset")
     sc = parse_scenario(data, source)
     if sc.model.fidelity not in ("fem", "hybrid"):
@@ -533,7 +524,7 @@ def validate_directional_scenario(data: dict, source: str):
     ScenarioError
         Naming the file and the dotted field.
     """
-    sc = parse_directional(data, source)
+    sc = _parse_directional(data, source)
     params, _ = _params(sc, source)
     duration, dt, rec = _simulation(sc, source)
     model = build_directional(sc, source)
